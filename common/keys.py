@@ -1,0 +1,155 @@
+"""The only place where Zenoh key expressions are spelled.
+
+Every key is ``{prefix}/{robot}/perception/v1/{stream}[/{camera or service}...]``. The
+version segment changes only with an incompatible schema change, so old and new
+services never read each other's payloads by mistake.
+
+:data:`STREAMS` describes each stream: message type, publisher, subscribers and delivery
+policy. The README's key table is generated from it (``perception keys --markdown``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+__all__ = ["DEFAULT_PREFIX", "DEFAULT_ROBOT", "STREAMS", "Delivery", "Keys", "Stream", "validate_chunk"]
+
+DEFAULT_PREFIX = "pp"
+DEFAULT_ROBOT = "robot"
+API_VERSION = "v1"
+_FORBIDDEN = set("/*$?#")
+
+
+def validate_chunk(value: str, what: str) -> str:
+    """Check that ``value`` is one key-expression chunk (no '/', wildcards or '$?#')."""
+    if not value or any(c in _FORBIDDEN for c in value) or value != value.strip():
+        raise ValueError(f"{what} {value!r} must be a non-empty key chunk without '/', '*', '$', '?', '#' or spaces at the ends")
+    return value
+
+
+@dataclass(frozen=True)
+class Delivery:
+    """How a stream is delivered.
+
+    ``latest``: subscribers keep only the newest sample (a ring of one), so a slow
+    consumer always works on the freshest frame and never builds a queue.
+    Otherwise subscribers keep a FIFO of ``queue`` samples and count what overflows.
+    ``congestion``: what the publisher does when the network cannot keep up.
+    """
+
+    latest: bool
+    queue: int
+    congestion: Literal["drop", "block"]
+    express: bool = False
+
+    def describe(self) -> str:
+        sub = "latest-only (ring of 1)" if self.latest else f"FIFO of {self.queue}, overflow counted"
+        return f"{sub}; publisher {self.congestion}s on congestion" + ("; express" if self.express else "")
+
+
+FRAMES = Delivery(latest=True, queue=1, congestion="drop", express=True)
+RELIABLE = Delivery(latest=False, queue=256, congestion="block")
+STATUS = Delivery(latest=False, queue=64, congestion="drop")
+
+
+@dataclass(frozen=True)
+class Stream:
+    """One kind of key: its template under the base key and who uses it."""
+
+    name: str
+    template: str
+    message: str
+    publishers: str
+    subscribers: str
+    delivery: Delivery | None
+    kind: Literal["pub/sub", "liveliness", "query"] = "pub/sub"
+
+
+STREAMS: tuple[Stream, ...] = (
+    Stream("frames", "frames/{camera}", "RGBDFrame", "camera driver, simulator, replay", "detector, localizer, embedder", FRAMES),
+    Stream("detections", "detections/{camera}", "Detections", "detector", "localizer, embedder", RELIABLE),
+    Stream("localized", "localized/{camera}", "LocalizedDetections", "localizer", "tracker", RELIABLE),
+    Stream("embeddings", "embeddings/{camera}", "Embeddings", "embedder", "tracker", RELIABLE),
+    Stream("tracks", "tracks", "Tracks", "tracker", "navigation, HRI, recorder", RELIABLE),
+    Stream("tf", "tf", "TransformBatch", "localization, odometry, replay", "localizer", RELIABLE),
+    Stream("tf_static", "tf_static", "TransformBatch", "robot description, replay", "localizer", RELIABLE),
+    Stream("status", "status/{service}/{instance}", "ServiceStatus", "every service (1 Hz, and on query)", "perception status, monitors", STATUS),
+    Stream("alive", "alive/{service}/{instance}", "liveliness token", "every service", "perception status, launcher", None, "liveliness"),
+    Stream("track_query", "query/track", "query `?id=K` → TrackState", "tracker (queryable)", "any client", None, "query"),
+)
+
+
+@dataclass(frozen=True)
+class Keys:
+    """Key expressions of one robot. Pass ``"*"`` as a camera or service to match all."""
+
+    robot: str = DEFAULT_ROBOT
+    prefix: str = DEFAULT_PREFIX
+
+    def __post_init__(self) -> None:
+        for part in self.prefix.split("/"):
+            validate_chunk(part, "key prefix segment")
+        validate_chunk(self.robot, "robot name")
+
+    @property
+    def base(self) -> str:
+        return f"{self.prefix}/{self.robot}/perception/{API_VERSION}"
+
+    def _join(self, *chunks: str) -> str:
+        for c in chunks:
+            if c not in ("*", "**"):
+                validate_chunk(c, "key chunk")
+        return "/".join((self.base, *chunks))
+
+    def frames(self, camera: str) -> str:
+        return self._join("frames", camera)
+
+    def detections(self, camera: str) -> str:
+        return self._join("detections", camera)
+
+    def localized(self, camera: str) -> str:
+        return self._join("localized", camera)
+
+    def embeddings(self, camera: str) -> str:
+        return self._join("embeddings", camera)
+
+    def tracks(self) -> str:
+        return self._join("tracks")
+
+    def tf(self) -> str:
+        return self._join("tf")
+
+    def tf_static(self) -> str:
+        return self._join("tf_static")
+
+    def status(self, service: str = "*", instance: str = "*") -> str:
+        return self._join("status", service, instance)
+
+    def alive(self, service: str = "*", instance: str = "*") -> str:
+        return self._join("alive", service, instance)
+
+    def track_query(self) -> str:
+        return self._join("query", "track")
+
+    def all(self) -> str:
+        return self._join("**")
+
+    def stream_of(self, key: str) -> str | None:
+        """The stream name of a concrete key under this robot's base, or None."""
+        if not key.startswith(self.base + "/"):
+            return None
+        first = key[len(self.base) + 1 :].split("/", 1)[0]
+        return first if any(s.template.split("/", 1)[0] == first for s in STREAMS) else None
+
+    def markdown_table(self) -> str:
+        """The key table for the README."""
+        rows = [
+            "| key (under `" + self.base.replace(self.robot, "{robot}").replace(self.prefix, "{prefix}", 1) + "/`) "
+            "| message | published by | subscribed by | delivery |",
+            "|---|---|---|---|---|",
+        ]
+        for s in STREAMS:
+            delivery = s.delivery.describe() if s.delivery else s.kind
+            rows.append(f"| `{s.template}` | {s.message} | {s.publishers} | {s.subscribers} | {delivery} |")
+        return "\n".join(rows)

@@ -1,0 +1,470 @@
+"""Every message on the wire, as versioned pydantic v2 models.
+
+Conventions (shared by every service):
+
+* ``header.stamp_ns`` is the *sensor* time of the source frame in nanoseconds, and
+  ``header.seq`` its sequence number. Derived messages (detections, localized detections,
+  embeddings) copy both from the frame they were computed from, so they can be joined
+  on ``(header.source, header.stamp_ns, header.seq)``.
+* ``header.source`` names the sensor stream the data comes from (for example the camera
+  name ``head``); ``header.frame_id`` is the coordinate frame of the payload.
+* Transforms follow the ROS TF convention: a transform ``parent -> child`` maps points
+  expressed in ``child`` into ``parent`` (``p_parent = R @ p_child + t``).
+* Units are SI: metres, seconds (``*_s``), nanoseconds (``*_ns``), pixels for boxes.
+* Within one schema version fields are only ever added, each with a default; decoders
+  ignore fields they do not know, so a newer publisher can talk to an older subscriber.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, ClassVar, Literal, TypeVar
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from common.arrays import NDArray, arrays_equal
+
+__all__ = [
+    "MESSAGE_TYPES",
+    "AppearanceThresholds",
+    "CameraInfo",
+    "Detection",
+    "Detections",
+    "Embeddings",
+    "Header",
+    "Image",
+    "LocalizedDetection",
+    "LocalizedDetections",
+    "Message",
+    "ModelCard",
+    "RGBDFrame",
+    "ServiceStatus",
+    "TrackState",
+    "Tracks",
+    "Transform",
+    "TransformBatch",
+]
+
+M = TypeVar("M", bound="Message")
+
+#: Every top-level message type by its schema name.
+MESSAGE_TYPES: dict[str, type[Message]] = {}
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(
+        extra="ignore",
+        arbitrary_types_allowed=True,
+        ser_json_bytes="base64",
+        val_json_bytes="base64",
+        ser_json_inf_nan="constants",
+    )
+
+    def __eq__(self, other: object) -> bool:
+        if type(self) is not type(other):
+            return NotImplemented
+        assert isinstance(other, BaseModel)
+        return arrays_equal(self.model_dump(), other.model_dump())
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+class Header(_Model):
+    """Time, frame and origin of a message."""
+
+    stamp_ns: int = Field(ge=0, description="sensor time of the source data, ns since the epoch")
+    frame_id: str = Field(default="", description="coordinate frame of the payload")
+    seq: int = Field(default=0, ge=0, description="sequence number of the source frame")
+    source: str = Field(default="", description="sensor stream the data derives from, e.g. 'head'")
+
+
+class Message(_Model):
+    """Base of every top-level message. ``SCHEMA_NAME`` and ``SCHEMA_VERSION`` travel with it."""
+
+    SCHEMA_NAME: ClassVar[str] = ""
+    SCHEMA_VERSION: ClassVar[int] = 0
+
+    header: Header
+
+
+def message(name: str, version: int) -> Callable[[type[M]], type[M]]:
+    """Register a message class under a schema name and version."""
+
+    def register(cls: type[M]) -> type[M]:
+        if name in MESSAGE_TYPES:
+            raise ValueError(f"schema {name!r} registered twice")
+        cls.SCHEMA_NAME = name
+        cls.SCHEMA_VERSION = version
+        MESSAGE_TYPES[name] = cls
+        return cls
+
+    return register
+
+
+def _finite(values: Any, what: str) -> None:
+    if not np.all(np.isfinite(np.asarray(values, dtype=np.float64))):
+        raise ValueError(f"{what} must be finite")
+
+
+# --------------------------------------------------------------------------- images
+
+ImageEncoding = Literal["rgb8", "bgr8", "mono8", "16UC1", "32FC1", "jpeg", "png"]
+_RAW_LAYOUT: dict[str, tuple[str, int]] = {
+    "rgb8": ("uint8", 3),
+    "bgr8": ("uint8", 3),
+    "mono8": ("uint8", 1),
+    "16UC1": ("uint16", 1),  # depth in millimetres, 0 = invalid
+    "32FC1": ("float32", 1),  # depth in metres, NaN or 0 = invalid
+}
+
+
+@message("perception.Image", 1)
+class Image(Message):
+    """An image as raw bytes plus dtype and shape.
+
+    Raw encodings hold ``data`` row-major with ``shape`` ``(H, W)`` or ``(H, W, 3)``.
+    ``jpeg`` and ``png`` hold the compressed file, and ``shape``/``dtype`` describe the
+    decoded image (a 16-bit PNG is a millimetre depth image).
+    """
+
+    encoding: ImageEncoding
+    dtype: Literal["uint8", "uint16", "float32"]
+    shape: tuple[int, ...]
+    data: bytes
+
+    @property
+    def height(self) -> int:
+        return self.shape[0]
+
+    @property
+    def width(self) -> int:
+        return self.shape[1]
+
+    @property
+    def is_depth(self) -> bool:
+        return self.encoding in ("16UC1", "32FC1") or (self.encoding == "png" and self.dtype == "uint16")
+
+    @model_validator(mode="after")
+    def _check_layout(self) -> Image:
+        if len(self.shape) not in (2, 3) or any(d <= 0 for d in self.shape):
+            raise ValueError(f"shape must be (H, W) or (H, W, C) with positive sizes, got {self.shape}")
+        if len(self.shape) == 3 and self.shape[2] not in (1, 3, 4):
+            raise ValueError(f"channel count must be 1, 3 or 4, got {self.shape[2]}")
+        layout = _RAW_LAYOUT.get(self.encoding)
+        if layout is None:  # compressed
+            if not self.data:
+                raise ValueError(f"{self.encoding} image has no data")
+            if self.encoding == "jpeg" and self.dtype != "uint8":
+                raise ValueError("jpeg images are uint8")
+            return self
+        dtype, channels = layout
+        if self.dtype != dtype:
+            raise ValueError(f"encoding {self.encoding} needs dtype {dtype}, got {self.dtype}")
+        got_channels = self.shape[2] if len(self.shape) == 3 else 1
+        if got_channels != channels:
+            raise ValueError(f"encoding {self.encoding} needs {channels} channel(s), got {got_channels}")
+        expected = math.prod(self.shape) * np.dtype(dtype).itemsize
+        if len(self.data) != expected:
+            raise ValueError(f"data holds {len(self.data)} bytes, shape {self.shape} of {dtype} needs {expected}")
+        return self
+
+    @classmethod
+    def from_array(cls, array: np.ndarray, encoding: ImageEncoding, header: Header, quality: int = 90) -> Image:
+        """Build an image message from an array.
+
+        ``array`` is (H, W, 3) uint8 for rgb8/bgr8 (in that channel order), (H, W) uint8
+        for mono8, (H, W) uint16 millimetres for 16UC1, (H, W) float32 metres for 32FC1.
+        ``jpeg``/``png`` compress an RGB (H, W, 3) uint8 array, or for png also a
+        (H, W) uint16 depth image.
+        """
+        arr = np.ascontiguousarray(array)
+        if encoding in _RAW_LAYOUT:
+            return cls(header=header, encoding=encoding, dtype=arr.dtype.name, shape=arr.shape, data=arr.tobytes())
+        import cv2
+
+        to_write = cv2.cvtColor(arr, cv2.COLOR_RGB2BGR) if arr.ndim == 3 else arr
+        params = [cv2.IMWRITE_JPEG_QUALITY, quality] if encoding == "jpeg" else []
+        ok, buf = cv2.imencode("." + ("jpg" if encoding == "jpeg" else "png"), to_write, params)
+        if not ok:
+            raise ValueError(f"could not encode a {arr.dtype.name} {arr.shape} array as {encoding}")
+        return cls(header=header, encoding=encoding, dtype=arr.dtype.name, shape=arr.shape, data=buf.tobytes())
+
+    def to_array(self) -> np.ndarray:
+        """The pixels: RGB order for colour images (bgr8 and compressed are converted)."""
+        if self.encoding in _RAW_LAYOUT:
+            arr = np.frombuffer(self.data, dtype=self.dtype).reshape(self.shape)
+            return arr[..., ::-1] if self.encoding == "bgr8" else arr
+        import cv2
+
+        decoded = cv2.imdecode(np.frombuffer(self.data, np.uint8), cv2.IMREAD_UNCHANGED)
+        if decoded is None:
+            raise ValueError(f"{self.encoding} data could not be decoded")
+        if decoded.ndim == 3:
+            decoded = cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB)
+        if decoded.shape != self.shape:
+            raise ValueError(f"decoded {self.encoding} has shape {decoded.shape}, header says {self.shape}")
+        return decoded
+
+    def depth_m(self) -> np.ndarray:
+        """Depth in metres as (H, W) float32, invalid pixels (0, NaN) as NaN."""
+        if not self.is_depth:
+            raise ValueError(f"encoding {self.encoding} is not a depth image (use 16UC1 or 32FC1)")
+        arr = self.to_array()
+        if arr.dtype == np.uint16:
+            out = arr.astype(np.float32) * np.float32(0.001)
+        else:
+            out = arr.astype(np.float32, copy=True)
+        out[~(out > 0)] = np.nan
+        return out
+
+
+@message("perception.CameraInfo", 1)
+class CameraInfo(Message):
+    """Pinhole intrinsics and distortion of a camera (ROS ``sensor_msgs/CameraInfo``)."""
+
+    width: int = Field(gt=0)
+    height: int = Field(gt=0)
+    K: NDArray(np.float64, (3, 3))  # type: ignore[valid-type]
+    D: NDArray(np.float64, (None,)) = Field(default_factory=lambda: np.zeros(0))  # type: ignore[valid-type]
+    distortion_model: Literal["plumb_bob", "rational_polynomial", "equidistant", "none"] = "plumb_bob"
+
+    @model_validator(mode="after")
+    def _check(self) -> CameraInfo:
+        _finite(self.K, "K")
+        _finite(self.D, "D")
+        if not (self.K[0, 0] > 0 and self.K[1, 1] > 0):
+            raise ValueError("K: focal lengths fx = K[0,0] and fy = K[1,1] must be positive")
+        if not np.allclose(self.K[2], [0.0, 0.0, 1.0]):
+            raise ValueError("K: last row must be [0, 0, 1]")
+        allowed = {"plumb_bob": (0, 5), "rational_polynomial": (0, 8), "equidistant": (0, 4), "none": (0,)}
+        if len(self.D) not in allowed[self.distortion_model]:
+            raise ValueError(f"D: {self.distortion_model} takes {allowed[self.distortion_model]} coefficients, got {len(self.D)}")
+        return self
+
+
+
+@message("perception.RGBDFrame", 1)
+class RGBDFrame(Message):
+    """The colour image, the registered depth image and the intrinsics of one instant.
+
+    Depth is registered to the colour image (same size, same intrinsics). It may be
+    absent on an RGB-only camera.
+    """
+
+    rgb: Image
+    depth: Image | None = None
+    camera_info: CameraInfo
+
+    @model_validator(mode="after")
+    def _check(self) -> RGBDFrame:
+        if self.rgb.is_depth:
+            raise ValueError(f"rgb: encoding {self.rgb.encoding} is a depth encoding")
+        if self.depth is not None:
+            if not self.depth.is_depth:
+                raise ValueError(f"depth: encoding {self.depth.encoding} is not 16UC1, 32FC1 or 16-bit png")
+            if self.depth.shape[:2] != self.rgb.shape[:2]:
+                raise ValueError(f"depth: shape {self.depth.shape[:2]} differs from rgb {self.rgb.shape[:2]}")
+        if (self.camera_info.height, self.camera_info.width) != self.rgb.shape[:2]:
+            raise ValueError("camera_info: width/height differ from the rgb image")
+        return self
+
+
+# ----------------------------------------------------------------------- transforms
+
+
+class Transform(_Model):
+    """Pose of ``child_frame`` in ``parent_frame`` at ``stamp_ns`` (ROS TF convention)."""
+
+    parent_frame: str = Field(min_length=1)
+    child_frame: str = Field(min_length=1)
+    stamp_ns: int = Field(ge=0)
+    translation: NDArray(np.float64, (3,))  # type: ignore[valid-type]
+    rotation_xyzw: NDArray(np.float64, (4,))  # type: ignore[valid-type]
+    static: bool = False
+
+    @field_validator("translation")
+    @classmethod
+    def _finite_translation(cls, v: np.ndarray) -> np.ndarray:
+        _finite(v, "translation")
+        return v
+
+    @field_validator("rotation_xyzw")
+    @classmethod
+    def _unit_quaternion(cls, v: np.ndarray) -> np.ndarray:
+        _finite(v, "rotation_xyzw")
+        norm = float(np.linalg.norm(v))
+        if not 0.5 < norm < 1.5:
+            raise ValueError(f"rotation_xyzw must be a unit quaternion, norm is {norm:.3g}")
+        return v / norm
+
+    @model_validator(mode="after")
+    def _distinct(self) -> Transform:
+        if self.parent_frame == self.child_frame:
+            raise ValueError(f"parent_frame and child_frame are both {self.parent_frame!r}")
+        return self
+
+
+@message("perception.TransformBatch", 1)
+class TransformBatch(Message):
+    """Transforms published together, e.g. one TF message or the static transforms."""
+
+    transforms: list[Transform]
+
+
+# ------------------------------------------------------------------------ detections
+
+BBox = tuple[float, float, float, float]
+
+
+class Detection(_Model):
+    """One person box in pixel coordinates of the source image."""
+
+    index: int = Field(ge=0, description="position of this detection in its frame")
+    bbox_xyxy: BBox
+    score: float = Field(ge=0.0, le=1.0)
+    class_id: int = 0
+    class_name: str = "person"
+
+    @field_validator("bbox_xyxy")
+    @classmethod
+    def _finite_box(cls, v: BBox) -> BBox:
+        _finite(v, "bbox_xyxy")
+        return v
+
+
+@message("perception.Detections", 1)
+class Detections(Message):
+    """All detections of one source frame; ``header`` is that frame's header."""
+
+    detections: list[Detection] = Field(default_factory=list)
+    image_width: int = Field(default=0, ge=0)
+    image_height: int = Field(default=0, ge=0)
+    detector: str = ""
+    inference_ms: float | None = None
+
+
+class LocalizedDetection(_Model):
+    """A detection placed in the target frame (normally ``map``)."""
+
+    index: int = Field(ge=0, description="index of the detection in its source frame")
+    bbox_xyxy: BBox
+    score: float = Field(ge=0.0, le=1.0)
+    position: NDArray(np.float64, (3,))  # type: ignore[valid-type]
+    cov: NDArray(np.float64, (3, 3))  # type: ignore[valid-type]
+    depth_m: float = Field(gt=0.0, description="depth used along the optical axis")
+    valid_pixels: int = Field(default=0, ge=0)
+
+    @model_validator(mode="after")
+    def _check(self) -> LocalizedDetection:
+        _finite(self.position, "position")
+        _finite(self.cov, "cov")
+        return self
+
+
+@message("perception.LocalizedDetections", 1)
+class LocalizedDetections(Message):
+    """People positions of one source frame.
+
+    ``header.stamp_ns``/``header.seq``/``header.source`` are the source frame's;
+    ``header.frame_id`` is the frame the positions are in (``map``).
+    """
+
+    camera_frame: str = ""
+    detections: list[LocalizedDetection] = Field(default_factory=list)
+    rejected: dict[str, int] = Field(default_factory=dict, description="boxes rejected in this frame, by reason")
+
+
+# ------------------------------------------------------------------------ embeddings
+
+
+class AppearanceThresholds(_Model):
+    """Tracker thresholds on this model's distance scale (seed 000, Algorithms 1 and 2)."""
+
+    t_lower: float = Field(ge=0.0)
+    t_upper: float = Field(gt=0.0)
+    t_recover: float = Field(gt=0.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> AppearanceThresholds:
+        if not self.t_lower < self.t_upper:
+            raise ValueError(f"t_lower ({self.t_lower}) must be below t_upper ({self.t_upper})")
+        return self
+
+
+class ModelCard(_Model):
+    """What produced a set of descriptors. Descriptors of different models never mix."""
+
+    name: str = Field(min_length=1)
+    dim: int = Field(gt=0)
+    metric: Literal["euclidean", "cosine"] = "euclidean"
+    input_size: tuple[int, int] | None = Field(default=None, description="(H, W) of the model input")
+    normalized: bool = False
+    thresholds: AppearanceThresholds | None = None
+
+
+@message("perception.Embeddings", 1)
+class Embeddings(Message):
+    """Appearance descriptors of one source frame, one per detection index."""
+
+    model: ModelCard
+    indices: NDArray(np.int32, (None,))  # type: ignore[valid-type]
+    vectors: NDArray(np.float32, (None, None))  # type: ignore[valid-type]
+
+    @model_validator(mode="after")
+    def _check(self) -> Embeddings:
+        n = len(self.indices)
+        if self.vectors.shape[0] != n:
+            raise ValueError(f"vectors: {self.vectors.shape[0]} rows for {n} indices")
+        if n and self.vectors.shape[1] != self.model.dim:
+            raise ValueError(f"vectors: dimension {self.vectors.shape[1]}, model {self.model.name} says {self.model.dim}")
+        if len(set(self.indices.tolist())) != n:
+            raise ValueError("indices: duplicate detection index")
+        return self
+
+
+# ---------------------------------------------------------------------------- tracks
+
+
+class TrackState(_Model):
+    """One track. ``covariance`` is over the state (x, y, z, vx, vy, vz)."""
+
+    id: int = Field(ge=0)
+    status: Literal["tentative", "confirmed", "deleted"]
+    position: NDArray(np.float64, (3,))  # type: ignore[valid-type]
+    velocity: NDArray(np.float64, (3,))  # type: ignore[valid-type]
+    covariance: NDArray(np.float64, (6, 6))  # type: ignore[valid-type]
+    last_update_ns: int = Field(ge=0)
+    hits: int = Field(ge=0)
+    age_s: float = Field(ge=0.0)
+    misses: int = Field(default=0, ge=0)
+    appearance_available: bool = True
+
+
+@message("perception.Tracks", 1)
+class Tracks(Message):
+    """The tracker's output after one update; ``header.frame_id`` is the tracking frame."""
+
+    tracks: list[TrackState] = Field(default_factory=list)
+    appearance_available: bool = True
+    embedding_model: str = ""
+
+
+# ---------------------------------------------------------------------------- status
+
+
+@message("perception.ServiceStatus", 1)
+class ServiceStatus(Message):
+    """Health and counters of one running service instance."""
+
+    name: str = Field(min_length=1)
+    instance: str = ""
+    host: str = ""
+    pid: int = 0
+    version: str = ""
+    uptime_s: float = Field(default=0.0, ge=0.0)
+    received: int = Field(default=0, ge=0)
+    published: int = Field(default=0, ge=0)
+    dropped: int = Field(default=0, ge=0)
+    invalid: int = Field(default=0, ge=0)
+    extra: dict[str, float] = Field(default_factory=dict, description="service-specific counters and gauges")

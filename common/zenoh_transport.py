@@ -1,0 +1,130 @@
+"""The Zenoh implementation of :class:`common.transport.Transport`."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any, Callable
+
+import zenoh
+
+from common.codec import DecodeError, decode_any, encode
+from common.keys import Delivery
+from common.schemas import Message
+from common.transport import Closer, Inbox, Publisher, QueryHandler, Token, Transport, parse_parameters
+from common.zenoh_config import ZenohOptions, build_zenoh_config
+
+__all__ = ["TransportError", "ZenohTransport", "open_transport"]
+
+log = logging.getLogger(__name__)
+_ENCODING = "application/msgpack"
+
+
+class TransportError(RuntimeError):
+    """The Zenoh session could not be opened; the message says what to try."""
+
+
+def open_session(opts: ZenohOptions) -> zenoh.Session:
+    """Open a Zenoh session, turning the usual failures into an actionable message."""
+    try:
+        conf = build_zenoh_config(opts)
+    except zenoh.ZError as exc:
+        raise TransportError(f"invalid Zenoh configuration ({opts.describe()}): {exc}") from exc
+    try:
+        return zenoh.open(conf)
+    except zenoh.ZError as exc:
+        text = str(exc)
+        if "Address already in use" in text:
+            hint = "another process listens on that endpoint; pick another port with --listen"
+        elif opts.mode == "client":
+            hint = ("no Zenoh router answered; start one with `perception router`, point --connect at "
+                    "yours, or use --mode peer")
+        else:
+            hint = "check the endpoints and the config file"
+        raise TransportError(f"could not open a Zenoh session ({opts.describe()}): {text.split(' at ')[0]}. {hint}") from exc
+
+
+def _matching(pub: Any) -> bool:
+    status = pub.matching_status
+    return bool(getattr(status, "matching", status))
+
+
+class ZenohTransport(Transport):
+    """Typed pub/sub, liveliness and queries on one Zenoh session, which it owns."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        super().__init__()
+        self.session = session
+
+    def publisher(self, key: str, model: type, delivery: Delivery) -> Publisher:  # type: ignore[type-arg]
+        pub = self.session.declare_publisher(
+            key,
+            encoding=zenoh.Encoding(_ENCODING),
+            congestion_control=zenoh.CongestionControl.DROP if delivery.congestion == "drop" else zenoh.CongestionControl.BLOCK,
+            priority=zenoh.Priority.DATA,
+            express=delivery.express,
+        )
+        wrapped: Publisher[Any] = Publisher(key, model, pub.put, lambda: _matching(pub), pub.undeclare)
+        self._closeables.append(wrapped)
+        return wrapped
+
+    def _subscribe(self, key: str, inbox: Inbox) -> Callable[[], None]:
+        def on_sample(sample: zenoh.Sample) -> None:
+            if sample.kind == zenoh.SampleKind.PUT:
+                inbox.push(str(sample.key_expr), sample)
+
+        sub = self.session.declare_subscriber(key, on_sample)
+        return sub.undeclare
+
+    def declare_token(self, key: str) -> Token:
+        tok = self.session.liveliness().declare_token(key)
+        token = Token(key, tok.undeclare)
+        self._closeables.append(token)
+        return token
+
+    def alive(self, pattern: str, timeout: float = 1.0) -> list[str]:
+        keys = {str(r.ok.key_expr) for r in self.session.liveliness().get(pattern, timeout=timeout) if r.ok is not None}
+        return sorted(keys)
+
+    def watch_alive(self, pattern: str, callback: Callable[[str, bool], None]) -> Callable[[], None]:
+        def on_sample(sample: zenoh.Sample) -> None:
+            callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
+
+        sub = self.session.liveliness().declare_subscriber(pattern, on_sample, history=True)
+        self._closeables.append(Closer(sub.undeclare))
+        return sub.undeclare
+
+    def serve(self, key: str, handler: QueryHandler) -> Callable[[], None]:
+        def on_query(query: zenoh.Query) -> None:
+            params = parse_parameters(str(query.parameters))
+            try:
+                replies = list(handler(str(query.key_expr), params))
+            except (ValueError, KeyError, LookupError) as exc:
+                query.reply_err(f"bad query {query.selector}: {exc}".encode())
+                return
+            for msg in replies:
+                query.reply(key, encode(msg), encoding=zenoh.Encoding(_ENCODING))
+
+        q = self.session.declare_queryable(key, on_query)
+        self._closeables.append(Closer(q.undeclare))
+        return q.undeclare
+
+    def query(self, selector: str, timeout: float = 1.0) -> list[tuple[str, Message]]:
+        out: list[tuple[str, Message]] = []
+        for reply in self.session.get(selector, timeout=timeout):
+            if reply.ok is None:
+                log.warning("query %s answered with an error: %s", selector, reply.err.payload.to_bytes().decode(errors="replace"))
+                continue
+            try:
+                out.append((str(reply.ok.key_expr), decode_any(reply.ok.payload.to_bytes())))
+            except DecodeError as exc:
+                log.warning("query %s: undecodable reply from %s: %s", selector, reply.ok.key_expr, exc)
+        return out
+
+    def _close_session(self) -> None:
+        self.session.close()
+
+
+def open_transport(opts: ZenohOptions) -> ZenohTransport:
+    """Open a Zenoh session per ``opts`` and wrap it; raises :class:`TransportError`."""
+    log.info("opening Zenoh session: %s", opts.describe())
+    return ZenohTransport(open_session(opts))

@@ -4,18 +4,47 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import sys
 from types import ModuleType
 
 from common.cli_util import CliError, fail, setup_logging
 
-#: name -> (module, one-line help). Each module has add_arguments(parser) and main(args) -> int.
+#: name -> (module, one-line help). Each module has add_arguments(parser) and main(args) -> int,
+#: and may have a DESCRIPTION string for its --help.
 COMMANDS: dict[str, tuple[str, str]] = {
     "router": ("common.router", "run a Zenoh router in this process"),
     "status": ("common.status_cli", "list the live services with their host and counters"),
     "selfcheck": ("common.selfcheck", "start a router and exchange one message of every type through it"),
     "keys": ("common.keys_cli", "print the key expressions of a robot and their delivery policy"),
 }
+
+#: Packages whose ``commands`` module adds to COMMANDS (a ``COMMANDS`` dict of the same
+#: shape). Those modules only name modules, so ``perception --help`` stays fast.
+COMMAND_PACKAGES = (
+    "services.detector",
+    "services.localizer",
+    "services.embedder",
+    "services.tracker",
+    "services.evaluation",
+    "services.replay",
+    "services.simulator",
+    "services.launcher",
+)
+
+
+def _discover() -> None:
+    for package in COMMAND_PACKAGES:
+        name = f"{package}.commands"
+        if importlib.util.find_spec(package) is None or importlib.util.find_spec(name) is None:
+            continue
+        for cmd, entry in importlib.import_module(name).COMMANDS.items():
+            if cmd in COMMANDS and COMMANDS[cmd] != entry:
+                raise RuntimeError(f"command {cmd!r} is defined by both {COMMANDS[cmd][0]} and {entry[0]}")
+            COMMANDS[cmd] = entry
+
+
+_discover()
 
 
 def _load(name: str) -> ModuleType:

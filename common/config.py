@@ -1,0 +1,108 @@
+"""Layered, validated service configuration.
+
+Order: model defaults (the papers' values) -> a YAML or JSON file -> environment
+variables ``{PREFIX}__FIELD`` (``__`` separates nested fields, values parsed as YAML) ->
+explicit overrides (CLI flags). pydantic validates the merged result once; a bad value
+raises :class:`ConfigError` naming the field, the value and the constraint.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any, Mapping, TypeVar
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+__all__ = ["ConfigError", "format_validation_error", "load_config", "read_config_file"]
+
+C = TypeVar("C", bound=BaseModel)
+
+
+class ConfigError(ValueError):
+    """A configuration that cannot be used; the message says which value and why."""
+
+
+def format_validation_error(exc: ValidationError, source: str = "") -> str:
+    lines = []
+    for err in exc.errors(include_url=False):
+        field = ".".join(str(p) for p in err["loc"]) or "(root)"
+        value = err.get("input")
+        shown = "" if isinstance(value, (dict, list)) or value is None else f" (got {value!r})"
+        lines.append(f"{field}: {err['msg']}{shown}")
+    where = f" in {source}" if source else ""
+    return f"invalid configuration{where}:\n  " + "\n  ".join(lines)
+
+
+def read_config_file(path: str | Path) -> dict[str, Any]:
+    """A YAML (or JSON) mapping from ``path``; ConfigError if missing or malformed."""
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"config file {p} does not exist")
+    try:
+        text = p.read_text()
+        data = json.loads(text) if p.suffix == ".json" else yaml.safe_load(text)
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:
+        raise ConfigError(f"config file {p} cannot be parsed: {exc}") from exc
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"config file {p} must hold a mapping of settings, got {type(data).__name__}")
+    return data
+
+
+def _merge(base: dict[str, Any], top: Mapping[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for k, v in top.items():
+        out[k] = _merge(out[k], v) if isinstance(v, Mapping) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def _from_env(prefix: str, environ: Mapping[str, str]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    head = prefix.upper() + "__"
+    for name, raw in environ.items():
+        if not name.startswith(head):
+            continue
+        path = [p.lower() for p in name[len(head) :].split("__") if p]
+        if not path:
+            continue
+        try:
+            value = yaml.safe_load(raw)
+        except yaml.YAMLError:
+            value = raw
+        node = out
+        for p in path[:-1]:
+            node = node.setdefault(p, {})
+        node[path[-1]] = value
+    return out
+
+
+def load_config(model: type[C], path: str | Path | None = None, *, env_prefix: str | None = None,
+                overrides: Mapping[str, Any] | None = None, section: str | None = None,
+                environ: Mapping[str, str] | None = None) -> C:
+    """Build a validated ``model`` from defaults, file, environment and overrides.
+
+    ``section`` picks a sub-mapping of the file (e.g. ``tracker`` in a deploy file that
+    configures several services). ``overrides`` with value ``None`` are ignored, so
+    unset CLI flags can be passed straight through.
+    """
+    data: dict[str, Any] = {}
+    source = "defaults"
+    if path is not None:
+        data = read_config_file(path)
+        source = str(path)
+        if section is not None:
+            data = data.get(section, {}) or {}
+            if not isinstance(data, dict):
+                raise ConfigError(f"section {section!r} of {path} must be a mapping")
+    if env_prefix:
+        data = _merge(data, _from_env(env_prefix, os.environ if environ is None else environ))
+    if overrides:
+        data = _merge(data, {k: v for k, v in overrides.items() if v is not None})
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise ConfigError(format_validation_error(exc, source)) from exc

@@ -10,6 +10,7 @@ pixels as one ``bin`` value. Nothing is ever sent as lists of numbers.
 
 from __future__ import annotations
 
+import re
 import struct
 import threading
 from typing import Any, TypeVar
@@ -30,6 +31,7 @@ DEFAULT_MAX_BYTES = 64 * 1024 * 1024
 _EXT_NDARRAY = 1
 _ARRAY_HEAD = struct.Struct("<BB")  # len(dtype string), ndim
 _MAX_NDIM = 8
+_DTYPE_RE = re.compile(r"[<>|=]?(b1|[iu][1248]|f[248])")
 _local = threading.local()
 
 
@@ -70,9 +72,10 @@ def _unpack_ext(code: int, data: bytes) -> Any:
     if ndim > _MAX_NDIM:
         raise ValueError(f"array with {ndim} dimensions")
     off = _ARRAY_HEAD.size
-    dtype = np.dtype(data[off : off + dlen].decode("ascii"))
-    if dtype.hasobject or dtype.kind not in "biuf":
-        raise ValueError(f"array dtype {dtype} is not numeric")
+    dtype_str = data[off : off + dlen].decode("ascii")
+    if not _DTYPE_RE.fullmatch(dtype_str):
+        raise ValueError(f"array dtype {dtype_str!r} is not a plain numeric dtype")
+    dtype = np.dtype(dtype_str)
     off += dlen
     shape = struct.unpack_from(f"<{ndim}Q", data, off)
     off += 8 * ndim
@@ -107,7 +110,7 @@ def _unpack(data: bytes | bytearray | memoryview, max_bytes: int | None) -> tupl
         raise DecodeError(f"payload of {len(data)} bytes exceeds the {limit}-byte limit")
     try:
         obj = msgpack.unpackb(data, ext_hook=_unpack_ext, raw=False, strict_map_key=True, use_list=True)
-    except (msgpack.UnpackException, ValueError, TypeError, OverflowError, struct.error, RecursionError) as exc:
+    except (msgpack.UnpackException, ValueError, TypeError, OverflowError, struct.error, RecursionError, UnicodeDecodeError) as exc:
         raise DecodeError(f"not a valid msgpack payload ({type(exc).__name__}: {exc})") from exc
     if not isinstance(obj, dict) or not {"schema", "version", "body"} <= obj.keys():
         raise DecodeError("not a perception message: the schema/version/body envelope is missing")

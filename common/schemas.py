@@ -296,7 +296,8 @@ class Transform(_Model):
         norm = float(np.linalg.norm(v))
         if not 0.5 < norm < 1.5:
             raise ValueError(f"rotation_xyzw must be a unit quaternion, norm is {norm:.3g}")
-        return v / norm
+        # Normalise only when off by more than rounding, so decoding is idempotent.
+        return v if abs(norm - 1.0) < 1e-12 else v / norm
 
     @model_validator(mode="after")
     def _distinct(self) -> Transform:

@@ -1,0 +1,209 @@
+"""Transport benchmark: codec cost per message type, and 640x480 RGB-D round trip and throughput.
+
+    python benchmarks/transport.py [--frames 300] [--round-trips 200]
+
+Round trips and throughput run between this process and a child process (an echo or a
+sink), peer to peer and through a `perception router` child, each with Zenoh's
+same-host shared memory on (the default) and off (as between the robot's two PCs).
+Every figure is a median (and p99/p95) over repeated runs; compare them as ratios.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import msgpack
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from common.codec import _pack_default, decode, encode  # noqa: E402
+from common.keys import FRAMES, RELIABLE, Delivery, Keys  # noqa: E402
+from common.router_process import RouterProcess, free_port  # noqa: E402
+from common.samples import example_messages, rgbd_frame  # noqa: E402
+from common.schemas import Header, Message, RGBDFrame, ServiceStatus  # noqa: E402
+from common.zenoh_config import ZenohOptions  # noqa: E402
+from common.zenoh_transport import open_transport  # noqa: E402
+
+KEYS = Keys(robot="bench")
+PING, PONG, DONE = f"{KEYS.base}/bench/ping", f"{KEYS.base}/bench/pong", f"{KEYS.base}/bench/done"
+BULK = Delivery(latest=False, queue=1024, congestion="block")
+
+
+def pct(values: list[float], q: float) -> float:
+    return float(np.percentile(values, q))
+
+
+def time_codec(msg: Message, n: int) -> tuple[float, float, float, float, int]:
+    """Median and p99 of encode and decode in microseconds, and the payload size."""
+    data = encode(msg)
+    enc, dec = [], []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        data = encode(msg)
+        t1 = time.perf_counter()
+        decode(type(msg), data)
+        t2 = time.perf_counter()
+        enc.append((t1 - t0) * 1e6)
+        dec.append((t2 - t1) * 1e6)
+    return statistics.median(enc), pct(enc, 99), statistics.median(dec), pct(dec, 99), len(data)
+
+
+def codec_table(n: int) -> None:
+    frame = rgbd_frame(640, 480)
+    rows = [(f"{type(m).__name__}" + (f" ({m.encoding})" if hasattr(m, "encoding") else ""), m) for m in example_messages()]
+    rows.append(("RGBDFrame 640x480 (rgb8 + 16UC1)", frame))
+    print(f"\n## Codec (n={n} each; microseconds)\n")
+    print(f"| message | bytes | encode median | encode p99 | decode median | decode p99 |\n|---|---|---|---|---|---|")
+    for name, msg in rows:
+        em, ep, dm, dp, size = time_codec(msg, n if size_hint(msg) < 100_000 else max(50, n // 10))
+        print(f"| {name} | {size:,} | {em:.1f} | {ep:.1f} | {dm:.1f} | {dp:.1f} |")
+    # The allocation trap: a fresh packer per frame against the codec's reused one.
+    body = {"schema": "x", "version": 1, "body": frame.model_dump()}
+    fresh = []
+    for _ in range(50):
+        t0 = time.perf_counter()
+        msgpack.Packer(default=_pack_default, use_bin_type=True).pack(body)
+        fresh.append((time.perf_counter() - t0) * 1e6)
+    reused = time_codec(frame, 50)[0]
+    print(f"\n640x480 RGB-D encode: fresh msgpack.Packer per frame {statistics.median(fresh):.0f} us, "
+          f"codec's reused packer {reused:.0f} us (ratio {statistics.median(fresh) / reused:.1f}x)")
+
+
+def size_hint(msg: Message) -> int:
+    return len(encode(msg))
+
+
+# ---------------------------------------------------------------- child processes
+
+
+def child(role: str, opts_json: str) -> int:
+    opts = ZenohOptions.model_validate_json(opts_json)
+    with open_transport(opts) as t:
+        ping = t.subscribe(PING, RGBDFrame, BULK)
+        if role == "echo":
+            pong = t.publisher(PONG, RGBDFrame, RELIABLE)
+            print("READY", flush=True)
+            while (r := ping.recv(30)) is not None:
+                pong.put(r.msg)
+        else:  # sink: count frames until told how many were sent
+            done = t.subscribe(DONE, ServiceStatus, RELIABLE)
+            ack = t.publisher(PONG, ServiceStatus, RELIABLE)
+            print("READY", flush=True)
+            got, total = 0, None
+            while total is None or got < total:
+                if (r := ping.recv(0.01)) is not None:
+                    got += 1
+                if total is None and (d := done.try_recv()) is not None:
+                    total = d.msg.published
+                if total is not None and ping.pending() == 0 and ping.recv(2.0) is None:
+                    break
+            ack.put(ServiceStatus(header=Header(stamp_ns=time.time_ns()), name="sink", received=got,
+                                  dropped=ping.stats.dropped))
+            ack.wait_for_subscribers(1)
+            time.sleep(0.2)  # let the ack leave before the session closes
+    return 0
+
+
+def setup(path: str, shm: bool, router: RouterProcess | None) -> tuple[ZenohOptions, ZenohOptions]:
+    """(this process's options, the child's options) for one path."""
+    if router is not None:
+        via = ZenohOptions(mode="client", connect=[router.endpoint], shared_memory=shm)
+        return via, via
+    port = free_port()  # the child listens, this process dials it
+    listen = ZenohOptions(mode="peer", listen=[f"tcp/127.0.0.1:{port}"], shared_memory=shm)
+    dial = ZenohOptions(mode="peer", connect=[f"tcp/127.0.0.1:{port}"], shared_memory=shm)
+    return dial, listen
+
+
+def spawn(role: str, opts: ZenohOptions) -> subprocess.Popen[str]:
+    proc = subprocess.Popen([sys.executable, __file__, "--child", role, opts.model_dump_json()],
+                            stdout=subprocess.PIPE, text=True, env={**os.environ, "RUST_LOG": "error"})
+    assert proc.stdout is not None and "READY" in proc.stdout.readline()
+    return proc
+
+
+def round_trips(local: ZenohOptions, remote: ZenohOptions, n: int) -> list[float]:
+    echo = spawn("echo", remote)
+    try:
+        with open_transport(local) as t:
+            pub = t.publisher(PING, RGBDFrame, RELIABLE)
+            pong = t.subscribe(PONG, RGBDFrame, BULK)
+            pub.wait_for_subscribers(10)
+            frame = rgbd_frame(640, 480)
+            times = []
+            for i in range(n + 10):
+                t0 = time.perf_counter()
+                pub.put(frame)
+                if pong.recv(10) is None:
+                    raise RuntimeError("echo did not answer")
+                if i >= 10:  # warm-up
+                    times.append((time.perf_counter() - t0) * 1e3)
+            return times
+    finally:
+        echo.kill()
+
+
+def throughput(local: ZenohOptions, remote: ZenohOptions, n: int) -> tuple[float, float, int]:
+    sink = spawn("sink", remote)
+    try:
+        with open_transport(local) as t:
+            pub = t.publisher(PING, RGBDFrame, Delivery(latest=False, queue=1, congestion="block"))
+            done = t.publisher(DONE, ServiceStatus, RELIABLE)
+            ack = t.subscribe(PONG, ServiceStatus, RELIABLE)
+            pub.wait_for_subscribers(10)
+            frames = [rgbd_frame(640, 480, seq=i) for i in range(4)]
+            t0 = time.perf_counter()
+            for i in range(n):
+                pub.put(frames[i % 4])
+            done.put(ServiceStatus(header=Header(stamp_ns=0), name="src", published=n))
+            got = ack.recv(60)
+            elapsed = time.perf_counter() - t0
+            if got is None:
+                raise RuntimeError("sink did not report")
+            received = got.msg.received
+            mb = received * len(encode(frames[0])) / 1e6
+            return received / elapsed, mb / elapsed, n - received
+    finally:
+        sink.kill()
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--child", nargs=2, metavar=("ROLE", "OPTS"), help=argparse.SUPPRESS)
+    ap.add_argument("--codec-n", type=int, default=2000, help="codec repetitions per small message")
+    ap.add_argument("--round-trips", type=int, default=200)
+    ap.add_argument("--frames", type=int, default=300, help="frames per throughput run")
+    args = ap.parse_args()
+    if args.child:
+        return child(*args.child)
+    os.environ.setdefault("RUST_LOG", "error")
+    print(f"# Transport benchmark\n\nmachine: {platform.node()}, {os.cpu_count()} cores, {platform.processor() or platform.machine()}, "
+          f"Python {platform.python_version()}")
+    codec_table(args.codec_n)
+    print(f"\n## 640x480 RGB-D frame ({len(encode(rgbd_frame(640, 480))) / 1e6:.2f} MB) between two processes\n")
+    print("| path | shared memory | round trip median (ms) | p99 (ms) | throughput (frames/s) | MB/s | lost |\n|---|---|---|---|---|---|---|")
+    for shm in (True, False):
+        for path in ("peer to peer", "via router"):
+            router = RouterProcess().start() if path == "via router" else None
+            try:
+                local, remote = setup(path, shm, router)
+                rt = round_trips(local, remote, args.round_trips)
+                fps, mbs, lost = throughput(local, remote, args.frames)
+            finally:
+                if router is not None:
+                    router.stop()
+            print(f"| {path} | {'on' if shm else 'off'} | {statistics.median(rt):.2f} | {pct(rt, 99):.2f} | {fps:.0f} | {mbs:.0f} | {lost} |",
+                  flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

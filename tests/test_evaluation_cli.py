@@ -218,3 +218,10 @@ def test_path_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None
         capsys, "--format", "motchallenge", "--dims", "3", "--gt", str(gt), "--tracks", str(gt))
     assert "--threshold must be a positive" in expect_error(
         capsys, "--threshold", "-1", "--gt", str(gt), "--tracks", str(gt))
+
+
+def test_header_only_tracks_file_means_all_misses(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    gt = write(tmp_path / "gt.csv", GT_CSV)
+    tracks = write(tmp_path / "tracks.csv", "frame,stamp,id,x,y,z\n")
+    o = evaluate_json(capsys, "--gt", str(gt), "--tracks", str(tracks))["overall"]
+    assert (o["objects"], o["misses"], o["mota"], o["motp"], o["consistency"]) == (7, 7, 0.0, None, None)

@@ -6,9 +6,13 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from services.evaluation.distances import euclidean_distances, iou_distances
+from services.evaluation.evaluate import evaluate_tables
 from services.evaluation.metrics import ClearMot, ClearMotAccumulator, evaluate_frames, gate_distances, solve_assignment
+from services.evaluation.readers import TrackTable
 
 
 def points_frame(gt: dict[int, float], hyp: dict[int, float]) -> tuple[list[int], list[int], np.ndarray]:
@@ -186,3 +190,28 @@ def test_iou_distances() -> None:
 def test_euclidean_distances_shape_and_values() -> None:
     d = euclidean_distances(np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]), np.array([[3.0, 4.0, 0.0]]))
     assert d.shape == (2, 1) and d[0, 0] == pytest.approx(5.0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_invariants_on_random_sequences(seed: int) -> None:
+    """Every object is a match, a switch or a miss; every hypothesis a match, a switch or an FP."""
+    rng = np.random.default_rng(seed)
+    gt_rows, hyp_rows = [], []
+    for frame in range(int(rng.integers(1, 15))):
+        for i in rng.choice(6, size=int(rng.integers(0, 6)), replace=False):
+            gt_rows.append((frame, i, *rng.uniform(0, 4, 2)))
+        for h in rng.choice(8, size=int(rng.integers(0, 6)), replace=False):
+            hyp_rows.append((frame, 100 + h, *rng.uniform(0, 4, 2)))
+    gt = np.array(gt_rows, dtype=float).reshape(-1, 4)
+    hyp = np.array(hyp_rows, dtype=float).reshape(-1, 4)
+    r = evaluate_tables(TrackTable.from_arrays(gt[:, 0], gt[:, 1], gt[:, 2:]),
+                        TrackTable.from_arrays(hyp[:, 0], hyp[:, 1], hyp[:, 2:]))
+    assert r.objects == len(gt_rows) == r.matches + r.id_switches + r.misses
+    assert r.predictions == len(hyp_rows) == r.detections + r.false_positives
+    assert 0 <= r.recall_errors <= r.id_switches
+    assert r.idtp <= min(r.objects, r.predictions)
+    assert r.mostly_tracked + r.partially_tracked + r.mostly_lost == r.gt_tracks
+    assert sum(r.consistency_counts) == r.detections
+    if r.detections:
+        assert 0.0 <= r.motp < 1.0

@@ -17,7 +17,7 @@ from services.evaluation.metrics import ClearMot, ClearMotAccumulator
 from services.evaluation.readers import EvaluationInputError, TrackTable, read_table
 
 __all__ = ["FORMATS", "Report", "default_threshold", "evaluate_sequences", "evaluate_tables", "format_table",
-           "pair_sequences"]
+           "make_report", "pair_sequences"]
 
 log = logging.getLogger(__name__)
 
@@ -76,7 +76,7 @@ def evaluate_tables(gt: TrackTable, hyp: TrackTable, fmt: str = "tracks", thresh
     """CLEAR MOT of one sequence over the union of the frames of both tables."""
     threshold = default_threshold(fmt) if threshold is None else threshold
     distance = iou_distances if fmt == "motchallenge" else euclidean_distances
-    if gt.values.shape[1] != hyp.values.shape[1]:
+    if len(gt) and len(hyp) and gt.values.shape[1] != hyp.values.shape[1]:
         raise ValueError(f"ground truth has {gt.values.shape[1]} values per row, tracks {hyp.values.shape[1]}")
     acc = ClearMotAccumulator(threshold, inclusive=FORMATS[fmt][1])
     gt_rows, hyp_rows = gt.frame_slices(), hyp.frame_slices()
@@ -146,7 +146,14 @@ def evaluate_sequences(gt: Path | str, tracks: Path | str, fmt: str = "tracks", 
         gt_table = read_table(gt_path, fmt, ground_truth=True, dims=dims)
         hyp_table = read_table(tracks_path, fmt, ground_truth=False, dims=dims)
         results.append((name, evaluate_tables(gt_table, hyp_table, fmt, threshold)))
-    return Report(fmt=fmt, threshold=threshold, dims=dims, sequences=results,
+    return make_report(results, fmt, threshold, dims)
+
+
+def make_report(results: list[tuple[str, ClearMot]], fmt: str = "tracks", threshold: float | None = None,
+                dims: int = 2) -> Report:
+    """A :class:`Report` from per-sequence results computed elsewhere (e.g. by :func:`evaluate_tables`)."""
+    threshold = default_threshold(fmt) if threshold is None else float(threshold)
+    return Report(fmt=fmt, threshold=threshold, dims=dims, sequences=list(results),
                   overall=ClearMot.combine(r for _, r in results))
 
 

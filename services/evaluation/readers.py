@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Iterator
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["EvaluationInputError", "TrackTable", "read_motchallenge", "read_table", "read_tracking_csv"]
 
@@ -39,6 +39,18 @@ class TrackTable:
     frames: NDArray[np.int64]
     ids: NDArray[np.int64]
     values: NDArray[np.float64]
+
+    @classmethod
+    def from_arrays(cls, frames: ArrayLike, ids: ArrayLike, values: ArrayLike, path: Path | None = None) -> TrackTable:
+        """A table from in-memory rows: frames (K,), ids (K,), values (K, D); sorted stably by frame."""
+        f = np.asarray(frames, dtype=np.int64).reshape(-1)
+        i = np.asarray(ids, dtype=np.int64).reshape(-1)
+        v = np.asarray(values, dtype=np.float64)
+        v = v.reshape(f.size, -1) if f.size else v.reshape(0, v.shape[-1] if v.ndim == 2 else 0)
+        if i.size != f.size:
+            raise ValueError(f"{f.size} frames but {i.size} ids")
+        order = np.argsort(f, kind="stable")
+        return cls(path=path or Path("<memory>"), frames=f[order], ids=i[order], values=np.ascontiguousarray(v[order]))
 
     def __len__(self) -> int:
         return int(self.frames.size)
@@ -77,9 +89,9 @@ def _number(path: Path, line: int, column: str, text: str, integer: bool) -> flo
     return value
 
 
-def _table(path: Path, rows: list[tuple[int, list[float]]]) -> TrackTable:
-    """Build the table from (line, [frame, id, values...]) rows; rejects an ID twice in a frame."""
-    data = np.array([r for _, r in rows], dtype=np.float64).reshape(len(rows), -1)
+def _table(path: Path, rows: list[tuple[int, list[float]]], width: int) -> TrackTable:
+    """Build the table from (line, [frame, id, values...]) rows of ``width`` numbers; rejects an ID twice in a frame."""
+    data = np.array([r for _, r in rows], dtype=np.float64).reshape(len(rows), width)
     lines = np.array([n for n, _ in rows], dtype=np.int64)
     order = np.argsort(data[:, 0], kind="stable") if rows else np.empty(0, dtype=np.intp)
     data, lines = data[order], lines[order]
@@ -119,7 +131,7 @@ def read_tracking_csv(path: Path, dims: int = 2) -> TrackTable:
             raise EvaluationInputError(f"{path}:{line}: {len(cells)} columns, the header has {len(header)}")
         parsed.append((line, [_number(path, line, name, cells[k], integer=name in ("frame", "id"))
                               for name, k in zip(wanted, cols)]))
-    return _table(path, parsed)
+    return _table(path, parsed, len(wanted))
 
 
 def read_motchallenge(path: Path, ground_truth: bool) -> TrackTable:
@@ -133,7 +145,7 @@ def read_motchallenge(path: Path, ground_truth: bool) -> TrackTable:
         if ground_truth and len(cells) > 6 and _number(path, line, "conf", cells[6], integer=False) < 1:
             continue
         parsed.append((line, values))
-    return _table(path, parsed)
+    return _table(path, parsed, 6)
 
 
 def read_table(path: Path, fmt: str, ground_truth: bool, dims: int = 2) -> TrackTable:

@@ -1,0 +1,1 @@
+"""Offline CLEAR MOT / identity evaluation of tracker output (``perception evaluate``)."""

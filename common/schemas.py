@@ -235,7 +235,8 @@ class CameraInfo(Message):
         _finite(self.D, "D")
         if not (self.K[0, 0] > 0 and self.K[1, 1] > 0):
             raise ValueError("K: focal lengths fx = K[0,0] and fy = K[1,1] must be positive")
-        if not np.allclose(self.K[2], [0.0, 0.0, 1.0]):
+        k20, k21, k22 = self.K[2].tolist()
+        if abs(k20) > 1e-9 or abs(k21) > 1e-9 or abs(k22 - 1.0) > 1e-9:
             raise ValueError("K: last row must be [0, 0, 1]")
         allowed = {"plumb_bob": (0, 5), "rational_polynomial": (0, 8), "equidistant": (0, 4), "none": (0,)}
         if len(self.D) not in allowed[self.distortion_model]:

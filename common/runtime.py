@@ -141,6 +141,9 @@ class ServiceRuntime:
         with c._lock:
             extra = dict(c.extra)
             dropped, invalid = c.dropped, c.invalid
+        unmatched = sum(p.unmatched for p in self.publishers)
+        if unmatched:
+            extra["published_unmatched"] = unmatched
         return ServiceStatus(
             header=Header(stamp_ns=time.time_ns(), source=self.name),
             name=self.name,

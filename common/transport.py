@@ -158,6 +158,8 @@ class Publisher(Generic[M]):
         self._matching = matching
         self._undeclare = undeclare
         self.published = 0
+        #: Puts made while no subscriber matched (e.g. during a router outage): those are lost.
+        self.unmatched = 0
         self.closed = False
 
     def put(self, msg: M) -> None:
@@ -165,6 +167,8 @@ class Publisher(Generic[M]):
             raise TypeError(f"publisher on {self.key} takes {self.model.__name__}, got {type(msg).__name__}")
         self._send(encode(msg))
         self.published += 1
+        if not self._matching():
+            self.unmatched += 1
 
     def has_subscribers(self) -> bool:
         return self._matching()

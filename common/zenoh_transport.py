@@ -63,7 +63,15 @@ class ZenohTransport(Transport):
             priority=zenoh.Priority.DATA,
             express=delivery.express,
         )
-        wrapped: Publisher[Any] = Publisher(key, model, pub.put, lambda: _matching(pub), pub.undeclare)
+        # Track matching through a listener so put() need not ask the session each time.
+        state = {"matching": _matching(pub)}
+        listener = pub.declare_matching_listener(lambda st: state.__setitem__("matching", bool(st.matching)))
+
+        def undeclare() -> None:
+            listener.undeclare()
+            pub.undeclare()
+
+        wrapped: Publisher[Any] = Publisher(key, model, pub.put, lambda: state["matching"], undeclare)
         self._closeables.append(wrapped)
         return wrapped
 

@@ -122,6 +122,19 @@ def test_liveliness_status_and_queries(memory_bus: MemoryBus) -> None:
     assert events == [(KEYS.alive("tracker", "i1"), True), (KEYS.alive("tracker", "i1"), False)]
 
 
+def test_puts_without_subscriber_are_counted(memory_bus: MemoryBus) -> None:
+    a, b = memory_bus.transport(), memory_bus.transport()
+    pub = a.publisher(KEYS.tracks(), Tracks, RELIABLE)
+    good = next(m for m in example_messages() if isinstance(m, Tracks))
+    pub.put(good)
+    b.subscribe(KEYS.tracks(), Tracks, RELIABLE)
+    pub.put(good)
+    assert (pub.published, pub.unmatched) == (2, 1)
+    runtime = ServiceRuntime("tracker", a, KEYS, instance="i1")
+    runtime.watch(pub)
+    assert runtime.status().extra["published_unmatched"] == 1
+
+
 def test_closing_stops_delivery(memory_bus: MemoryBus) -> None:
     a, b = memory_bus.transport(), memory_bus.transport()
     sub = b.subscribe(KEYS.tracks(), Tracks, RELIABLE)

@@ -83,6 +83,7 @@ def test_pub_sub_resume_after_router_sigkill_and_restart(router: RouterProcess,
         assert got is not None, "no message within 2 s of the router coming back"
         assert got.msg.header.seq > last_seen + 1, "expected samples published during the outage to be lost, not replayed"
         assert resumed_after < 2.0
+        assert pub.unmatched > 0, "puts during the outage should be counted as unmatched"
     finally:
         stop.set()
         thread.join(2)

@@ -30,6 +30,7 @@ COMMAND_PACKAGES = (
     "services.replay",
     "services.simulator",
     "services.launcher",
+    "services.demo",
 )
 
 

@@ -209,22 +209,25 @@ class TransformError(LookupError):
 class MissingTransformError(TransformError):
     """No chain of transforms links ``source`` to ``target``.
 
-    ``source_root`` and ``target_root`` are the tops of the two frames' trees: a
-    transform linking them (normally ``target_root -> source_root``) is what is missing.
+    ``source_root`` is the top of ``source``'s tree (a frame without a parent) and
+    ``target_tree`` the frames of ``target``'s tree: a transform from one of those
+    frames to ``source_root`` is what is missing (for a robot, usually
+    ``odom -> base_link`` or ``map -> odom``).
     """
 
-    def __init__(self, target: str, source: str, target_root: str, source_root: str) -> None:
+    def __init__(self, target: str, source: str, target_tree: list[str], source_root: str) -> None:
         self.target, self.source = target, source
-        self.target_root, self.source_root = target_root, source_root
+        self.target_tree, self.source_root = target_tree, source_root
         super().__init__(
-            f"no transform chain from {source!r} to {target!r}: the tree of {source!r} ends at {source_root!r} "
-            f"and the tree of {target!r} ends at {target_root!r}; a transform {target_root} -> {source_root} "
-            "(or a chain of them) is missing"
+            f"no transform chain from {source!r} to {target!r}: {source_root!r} (the top of the tree of {source!r}) "
+            f"has no parent in the tree of {target!r} ({', '.join(target_tree)}); publish the missing transform "
+            f"{self.edge}"
         )
 
     @property
     def edge(self) -> str:
-        return f"{self.target_root} -> {self.source_root}"
+        """``"map|odom -> base_link"``: the missing edge, its parent being one of the listed frames."""
+        return f"{'|'.join(self.target_tree)} -> {self.source_root}"
 
 
 class ExtrapolationError(TransformError):
@@ -349,7 +352,9 @@ class TransformBuffer:
             if frame in in_target:
                 j = in_target[frame]
                 return ([self._edges[f] for f in up_source[:i]], [self._edges[f] for f in up_target[:j]])
-        raise MissingTransformError(target, source, up_target[-1], up_source[-1])
+        root = up_target[-1]
+        tree = sorted(f for f in self.frames() | {target} if self._ancestors(f)[-1] == root)
+        raise MissingTransformError(target, source, tree, up_source[-1])
 
     def latest_common_stamp(self, target: str, source: str) -> int | None:
         """The newest stamp at which every dynamic edge between the frames has data (None if all static)."""

@@ -16,8 +16,8 @@ from common.transport import Transport
 from services.localizer.config import LocalizerConfig, StaticTransformConfig
 from services.localizer.service import LocalizerService
 from services.localizer.synthetic import Person
-from tests import localizer_scene as scene
-from tests.localizer_scene import S, T0
+import localizer_scene as scene
+from localizer_scene import S, T0
 
 KEYS = Keys()
 PEOPLE = [Person((0.3, 0.1, 2.5)), Person((-1.2, 0.0, 4.0))]

@@ -67,8 +67,11 @@ def main(args: argparse.Namespace) -> int:
     except (TransportError, ValidationError) as exc:
         raise CliError(str(exc)) from exc
     counters = Counters()
-    with transport, Shutdown() as shutdown, ServiceRuntime("localizer", transport, keys, counters=counters) as runtime:
+    with transport, Shutdown() as shutdown:
+        # subscribe before the liveliness token appears, so 'alive' means 'listening'
         service = LocalizerService(transport, keys, config, counters)
+        runtime = ServiceRuntime("localizer", transport, keys, counters=counters)
         runtime.watch(*service.subscriptions, service.pub)
-        service.run(shutdown)
+        with runtime:
+            service.run(shutdown)
     return 0

@@ -100,8 +100,9 @@ class PinholeCamera:
         elif self.distortion_model == "equidistant":
             xy = cv2.fisheye.undistortPoints(px.reshape(-1, 1, 2), self.K, self.D[:4]).reshape(-1, 2)
         else:
-            xy = cv2.undistortPointsIter(px.reshape(-1, 1, 2), self.K, self.D, None, None,
-                                         _UNDISTORT_CRITERIA).reshape(-1, 2)
+            src = px.reshape(-1, 1, 2)
+            xy = cv2.undistortPointsIter(src, self.K, self.D, None, None, _UNDISTORT_CRITERIA)  # type: ignore[call-overload]
+            xy = xy.reshape(-1, 2)
         return np.column_stack([xy, np.ones(len(xy))])
 
     def back_project(self, pixels: np.ndarray, depth_z: np.ndarray) -> np.ndarray:
@@ -233,7 +234,9 @@ class MissingTransformError(TransformError):
 class ExtrapolationError(TransformError):
     """The edge ``parent -> child`` has no data near ``stamp_ns`` (beyond the tolerance)."""
 
-    def __init__(self, parent: str, child: str, stamp_ns: int, oldest_ns: int, newest_ns: int, tolerance_ns: int) -> None:
+    def __init__(
+        self, parent: str, child: str, stamp_ns: int, oldest_ns: int, newest_ns: int, tolerance_ns: int
+    ) -> None:
         self.parent, self.child = parent, child
         self.stamp_ns, self.oldest_ns, self.newest_ns = stamp_ns, oldest_ns, newest_ns
         self.future = stamp_ns > newest_ns
@@ -313,20 +316,26 @@ class TransformBuffer:
         self.tolerance_ns = int(tolerance_s * 1e9)
         self._edges: dict[str, _Edge] = {}  # by child frame
 
-    def set_transform(self, parent: str, child: str, stamp_ns: int, transform: RigidTransform, static: bool = False) -> None:
+    def set_transform(
+        self, parent: str, child: str, stamp_ns: int, transform: RigidTransform, static: bool = False
+    ) -> None:
         """Add ``parent -> child`` at ``stamp_ns`` (maps ``child`` points into ``parent``)."""
         if parent == child:
             raise FrameTreeError(f"transform {parent} -> {child} links a frame to itself")
         edge = self._edges.get(child)
         if edge is None:
             if child in self._ancestors(parent):
-                raise FrameTreeError(f"transform {parent} -> {child} would close a cycle ({child!r} is above {parent!r})")
+                raise FrameTreeError(
+                    f"transform {parent} -> {child} would close a cycle ({child!r} is above {parent!r})"
+                )
             edge = self._edges[child] = _Edge(parent, child, static)
         elif edge.parent != parent:
             raise FrameTreeError(f"frame {child!r} already has parent {edge.parent!r}, got a transform from {parent!r}")
         elif edge.static != static:
             kind = "static" if edge.static else "dynamic"
-            raise FrameTreeError(f"transform {parent} -> {child} is {kind}, got a {'static' if static else 'dynamic'} update")
+            raise FrameTreeError(
+                f"transform {parent} -> {child} is {kind}, got a {'static' if static else 'dynamic'} update"
+            )
         edge.insert(int(stamp_ns), transform, self.history_ns)
 
     def frames(self) -> set[str]:

@@ -15,8 +15,13 @@ __all__ = ["add_batch", "add_transform", "camera_from_info", "rigid_from_msg", "
 
 def camera_from_info(info: CameraInfo) -> PinholeCamera:
     """The pinhole model of a :class:`CameraInfo` (K, D and distortion model)."""
-    return PinholeCamera(K=np.asarray(info.K), width=info.width, height=info.height, D=np.asarray(info.D),
-                         distortion_model=info.distortion_model)
+    return PinholeCamera(
+        K=np.asarray(info.K),
+        width=info.width,
+        height=info.height,
+        D=np.asarray(info.D),
+        distortion_model=info.distortion_model,
+    )
 
 
 def rigid_from_msg(msg: Transform) -> RigidTransform:
@@ -26,13 +31,21 @@ def rigid_from_msg(msg: Transform) -> RigidTransform:
 
 def transform_msg(parent: str, child: str, stamp_ns: int, tf: RigidTransform, static: bool = False) -> Transform:
     """A :class:`Transform` message of ``tf`` for the edge ``parent -> child``."""
-    return Transform(parent_frame=parent, child_frame=child, stamp_ns=stamp_ns, translation=tf.translation.copy(),
-                     rotation_xyzw=tf.quat_xyzw, static=static)
+    return Transform(
+        parent_frame=parent,
+        child_frame=child,
+        stamp_ns=stamp_ns,
+        translation=tf.translation.copy(),
+        rotation_xyzw=tf.quat_xyzw,
+        static=static,
+    )
 
 
 def add_transform(buffer: TransformBuffer, msg: Transform, static: bool = False) -> None:
     """Put one message in ``buffer``; static if ``static`` or ``msg.static``."""
-    buffer.set_transform(msg.parent_frame, msg.child_frame, msg.stamp_ns, rigid_from_msg(msg), static=static or msg.static)
+    buffer.set_transform(
+        msg.parent_frame, msg.child_frame, msg.stamp_ns, rigid_from_msg(msg), static=static or msg.static
+    )
 
 
 def add_batch(buffer: TransformBuffer, batch: TransformBatch, static: bool = False) -> int:

@@ -24,13 +24,25 @@ def setup(tmp_path: Path) -> dict[str, Path]:
     cam = PinholeCamera(np.array(K).reshape(3, 3), 640, 480, np.array(D))
     depth = np.round(render_depth(cam, PEOPLE) * 1000).astype(np.uint16)
     cv2.imwrite(str(tmp_path / "f0001.png"), depth)
-    (tmp_path / "cam.json").write_text(json.dumps({"width": 640, "height": 480, "K": K, "D": D,
-                                                   "distortion_model": "plumb_bob", "frame_id": "head_optical"}))
+    (tmp_path / "cam.json").write_text(
+        json.dumps(
+            {"width": 640, "height": 480, "K": K, "D": D, "distortion_model": "plumb_bob", "frame_id": "head_optical"}
+        )
+    )
     boxes = [person_box(cam, p).tolist() for p in PEOPLE] + [[700, 0, 800, 100]]
-    line = {"image": "images/f0001.jpg", "width": 640, "height": 480,
-            "detections": [{"bbox_xyxy": b, "score": 0.8} for b in boxes]}
+    line = {
+        "image": "images/f0001.jpg",
+        "width": 640,
+        "height": 480,
+        "detections": [{"bbox_xyxy": b, "score": 0.8} for b in boxes],
+    }
     (tmp_path / "dets.jsonl").write_text(json.dumps(line) + "\n\n" + json.dumps({**line, "detections": []}) + "\n")
-    return {"dir": tmp_path, "depth": tmp_path / "f0001.png", "cam": tmp_path / "cam.json", "dets": tmp_path / "dets.jsonl"}
+    return {
+        "dir": tmp_path,
+        "depth": tmp_path / "f0001.png",
+        "cam": tmp_path / "cam.json",
+        "dets": tmp_path / "dets.jsonl",
+    }
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, list[dict], str]:
@@ -40,8 +52,16 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, list[dict]
 
 
 def test_camera_frame_positions(setup: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
-    code, lines, _ = run(capsys, "localize", "--depth", str(setup["depth"]), "--camera-info", str(setup["cam"]),
-                         "--detections", str(setup["dets"]))
+    code, lines, _ = run(
+        capsys,
+        "localize",
+        "--depth",
+        str(setup["depth"]),
+        "--camera-info",
+        str(setup["cam"]),
+        "--detections",
+        str(setup["dets"]),
+    )
     assert code == 0 and len(lines) == 2
     first = lines[0]
     assert first["frame_id"] == "head_optical" == first["camera_frame"]
@@ -55,11 +75,32 @@ def test_camera_frame_positions(setup: dict[str, Path], capsys: pytest.CaptureFi
 
 def test_transforms_to_a_target_frame(setup: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
     tfile = setup["dir"] / "tf.json"
-    tfile.write_text(json.dumps([{"parent_frame": "map", "child_frame": "base_link", "translation": [2, 1, 0],
-                                  "rotation_xyzw": [0, 0, 0.7071068, 0.7071068]}]))
-    code, lines, _ = run(capsys, "localize", "--depth", str(setup["dir"]), "--camera-info", str(setup["cam"]),
-                         "--detections", str(setup["dets"]), "--transform", MOUNT.replace("camera", "head_optical"),
-                         "--transforms", str(tfile))
+    tfile.write_text(
+        json.dumps(
+            [
+                {
+                    "parent_frame": "map",
+                    "child_frame": "base_link",
+                    "translation": [2, 1, 0],
+                    "rotation_xyzw": [0, 0, 0.7071068, 0.7071068],
+                }
+            ]
+        )
+    )
+    code, lines, _ = run(
+        capsys,
+        "localize",
+        "--depth",
+        str(setup["dir"]),
+        "--camera-info",
+        str(setup["cam"]),
+        "--detections",
+        str(setup["dets"]),
+        "--transform",
+        MOUNT.replace("camera", "head_optical"),
+        "--transforms",
+        str(tfile),
+    )
     assert code == 0
     mount = RigidTransform.from_quat(np.array([0.1, 0, 1.2]), np.array([-0.5, 0.5, -0.5, 0.5]))
     world = RigidTransform.from_quat(np.array([2.0, 1.0, 0.0]), np.array([0, 0, 0.7071068, 0.7071068])) @ mount
@@ -69,19 +110,23 @@ def test_transforms_to_a_target_frame(setup: dict[str, Path], capsys: pytest.Cap
     assert d["body_center_z"] == pytest.approx(1.2 - 0.1, abs=0.01)  # 0.1 m below the optical axis
 
 
-@pytest.mark.parametrize(("flag", "value", "message"), [
-    ("--depth", "{dir}/missing.png", "does not exist"),
-    ("--camera-info", "{dir}/bad.json", "cannot be parsed"),
-    ("--transform", "base_link:camera", "PARENT:CHILD"),
-    ("--transform", MOUNT, "no transform chain"),  # the camera frame is head_optical: no chain to map
-    ("--detections", "{dir}/garbage.jsonl", "not JSON"),
-    ("--depth", "{dir}/small.png", "the camera info says 640x480"),
-    ("--percentile", "150", "percentile"),
-])
-def test_bad_inputs_exit_2_with_a_message(setup: dict[str, Path], capsys: pytest.CaptureFixture[str],
-                                          flag: str, value: str, message: str) -> None:
+@pytest.mark.parametrize(
+    ("flag", "value", "message"),
+    [
+        ("--depth", "{dir}/missing.png", "does not exist"),
+        ("--camera-info", "{dir}/bad.json", "cannot be parsed"),
+        ("--transform", "base_link:camera", "PARENT:CHILD"),
+        ("--transform", MOUNT, "no transform chain"),  # the camera frame is head_optical: no chain to map
+        ("--detections", "{dir}/garbage.jsonl", "not JSON"),
+        ("--depth", "{dir}/small.png", "the camera info says 640x480"),
+        ("--percentile", "150", "percentile"),
+    ],
+)
+def test_bad_inputs_exit_2_with_a_message(
+    setup: dict[str, Path], capsys: pytest.CaptureFixture[str], flag: str, value: str, message: str
+) -> None:
     (setup["dir"] / "bad.json").write_text("{not json")
-    (setup["dir"] / "garbage.jsonl").write_text("{\"detections\": []}\nnope\n")
+    (setup["dir"] / "garbage.jsonl").write_text('{"detections": []}\nnope\n')
     cv2.imwrite(str(setup["dir"] / "small.png"), np.zeros((240, 320), np.uint16))
     args = {"--depth": str(setup["depth"]), "--camera-info": str(setup["cam"]), "--detections": str(setup["dets"])}
     args[flag] = value.format(dir=setup["dir"])

@@ -97,7 +97,9 @@ def test_out_of_range_depth_is_excluded() -> None:
     # everything closer than 2.5 m is out of range: only the wall is left
     loc = localize(depth, cam, box, LocalizerParams(min_depth_m=2.5))
     assert np.isclose(loc.depth_m[0], 7.0)
-    assert localize(depth, cam, box, LocalizerParams(min_depth_m=2.5, max_depth_m=6.0)).rejected == {0: REJECT_TOO_FEW_PIXELS}
+    assert localize(depth, cam, box, LocalizerParams(min_depth_m=2.5, max_depth_m=6.0)).rejected == {
+        0: REJECT_TOO_FEW_PIXELS
+    }
 
 
 @pytest.mark.parametrize(
@@ -201,3 +203,14 @@ def test_params_validation() -> None:
         LocalizerParams(min_depth_m=5.0, max_depth_m=1.0)
     with pytest.raises(ValueError):
         DepthNoiseModel(axial_b_per_m=-1.0)
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 1000])
+@pytest.mark.parametrize("q", [0.0, 25.0, 50.0, 99.5, 100.0])
+def test_percentile_matches_numpy(n: int, q: float) -> None:
+    from services.localizer.core.localize import _percentile
+
+    values = np.random.default_rng(n).uniform(0.3, 9.0, n).astype(np.float32)
+    assert np.isclose(_percentile(values, q), np.percentile(values, q), rtol=1e-6)
+    ints = (values * 1000).astype(np.uint16)
+    assert np.isclose(_percentile(ints, q), np.percentile(ints, q))

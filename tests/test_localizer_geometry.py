@@ -15,7 +15,12 @@ from common.geometry import (
     TransformBuffer,
     interpolate,
 )
-from common.geometry_messages import add_batch, camera_from_info, rigid_from_msg, transform_msg
+from common.geometry_messages import (
+    add_batch,
+    camera_from_info,
+    rigid_from_msg,
+    transform_msg,
+)
 from common.samples import camera_info, example_messages
 from common.schemas import TransformBatch
 
@@ -105,7 +110,9 @@ def robot_buffer(history_s: float = 10.0, tolerance_s: float = 0.05) -> tuple[Tr
     mats = {
         "map_odom": matrix(Rotation.from_euler("z", 30, degrees=True), [1.0, -2.0, 0.0]),
         "odom_base": matrix(Rotation.from_euler("z", -75, degrees=True), [3.0, 0.5, 0.0]),
-        "base_cam": matrix(Rotation.from_quat([-0.5, 0.5, -0.5, 0.5]) * Rotation.from_euler("x", 10, degrees=True), [0.1, 0.0, 1.2]),
+        "base_cam": matrix(
+            Rotation.from_quat([-0.5, 0.5, -0.5, 0.5]) * Rotation.from_euler("x", 10, degrees=True), [0.1, 0.0, 1.2]
+        ),
     }
     buf.set_transform("map", "odom", 1 * S, RigidTransform.from_matrix(mats["map_odom"]))
     buf.set_transform("odom", "base_link", 1 * S, RigidTransform.from_matrix(mats["odom_base"]))
@@ -130,13 +137,25 @@ def test_chain_lookup_matches_hand_computed() -> None:
 def test_lookup_interpolates_between_stamps() -> None:
     buf = TransformBuffer()
     buf.set_transform("odom", "base_link", 1 * S, RigidTransform(Rotation.identity(), np.array([0.0, 0.0, 0.0])))
-    buf.set_transform("odom", "base_link", 3 * S, RigidTransform(Rotation.from_euler("z", 60, degrees=True), np.array([4.0, 2.0, 0.0])))
-    buf.set_transform("odom", "base_link", 2 * S, RigidTransform(Rotation.from_euler("z", 20, degrees=True), np.array([1.0, 1.0, 0.0])))
+    buf.set_transform(
+        "odom",
+        "base_link",
+        3 * S,
+        RigidTransform(Rotation.from_euler("z", 60, degrees=True), np.array([4.0, 2.0, 0.0])),
+    )
+    buf.set_transform(
+        "odom",
+        "base_link",
+        2 * S,
+        RigidTransform(Rotation.from_euler("z", 20, degrees=True), np.array([1.0, 1.0, 0.0])),
+    )
     got = buf.lookup("odom", "base_link", int(2.5 * S))
     assert np.allclose(got.translation, [2.5, 1.5, 0.0])
     assert np.isclose(got.rotation.as_euler("xyz", degrees=True)[2], 40.0)
     assert np.allclose(buf.lookup("odom", "base_link", 2 * S).translation, [1.0, 1.0, 0.0])
-    assert np.allclose(buf.lookup("base_link", "odom", None).matrix, buf.lookup("odom", "base_link", 3 * S).inverse().matrix)
+    assert np.allclose(
+        buf.lookup("base_link", "odom", None).matrix, buf.lookup("odom", "base_link", 3 * S).inverse().matrix
+    )
 
 
 def test_missing_edge_names_the_gap() -> None:
@@ -171,9 +190,11 @@ def test_extrapolation_beyond_tolerance_raises_within_tolerance_clamps() -> None
 def test_history_is_pruned_and_static_holds_forever() -> None:
     buf = TransformBuffer(history_s=1.0, tolerance_s=0.0)
     for k in range(30):
-        buf.set_transform("odom", "base_link", k * S // 10, RigidTransform(Rotation.identity(), np.array([k, 0.0, 0.0])))
+        buf.set_transform(
+            "odom", "base_link", k * S // 10, RigidTransform(Rotation.identity(), np.array([k, 0.0, 0.0]))
+        )
     buf.set_transform("base_link", "camera", 5 * S, RigidTransform.identity(), static=True)
-    (_, _, _, oldest, newest), = [e for e in buf.edges() if e[1] == "base_link"]
+    ((_, _, _, oldest, newest),) = [e for e in buf.edges() if e[1] == "base_link"]
     assert newest == 29 * S // 10 and oldest >= newest - S
     with pytest.raises(ExtrapolationError):
         buf.lookup("odom", "base_link", 1 * S)

@@ -6,29 +6,50 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pytest
 
-import localizer_scene as scene
 from common.keys import FRAMES, RELIABLE, Keys
 from common.router_process import RouterProcess
-from common.schemas import Detections, LocalizedDetections, RGBDFrame, ServiceStatus, TransformBatch
+from common.schemas import (
+    Detections,
+    LocalizedDetections,
+    RGBDFrame,
+    ServiceStatus,
+    TransformBatch,
+)
 from common.zenoh_transport import ZenohTransport
+from services.localizer import scene
 from services.localizer.synthetic import Person
 
 KEYS = Keys(robot="itest")
 
 
 @pytest.mark.zenoh
-def test_localizer_process_over_router(router: RouterProcess, zenoh_client: Callable[[], ZenohTransport], tmp_path: Path) -> None:
+def test_localizer_process_over_router(
+    router: RouterProcess, zenoh_client: Callable[[], ZenohTransport], tmp_path: Path
+) -> None:
     log = (tmp_path / "localizer.log").open("wb")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "services", "localizer", "--robot", "itest", "--connect", router.endpoint,
-         "--no-multicast-scouting", "--transform-wait", "1.0"],
-        stdout=log, stderr=subprocess.STDOUT, env={**os.environ, "RUST_LOG": "error"},
+        [
+            sys.executable,
+            "-m",
+            "services",
+            "localizer",
+            "--robot",
+            "itest",
+            "--connect",
+            router.endpoint,
+            "--no-multicast-scouting",
+            "--transform-wait",
+            "1.0",
+        ],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        env={**os.environ, "RUST_LOG": "error"},
     )
     try:
         client = zenoh_client()

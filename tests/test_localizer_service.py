@@ -11,13 +11,20 @@ import pytest
 from common.keys import RELIABLE, Keys
 from common.memory import MemoryBus
 from common.runtime import Counters, Shutdown
-from common.schemas import Header, LocalizedDetections, RGBDFrame, Detections, Transform, TransformBatch
+from common.schemas import (
+    Detections,
+    Header,
+    LocalizedDetections,
+    RGBDFrame,
+    Transform,
+    TransformBatch,
+)
 from common.transport import Transport
+from services.localizer import scene
 from services.localizer.config import LocalizerConfig, StaticTransformConfig
+from services.localizer.scene import T0, S
 from services.localizer.service import LocalizerService
 from services.localizer.synthetic import Person
-import localizer_scene as scene
-from localizer_scene import S, T0
 
 KEYS = Keys()
 PEOPLE = [Person((0.3, 0.1, 2.5)), Person((-1.2, 0.0, 4.0))]
@@ -111,7 +118,9 @@ def test_frame_never_arrives_times_out(memory_bus: MemoryBus) -> None:
     assert rig.counters.extra["dropped_no_depth_frame"] == 1 and not rig.service.pending
 
 
-def test_missing_transform_is_dropped_never_published_in_camera_frame(memory_bus: MemoryBus, caplog: pytest.LogCaptureFixture) -> None:
+def test_missing_transform_is_dropped_never_published_in_camera_frame(
+    memory_bus: MemoryBus, caplog: pytest.LogCaptureFixture
+) -> None:
     rig = Rig(memory_bus, transform_wait_s=0.25)
     rig.tf_static.put(scene.tf_static())  # base_link -> camera only: odom -> base_link is missing
     rig.tf.put(TransformBatch(header=Header(stamp_ns=T0), transforms=[scene.tf(T0).transforms[0]]))  # map -> odom
@@ -155,10 +164,13 @@ def test_transform_older_than_history_is_dropped_at_once(memory_bus: MemoryBus) 
     assert rig.counters.extra["dropped_no_transform"] == 1 and not rig.service.pending
 
 
-@pytest.mark.parametrize(("make_frame", "reason"), [
-    (lambda: scene.frame(1, PEOPLE, with_depth=False), "frame_without_depth"),
-    (lambda: scene.frame(1, PEOPLE, frame_id=""), "no_camera_frame"),
-])
+@pytest.mark.parametrize(
+    ("make_frame", "reason"),
+    [
+        (lambda: scene.frame(1, PEOPLE, with_depth=False), "frame_without_depth"),
+        (lambda: scene.frame(1, PEOPLE, frame_id=""), "no_camera_frame"),
+    ],
+)
 def test_unusable_frames_are_counted(memory_bus: MemoryBus, make_frame: object, reason: str) -> None:
     rig = Rig(memory_bus)
     f = make_frame()  # type: ignore[operator]
@@ -199,8 +211,12 @@ def test_metre_depth_frames(memory_bus: MemoryBus) -> None:
 
 def test_static_transforms_from_config_and_camera_target(memory_bus: MemoryBus) -> None:
     q = scene.BASE_CAMERA.quat_xyzw
-    st = StaticTransformConfig(parent_frame="base_link", child_frame="camera", translation=tuple(scene.BASE_CAMERA.translation),
-                               rotation_xyzw=tuple(q))
+    st = StaticTransformConfig(
+        parent_frame="base_link",
+        child_frame="camera",
+        translation=tuple(scene.BASE_CAMERA.translation),
+        rotation_xyzw=tuple(q),
+    )
     rig = Rig(memory_bus, target_frame="base_link", static_transforms=[st])
     f = scene.frame(1, PEOPLE)
     rig.frames.put(f)
@@ -208,7 +224,9 @@ def test_static_transforms_from_config_and_camera_target(memory_bus: MemoryBus) 
     [out] = rig.service.step()
     assert out.header.frame_id == "base_link"
     assert np.allclose(out.detections[0].position, scene.BASE_CAMERA.apply(np.array(PEOPLE[0].center)), atol=0.01)
-    rig2 = Rig(MemoryBus(), target_frame="camera")  # asking for the camera frame gives camera-frame positions, labelled so
+    rig2 = Rig(
+        MemoryBus(), target_frame="camera"
+    )  # asking for the camera frame gives camera-frame positions, labelled so
     rig2.frames.put(f)
     rig2.dets.put(scene.detections(f, PEOPLE))
     [cam] = rig2.service.step()
@@ -218,7 +236,13 @@ def test_static_transforms_from_config_and_camera_target(memory_bus: MemoryBus) 
 def test_bad_transform_batches_are_counted(memory_bus: MemoryBus) -> None:
     rig = Rig(memory_bus)
     rig.robot(T0)
-    cycle = Transform(parent_frame="camera", child_frame="map", stamp_ns=T0, translation=np.zeros(3), rotation_xyzw=np.array([0, 0, 0, 1.0]))
+    cycle = Transform(
+        parent_frame="camera",
+        child_frame="map",
+        stamp_ns=T0,
+        translation=np.zeros(3),
+        rotation_xyzw=np.array([0, 0, 0, 1.0]),
+    )
     rig.tf.put(TransformBatch(header=Header(stamp_ns=T0), transforms=[cycle]))
     rig.service.step()
     assert rig.counters.extra["transforms_rejected"] == 1

@@ -83,7 +83,7 @@ def read_camera_info(path: Path) -> tuple[PinholeCamera, str]:
         K = _matrix(pick("K", "k", "camera_matrix"), 3, 3, f"K in {path}")
         D = np.asarray(_flat(pick("D", "d", "distortion_coefficients", default=[])), dtype=np.float64).reshape(-1)
         model = str(pick("distortion_model", default="plumb_bob"))
-        header = data.get("header") if isinstance(data.get("header"), dict) else {}
+        header: dict[str, Any] = data["header"] if isinstance(data.get("header"), dict) else {}
         frame_id = str(data.get("frame_id") or header.get("frame_id") or "camera")
         if model not in _MODELS:
             raise CliError(f"camera info {path}: distortion_model {model!r} is not one of {', '.join(_MODELS)}")
@@ -102,7 +102,9 @@ def _rigid(translation: Any, rotation: Any, what: str) -> RigidTransform:
         q = np.asarray(rotation, dtype=np.float64).reshape(4)
         return RigidTransform.from_quat(t, q)
     except (TypeError, ValueError) as exc:
-        raise CliError(f"{what}: translation needs 3 numbers and rotation_xyzw 4 (a non-zero quaternion): {exc}") from exc
+        raise CliError(
+            f"{what}: translation needs 3 numbers and rotation_xyzw 4 (a non-zero quaternion): {exc}"
+        ) from exc
 
 
 def parse_transform(spec: str) -> tuple[str, str, RigidTransform]:
@@ -129,11 +131,18 @@ def read_transforms(path: Path) -> list[tuple[str, str, RigidTransform]]:
         raise CliError(f"transforms file {path} cannot be parsed: {exc}") from exc
     items = data.get("transforms") if isinstance(data, dict) else data
     if not isinstance(items, list):
-        raise CliError(f"transforms file {path} must hold a list of transforms (or {{\"transforms\": [...]}})")
+        raise CliError(f'transforms file {path} must hold a list of transforms (or {{"transforms": [...]}})')
     out = []
     for i, item in enumerate(items):
         if not isinstance(item, dict) or not item.get("parent_frame") or not item.get("child_frame"):
-            raise CliError(f"transforms file {path}, entry {i}: needs parent_frame, child_frame, translation, rotation_xyzw")
-        out.append((str(item["parent_frame"]), str(item["child_frame"]),
-                    _rigid(item.get("translation"), item.get("rotation_xyzw", [0, 0, 0, 1]), f"{path}, entry {i}")))
+            raise CliError(
+                f"transforms file {path}, entry {i}: needs parent_frame, child_frame, translation, rotation_xyzw"
+            )
+        out.append(
+            (
+                str(item["parent_frame"]),
+                str(item["child_frame"]),
+                _rigid(item.get("translation"), item.get("rotation_xyzw", [0, 0, 0, 1]), f"{path}, entry {i}"),
+            )
+        )
     return out

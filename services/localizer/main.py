@@ -33,28 +33,65 @@ services/localizer/README.md for every setting and the transforms it needs."""
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("localizer")
-    g.add_argument("--service-config", type=Path, default=None, metavar="FILE",
-                   help="YAML/JSON settings file (section 'localizer' if present)")
+    g.add_argument(
+        "--service-config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="YAML/JSON settings file (section 'localizer' if present)",
+    )
     g.add_argument("--camera", default=None, help="camera name in the keys (default head)")
     g.add_argument("--target-frame", default=None, help="frame to publish positions in (default map)")
     g.add_argument("--camera-frame", default=None, help="camera frame id when the frames carry none")
     g.add_argument("--percentile", type=float, default=None, help="depth percentile inside each box (default 25)")
-    g.add_argument("--min-depth", dest="min_depth_m", type=float, default=None, metavar="M", help="nearest valid depth (default 0.3)")
-    g.add_argument("--max-depth", dest="max_depth_m", type=float, default=None, metavar="M", help="farthest valid depth (default 10)")
-    g.add_argument("--transform-wait", dest="transform_wait_s", type=float, default=None, metavar="S",
-                   help="how long to wait for a transform before dropping (default 0.25)")
+    g.add_argument(
+        "--min-depth",
+        dest="min_depth_m",
+        type=float,
+        default=None,
+        metavar="M",
+        help="nearest valid depth (default 0.3)",
+    )
+    g.add_argument(
+        "--max-depth",
+        dest="max_depth_m",
+        type=float,
+        default=None,
+        metavar="M",
+        help="farthest valid depth (default 10)",
+    )
+    g.add_argument(
+        "--transform-wait",
+        dest="transform_wait_s",
+        type=float,
+        default=None,
+        metavar="S",
+        help="how long to wait for a transform before dropping (default 0.25)",
+    )
     add_key_arguments(parser)
     add_zenoh_arguments(parser)
 
 
 def build_config(args: argparse.Namespace) -> LocalizerConfig:
     """Defaults -> file -> environment -> flags; CliError naming the bad value."""
-    overrides = {name: getattr(args, name, None) for name in
-                 ("camera", "target_frame", "camera_frame", "percentile", "min_depth_m", "max_depth_m", "transform_wait_s")}
+    overrides = {
+        name: getattr(args, name, None)
+        for name in (
+            "camera",
+            "target_frame",
+            "camera_frame",
+            "percentile",
+            "min_depth_m",
+            "max_depth_m",
+            "transform_wait_s",
+        )
+    }
     path = args.service_config
     try:
         section = "localizer" if path is not None and "localizer" in read_config_file(path) else None
-        return load_config(LocalizerConfig, path, env_prefix="PERCEPTION_LOCALIZER", overrides=overrides, section=section)
+        return load_config(
+            LocalizerConfig, path, env_prefix="PERCEPTION_LOCALIZER", overrides=overrides, section=section
+        )
     except ConfigError as exc:
         raise CliError(str(exc)) from exc
 

@@ -5,15 +5,26 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator, TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
 from common.cli_util import CliError
 from common.geometry import PinholeCamera, TransformBuffer, TransformError
-from services.localizer.core import DepthNoiseModel, Localization, LocalizerParams, localize
-from services.localizer.files import parse_transform, read_camera_info, read_depth, read_transforms
+from services.localizer.core import (
+    DepthNoiseModel,
+    Localization,
+    LocalizerParams,
+    localize,
+)
+from services.localizer.files import (
+    parse_transform,
+    read_camera_info,
+    read_depth,
+    read_transforms,
+)
 
 DESCRIPTION = """\
 Localize the person boxes of a detections file on a depth image and print the 3-D
@@ -54,19 +65,41 @@ frame defaults to 'map' and must be reachable from the camera frame."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--depth", type=Path, required=True, metavar="DEPTH", help="depth image, or a directory of them")
+    parser.add_argument(
+        "--depth", type=Path, required=True, metavar="DEPTH", help="depth image, or a directory of them"
+    )
     parser.add_argument("--camera-info", type=Path, required=True, metavar="CAM", help="CameraInfo JSON/YAML")
-    parser.add_argument("--detections", type=Path, required=True, metavar="DETS", help="detections JSON Lines ('-' for stdin)")
-    parser.add_argument("--transform", action="append", default=[], metavar="P:C:X,Y,Z[:QX,QY,QZ,QW]", help="static transform, repeatable")
+    parser.add_argument(
+        "--detections", type=Path, required=True, metavar="DETS", help="detections JSON Lines ('-' for stdin)"
+    )
+    parser.add_argument(
+        "--transform",
+        action="append",
+        default=[],
+        metavar="P:C:X,Y,Z[:QX,QY,QZ,QW]",
+        help="static transform, repeatable",
+    )
     parser.add_argument("--transforms", type=Path, default=None, metavar="FILE", help="JSON/YAML file of transforms")
-    parser.add_argument("--target-frame", default=None, help="frame of the output positions (default map with transforms, else the camera frame)")
-    parser.add_argument("--camera-frame", default=None, help="camera frame id (default: the camera info's frame_id, else 'camera')")
+    parser.add_argument(
+        "--target-frame",
+        default=None,
+        help="frame of the output positions (default map with transforms, else the camera frame)",
+    )
+    parser.add_argument(
+        "--camera-frame", default=None, help="camera frame id (default: the camera info's frame_id, else 'camera')"
+    )
     parser.add_argument("--percentile", type=float, default=25.0, help="depth percentile inside each box (default 25)")
     parser.add_argument("--min-depth", type=float, default=0.3, metavar="M", help="nearest valid depth (default 0.3)")
     parser.add_argument("--max-depth", type=float, default=10.0, metavar="M", help="farthest valid depth (default 10)")
-    parser.add_argument("--min-valid-pixels", type=int, default=20, metavar="N", help="fewer valid pixels rejects a box (default 20)")
-    parser.add_argument("--depth-unit", type=float, default=0.001, metavar="M", help="metres per unit of integer depth (default 0.001)")
-    parser.add_argument("--pixel-sigma", type=float, default=2.0, metavar="PX", help="box-centre pixel sigma (default 2)")
+    parser.add_argument(
+        "--min-valid-pixels", type=int, default=20, metavar="N", help="fewer valid pixels rejects a box (default 20)"
+    )
+    parser.add_argument(
+        "--depth-unit", type=float, default=0.001, metavar="M", help="metres per unit of integer depth (default 0.001)"
+    )
+    parser.add_argument(
+        "--pixel-sigma", type=float, default=2.0, metavar="PX", help="box-centre pixel sigma (default 2)"
+    )
     parser.add_argument("--output", "-o", type=Path, default=None, help="write here instead of stdout")
 
 
@@ -110,25 +143,51 @@ def _depth_for(args: argparse.Namespace, item: dict[str, Any], where: str) -> Pa
     raise CliError(f"{where}: no depth image {stem}.png/.npy/.tif in {args.depth}")
 
 
-def _record(item: dict[str, Any], depth_path: Path, cam_loc: Localization, out: Localization, scores: list[float],
-            boxes: np.ndarray) -> dict[str, Any]:
+def _record(
+    item: dict[str, Any],
+    depth_path: Path,
+    cam_loc: Localization,
+    out: Localization,
+    scores: list[float],
+    boxes: np.ndarray,
+) -> dict[str, Any]:
     dets = []
     for k, i in enumerate(out.indices.tolist()):
-        dets.append({
-            "index": i, "bbox_xyxy": boxes[i].tolist(), "score": scores[i], "pixel": out.pixels[k].round(3).tolist(),
-            "depth_m": round(float(out.depth_m[k]), 4), "valid_pixels": int(out.valid_pixels[k]),
-            "position": out.positions[k].round(4).tolist(), "position_camera": cam_loc.positions[k].round(4).tolist(),
-            "cov": out.covs[k].round(8).tolist(), "body_center_z": round(float(out.positions[k, 2]), 4),
-        })
-    return {"image": item.get("image"), "depth": str(depth_path), "frame_id": out.frame, "camera_frame": cam_loc.frame,
-            "detections": dets, "rejected": out.rejected_counts(), "rejected_indices": {str(i): r for i, r in out.rejected.items()}}
+        dets.append(
+            {
+                "index": i,
+                "bbox_xyxy": boxes[i].tolist(),
+                "score": scores[i],
+                "pixel": out.pixels[k].round(3).tolist(),
+                "depth_m": round(float(out.depth_m[k]), 4),
+                "valid_pixels": int(out.valid_pixels[k]),
+                "position": out.positions[k].round(4).tolist(),
+                "position_camera": cam_loc.positions[k].round(4).tolist(),
+                "cov": out.covs[k].round(8).tolist(),
+                "body_center_z": round(float(out.positions[k, 2]), 4),
+            }
+        )
+    return {
+        "image": item.get("image"),
+        "depth": str(depth_path),
+        "frame_id": out.frame,
+        "camera_frame": cam_loc.frame,
+        "detections": dets,
+        "rejected": out.rejected_counts(),
+        "rejected_indices": {str(i): r for i, r in out.rejected.items()},
+    }
 
 
 def main(args: argparse.Namespace) -> int:
     try:
-        params = LocalizerParams(percentile=args.percentile, min_depth_m=args.min_depth, max_depth_m=args.max_depth,
-                                 min_valid_pixels=args.min_valid_pixels, depth_unit_m=args.depth_unit,
-                                 noise=DepthNoiseModel(pixel_sigma_px=args.pixel_sigma))
+        params = LocalizerParams(
+            percentile=args.percentile,
+            min_depth_m=args.min_depth,
+            max_depth_m=args.max_depth,
+            min_valid_pixels=args.min_valid_pixels,
+            depth_unit_m=args.depth_unit,
+            noise=DepthNoiseModel(pixel_sigma_px=args.pixel_sigma),
+        )
     except ValueError as exc:
         raise CliError(str(exc)) from exc
     camera, info_frame = read_camera_info(args.camera_info)
@@ -161,8 +220,10 @@ def main(args: argparse.Namespace) -> int:
 
 def _check_size(camera: PinholeCamera, depth: np.ndarray, item: dict[str, Any], where: str, depth_path: Path) -> None:
     if depth.shape != (camera.height, camera.width):
-        raise CliError(f"depth image {depth_path} is {depth.shape[1]}x{depth.shape[0]}, "
-                       f"the camera info says {camera.width}x{camera.height}")
+        raise CliError(
+            f"depth image {depth_path} is {depth.shape[1]}x{depth.shape[0]}, "
+            f"the camera info says {camera.width}x{camera.height}"
+        )
     w, h = item.get("width"), item.get("height")
     if (w and int(w) != camera.width) or (h and int(h) != camera.height):
         raise CliError(f"{where}: detections are for a {w}x{h} image, the camera is {camera.width}x{camera.height}")

@@ -24,15 +24,31 @@ import logging
 import time
 from collections import deque
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from common.geometry import ExtrapolationError, FrameTreeError, MissingTransformError, PinholeCamera, RigidTransform, TransformBuffer
+from common.geometry import (
+    ExtrapolationError,
+    FrameTreeError,
+    MissingTransformError,
+    PinholeCamera,
+    RigidTransform,
+    TransformBuffer,
+)
 from common.geometry_messages import add_batch, camera_from_info
 from common.keys import FRAMES, RELIABLE, Keys
 from common.runtime import Counters, Shutdown
-from common.schemas import Detections, Header, Image, LocalizedDetection, LocalizedDetections, RGBDFrame, TransformBatch
-from common.transport import Transport, wait_any
+from common.schemas import (
+    Detections,
+    Header,
+    Image,
+    LocalizedDetection,
+    LocalizedDetections,
+    RGBDFrame,
+    TransformBatch,
+)
+from common.transport import Subscription, Transport, wait_any
 from services.localizer.config import LocalizerConfig
 from services.localizer.core import localize
 from services.localizer.pairing import FrameKey, FrameRing
@@ -76,7 +92,9 @@ class _RateLimited:
 class LocalizerService:
     """The localizer on a transport it is handed (Zenoh or in-memory)."""
 
-    def __init__(self, transport: Transport, keys: Keys, config: LocalizerConfig, counters: Counters | None = None) -> None:
+    def __init__(
+        self, transport: Transport, keys: Keys, config: LocalizerConfig, counters: Counters | None = None
+    ) -> None:
         self.transport = transport
         self.keys = keys
         self.config = config
@@ -84,8 +102,13 @@ class LocalizerService:
         self.params = config.params()
         self.buffer = TransformBuffer(history_s=config.tf_history_s, tolerance_s=config.tf_tolerance_s)
         for st in config.static_transforms:
-            self.buffer.set_transform(st.parent_frame, st.child_frame, 0,
-                                      RigidTransform.from_quat(np.array(st.translation), np.array(st.rotation_xyzw)), static=True)
+            self.buffer.set_transform(
+                st.parent_frame,
+                st.child_frame,
+                0,
+                RigidTransform.from_quat(np.array(st.translation), np.array(st.rotation_xyzw)),
+                static=True,
+            )
         self.frames_ring: FrameRing[_DepthFrame] = FrameRing(config.frame_buffer)
         self.pending: deque[_Pending] = deque()
         self._log = _RateLimited()
@@ -95,7 +118,12 @@ class LocalizerService:
         self.sub_tf = transport.subscribe(keys.tf(), TransformBatch, RELIABLE)
         self.sub_tf_static = transport.subscribe(keys.tf_static(), TransformBatch, RELIABLE)
         self.pub = transport.publisher(keys.localized(config.camera), LocalizedDetections, RELIABLE)
-        self.subscriptions = [self.sub_tf_static, self.sub_tf, self.sub_frames, self.sub_detections]
+        self.subscriptions: list[Subscription[Any]] = [
+            self.sub_tf_static,
+            self.sub_tf,
+            self.sub_frames,
+            self.sub_detections,
+        ]
 
     # ------------------------------------------------------------------ inputs
 
@@ -135,7 +163,12 @@ class LocalizerService:
         frame = self.frames_ring.get(key)
         if frame is None:
             if self.frames_ring.passed(key) or now - item.arrived >= self.config.frame_wait_s:
-                self._drop("no_depth_frame", "no depth frame %s (lost, or evicted from the last %d)", key, self.config.frame_buffer)
+                self._drop(
+                    "no_depth_frame",
+                    "no depth frame %s (lost, or evicted from the last %d)",
+                    key,
+                    self.config.frame_buffer,
+                )
                 return True, None
             return False, None
         if frame.depth is None:
@@ -163,7 +196,14 @@ class LocalizerService:
             return None
         w, h = msg.image_width, msg.image_height
         if (w and w != depth.shape[1]) or (h and h != depth.shape[0]):
-            self._drop("size_mismatch", "detections are for a %dx%d image, depth is %dx%d", w, h, depth.shape[1], depth.shape[0])
+            self._drop(
+                "size_mismatch",
+                "detections are for a %dx%d image, depth is %dx%d",
+                w,
+                h,
+                depth.shape[1],
+                depth.shape[0],
+            )
             return None
         dets = msg.detections
         boxes = np.array([d.bbox_xyxy for d in dets], dtype=np.float64).reshape(-1, 4)
@@ -172,14 +212,30 @@ class LocalizerService:
         entries = []
         for k, i in enumerate(out.indices):
             d = dets[int(i)]
-            entries.append(LocalizedDetection(index=d.index, bbox_xyxy=d.bbox_xyxy, score=d.score, position=out.positions[k],
-                                              cov=out.covs[k], depth_m=float(out.depth_m[k]), valid_pixels=int(out.valid_pixels[k])))
+            entries.append(
+                LocalizedDetection(
+                    index=d.index,
+                    bbox_xyxy=d.bbox_xyxy,
+                    score=d.score,
+                    position=out.positions[k],
+                    cov=out.covs[k],
+                    depth_m=float(out.depth_m[k]),
+                    valid_pixels=int(out.valid_pixels[k]),
+                )
+            )
         rejected = loc.rejected_counts()
         for reason, n in rejected.items():
             self.counters.count(f"rejected_{reason}", n)
         self.counters.count("boxes_localized", len(entries))
-        header = Header(stamp_ns=msg.header.stamp_ns, frame_id=self.config.target_frame, seq=msg.header.seq, source=msg.header.source)
-        return LocalizedDetections(header=header, camera_frame=frame.camera_frame, detections=entries, rejected=rejected)
+        header = Header(
+            stamp_ns=msg.header.stamp_ns,
+            frame_id=self.config.target_frame,
+            seq=msg.header.seq,
+            source=msg.header.source,
+        )
+        return LocalizedDetections(
+            header=header, camera_frame=frame.camera_frame, detections=entries, rejected=rejected
+        )
 
     # ------------------------------------------------------------------- loop
 

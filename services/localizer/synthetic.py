@@ -57,12 +57,14 @@ def person_box(camera: PinholeCamera, p: Person) -> np.ndarray:
     cx, cy, cz = p.center
     hw, hh = 0.5 * p.width_m, 0.5 * p.height_m
     t = np.linspace(-1.0, 1.0, 21)
-    outline = np.concatenate([
-        np.column_stack([cx + hw * t, np.full_like(t, cy - hh)]),
-        np.column_stack([cx + hw * t, np.full_like(t, cy + hh)]),
-        np.column_stack([np.full_like(t, cx - hw), cy + hh * t]),
-        np.column_stack([np.full_like(t, cx + hw), cy + hh * t]),
-    ])
+    outline = np.concatenate(
+        [
+            np.column_stack([cx + hw * t, np.full_like(t, cy - hh)]),
+            np.column_stack([cx + hw * t, np.full_like(t, cy + hh)]),
+            np.column_stack([np.full_like(t, cx - hw), cy + hh * t]),
+            np.column_stack([np.full_like(t, cx + hw), cy + hh * t]),
+        ]
+    )
     pts = np.column_stack([outline, np.full(len(outline), cz)])
     px = camera.project(pts)
     c = camera.project(np.array([[cx, cy, cz]]))[0]

@@ -106,17 +106,33 @@ class Localization:
         return replace(self, frame=frame, positions=positions, covs=covs)
 
 
-def _depth_in_box(depth: np.ndarray, r0: int, r1: int, c0: int, c1: int, params: LocalizerParams) -> np.ndarray:
+def _valid_depth(
+    depth: np.ndarray, r0: int, r1: int, c0: int, c1: int, params: LocalizerParams
+) -> tuple[np.ndarray, float]:
+    """The valid pixels of ``depth[r0:r1, c0:c1]`` (1-D, raw units) and the metres per unit."""
     crop = depth[r0:r1, c0:c1]
     if np.issubdtype(crop.dtype, np.integer):
-        z = crop.astype(np.float32) * np.float32(params.depth_unit_m)
-    else:
-        z = crop.astype(np.float32, copy=False)
+        unit = params.depth_unit_m
+        lo = max(int(np.ceil(params.min_depth_m / unit - 1e-9)), 1)  # 0 is "no depth"
+        hi = int(np.floor(params.max_depth_m / unit + 1e-9))
+        return crop[(crop >= lo) & (crop <= hi)], unit
     # NaN compares False, so NaN, zero and out-of-range pixels all fall out here.
-    return z[(z >= max(params.min_depth_m, 1e-9)) & (z <= params.max_depth_m)]
+    return crop[(crop >= max(params.min_depth_m, 1e-9)) & (crop <= params.max_depth_m)], 1.0
 
 
-def box_depths(depth: np.ndarray, boxes: np.ndarray, params: LocalizerParams) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str | None]]:
+def _percentile(values: np.ndarray, q: float) -> float:
+    """``np.percentile(values, q)`` (linear interpolation) through one partial sort; ~4x faster."""
+    k = (len(values) - 1) * q / 100.0
+    lo = int(np.floor(k))
+    hi = min(lo + 1, len(values) - 1)
+    part = np.partition(values, (lo, hi))
+    a, b = float(part[lo]), float(part[hi])
+    return a + (b - a) * (k - lo)
+
+
+def box_depths(
+    depth: np.ndarray, boxes: np.ndarray, params: LocalizerParams
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str | None]]:
     """Depth and ray pixel of each box.
 
     ``depth`` (H, W) uint16 (``depth_unit_m`` units, 0 invalid) or float32 metres (NaN/0
@@ -143,18 +159,24 @@ def box_depths(depth: np.ndarray, boxes: np.ndarray, params: LocalizerParams) ->
         if c0 >= c1 or r0 >= r1 or x2 <= 0 or y2 <= 0:
             reasons[i] = REJECT_OUTSIDE_IMAGE
             continue
-        z = _depth_in_box(depth, r0, r1, c0, c1, params)
+        z, unit = _valid_depth(depth, r0, r1, c0, c1, params)
         valid[i] = z.size
         if z.size < params.min_valid_pixels:
             reasons[i] = REJECT_TOO_FEW_PIXELS
             continue
-        depth_m[i] = float(np.percentile(z, params.percentile))
+        depth_m[i] = _percentile(z, params.percentile) * unit
         pixels[i] = (0.5 * (max(x1, 0.0) + min(x2, w - 1.0)), 0.5 * (max(y1, 0.0) + min(y2, h - 1.0)))
     return depth_m, valid, pixels, reasons
 
 
-def localize(depth: np.ndarray, camera: PinholeCamera, boxes: np.ndarray, params: LocalizerParams,
-             indices: np.ndarray | None = None, frame: str = "camera") -> Localization:
+def localize(
+    depth: np.ndarray,
+    camera: PinholeCamera,
+    boxes: np.ndarray,
+    params: LocalizerParams,
+    indices: np.ndarray | None = None,
+    frame: str = "camera",
+) -> Localization:
     """Localize ``boxes`` (N, 4) in the camera ``frame`` from ``depth`` (H, W).
 
     ``indices`` (N,) are the detection indices carried through (default 0..N-1).
@@ -176,5 +198,13 @@ def localize(depth: np.ndarray, camera: PinholeCamera, boxes: np.ndarray, params
         covs = point_covariances(rays, camera.ray_jacobians(px), z, params.noise)
     else:
         positions, covs = np.zeros((0, 3)), np.zeros((0, 3, 3))
-    return Localization(frame=frame, indices=idx[keep], pixels=px, depth_m=z, valid_pixels=valid[keep],
-                        positions=positions, covs=covs, rejected=rejected)
+    return Localization(
+        frame=frame,
+        indices=idx[keep],
+        pixels=px,
+        depth_m=z,
+        valid_pixels=valid[keep],
+        positions=positions,
+        covs=covs,
+        rejected=rejected,
+    )

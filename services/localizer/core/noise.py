@@ -50,7 +50,7 @@ def point_covariances(rays: np.ndarray, ray_jacobians: np.ndarray, z: np.ndarray
     """
     z = np.asarray(z, dtype=np.float64)
     jac = np.concatenate([ray_jacobians * z[:, None, None], rays[:, :, None]], axis=2)  # (N, 3, 3)
-    s_px2 = model.pixel_sigma_px ** 2
+    s_px2 = model.pixel_sigma_px**2
     var = np.stack([np.full_like(z, s_px2), np.full_like(z, s_px2), model.axial_sigma(z) ** 2], axis=1)  # (N, 3)
     cov = np.einsum("nik,nk,njk->nij", jac, var, jac)
     return 0.5 * (cov + np.transpose(cov, (0, 2, 1)))

@@ -243,9 +243,11 @@ def test_bad_transform_batches_are_counted(memory_bus: MemoryBus) -> None:
         translation=np.zeros(3),
         rotation_xyzw=np.array([0, 0, 0, 1.0]),
     )
-    rig.tf.put(TransformBatch(header=Header(stamp_ns=T0), transforms=[cycle]))
+    later = scene.tf(T0 + S).transforms
+    rig.tf.put(TransformBatch(header=Header(stamp_ns=T0), transforms=[later[0], cycle, later[1]]))
     rig.service.step()
     assert rig.counters.extra["transforms_rejected"] == 1
+    assert rig.service.buffer.latest_common_stamp("map", "camera") == T0 + S  # the good edges were kept
 
 
 def test_pending_is_bounded(memory_bus: MemoryBus) -> None:

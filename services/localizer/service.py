@@ -36,7 +36,7 @@ from common.geometry import (
     RigidTransform,
     TransformBuffer,
 )
-from common.geometry_messages import add_batch, camera_from_info
+from common.geometry_messages import add_transform, camera_from_info
 from common.keys import FRAMES, RELIABLE, Keys
 from common.runtime import Counters, Shutdown
 from common.schemas import (
@@ -130,11 +130,12 @@ class LocalizerService:
     def _take_transforms(self) -> None:
         for sub, static in ((self.sub_tf_static, True), (self.sub_tf, False)):
             while (got := sub.try_recv()) is not None:
-                try:
-                    add_batch(self.buffer, got.msg, static=static)
-                except FrameTreeError as exc:
-                    self.counters.count("transforms_rejected")
-                    self._log.warning("tf_tree", "rejected transform from %s: %s", got.key, exc)
+                for msg in got.msg.transforms:  # one bad edge must not cost the others of its batch
+                    try:
+                        add_transform(self.buffer, msg, static=static)
+                    except FrameTreeError as exc:
+                        self.counters.count("transforms_rejected")
+                        self._log.warning("tf_tree", "rejected transform from %s: %s", got.key, exc)
 
     def _take_frames(self) -> None:
         while (got := self.sub_frames.try_recv()) is not None:

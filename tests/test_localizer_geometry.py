@@ -17,6 +17,7 @@ from common.geometry import (
 )
 from common.geometry_messages import (
     add_batch,
+    batch_from_ros,
     camera_from_info,
     rigid_from_msg,
     transform_msg,
@@ -221,3 +222,28 @@ def test_transform_messages_round_trip() -> None:
     msg = transform_msg("base_link", "camera", 5, tf, static=True)
     assert np.allclose(rigid_from_msg(msg).matrix, tf.matrix)
     assert ("base_link", "camera", True) in [e[:3] for e in buf.edges()]
+
+
+def test_batch_from_ros_tf_messages() -> None:
+    from types import SimpleNamespace as NS
+
+    def stamped(parent: str, child: str, stamp: NS, xyz: tuple[float, ...], q: tuple[float, ...]) -> NS:
+        return NS(
+            header=NS(frame_id=parent, stamp=stamp),
+            child_frame_id=child,
+            transform=NS(translation=NS(x=xyz[0], y=xyz[1], z=xyz[2]), rotation=NS(x=q[0], y=q[1], z=q[2], w=q[3])),
+        )
+
+    ros2 = NS(transforms=[stamped("odom", "base_link", NS(sec=12, nanosec=500), (1.0, 2.0, 0.0), (0, 0, 0.6, 0.8))])
+    ros1 = NS(
+        transforms=[stamped("/base_link", "/camera", NS(secs=3, nsecs=7), (0.1, 0.0, 1.2), (-0.5, 0.5, -0.5, 0.5))]
+    )
+    b2, b1 = batch_from_ros(ros2), batch_from_ros(ros1, static=True)
+    t2, t1 = b2.transforms[0], b1.transforms[0]
+    assert (t2.parent_frame, t2.child_frame, t2.stamp_ns, t2.static) == ("odom", "base_link", 12 * S + 500, False)
+    assert np.allclose(t2.rotation_xyzw, [0, 0, 0.6, 0.8]) and b2.header.stamp_ns == 12 * S + 500
+    assert (t1.parent_frame, t1.child_frame, t1.stamp_ns, t1.static) == ("base_link", "camera", 3 * S + 7, True)
+    buf = TransformBuffer()
+    add_batch(buf, b1)
+    add_batch(buf, b2)
+    assert buf.can_transform("odom", "camera", 12 * S + 500)

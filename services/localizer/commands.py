@@ -1,0 +1,12 @@
+"""Sub-commands of the localizer package."""
+
+COMMANDS = {
+    "localizer": (
+        "services.localizer.main",
+        "run the localizer service: boxes + depth + transforms -> people in the map",
+    ),
+    "localize": (
+        "services.localizer.offline",
+        "localize the boxes of a detections JSONL file on a depth image, print JSON",
+    ),
+}

@@ -1,0 +1,82 @@
+"""LocalizerConfig: the localizer's settings, with the thesis's and the sensors' defaults."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from common.keys import validate_chunk
+from services.localizer.core import DepthNoiseModel, LocalizerParams
+
+__all__ = ["LocalizerConfig", "StaticTransformConfig"]
+
+
+class StaticTransformConfig(BaseModel):
+    """A fixed ``parent -> child`` transform given in the config (e.g. the camera mount)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    parent_frame: str = Field(min_length=1)
+    child_frame: str = Field(min_length=1)
+    translation: tuple[float, float, float]
+    rotation_xyzw: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+
+
+class LocalizerConfig(BaseModel):
+    """Everything ``perception localizer`` can be told (file section ``localizer``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    camera: str = Field(default="head", description="camera name in the keys (frames/{camera}, detections/{camera})")
+    target_frame: str = Field(default="map", min_length=1, description="frame the positions are published in")
+    camera_frame: str = Field(
+        default="", description="camera frame id used when a frame's header and camera_info carry none"
+    )
+    percentile: float = Field(
+        default=25.0, ge=0.0, le=100.0, description="depth percentile inside the box (seed 000: 25)"
+    )
+    min_depth_m: float = Field(default=0.3, ge=0.0, description="depth pixels nearer than this are invalid")
+    max_depth_m: float = Field(default=10.0, gt=0.0, le=100.0, description="depth pixels farther than this are invalid")
+    min_valid_pixels: int = Field(default=20, ge=1, description="fewer valid depth pixels in a box rejects it")
+    depth_unit_m: float = Field(default=0.001, gt=0.0, description="metres per unit of integer (16UC1) depth")
+    depth_noise_a_m: float = Field(default=0.0, ge=0.0, le=1.0, description="axial sigma = a + b z^2: a, m")
+    depth_noise_b_per_m: float = Field(
+        default=1.425e-3, ge=0.0, le=1.0, description="axial sigma = a + b z^2: b, 1/m (Khoshelham and Elberink 2012)"
+    )
+    pixel_sigma_px: float = Field(default=2.0, ge=0.0, le=100.0, description="sigma of the box-centre pixel")
+    tf_history_s: float = Field(default=10.0, gt=0.0, le=3600.0, description="history kept per transform edge")
+    tf_tolerance_s: float = Field(
+        default=0.05, ge=0.0, le=10.0, description="a lookup this far outside an edge's history uses its end"
+    )
+    transform_wait_s: float = Field(
+        default=0.25, ge=0.0, le=10.0, description="how long detections wait for their transform before being dropped"
+    )
+    frame_wait_s: float = Field(
+        default=0.5, ge=0.0, le=10.0, description="how long detections wait for a depth frame not yet received"
+    )
+    frame_buffer: int = Field(default=15, ge=1, le=600, description="recent depth frames kept for pairing")
+    max_pending: int = Field(default=64, ge=1, le=10000, description="detections messages waiting at most")
+    static_transforms: list[StaticTransformConfig] = Field(
+        default_factory=list, description="extra static transforms, e.g. the camera mount"
+    )
+
+    @field_validator("camera")
+    @classmethod
+    def _chunk(cls, v: str) -> str:
+        return validate_chunk(v, "camera")
+
+    @model_validator(mode="after")
+    def _range(self) -> LocalizerConfig:
+        if not self.min_depth_m < self.max_depth_m:
+            raise ValueError(f"min_depth_m ({self.min_depth_m}) must be below max_depth_m ({self.max_depth_m})")
+        return self
+
+    def params(self) -> LocalizerParams:
+        """The core's parameters."""
+        return LocalizerParams(
+            percentile=self.percentile,
+            min_depth_m=self.min_depth_m,
+            max_depth_m=self.max_depth_m,
+            min_valid_pixels=self.min_valid_pixels,
+            depth_unit_m=self.depth_unit_m,
+            noise=DepthNoiseModel(self.depth_noise_a_m, self.depth_noise_b_per_m, self.pixel_sigma_px),
+        )

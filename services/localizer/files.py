@@ -1,0 +1,148 @@
+"""Reading the offline tool's inputs: depth images, camera info and transform files.
+
+Every function raises :class:`common.cli_util.CliError` with a message naming the file
+and what is wrong with it.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import yaml
+
+from common.cli_util import CliError
+from common.geometry import PinholeCamera, RigidTransform
+
+__all__ = ["parse_transform", "read_camera_info", "read_depth", "read_transforms"]
+
+_MODELS = ("plumb_bob", "rational_polynomial", "equidistant", "none")
+
+
+def read_depth(path: Path) -> np.ndarray:
+    """(H, W) depth: uint16 (units, 0 invalid) from a 16-bit PNG/TIFF or .npy, float32 metres from float .npy/TIFF/EXR."""
+    if not path.is_file():
+        raise CliError(f"depth image {path} does not exist")
+    if path.suffix == ".npy":
+        try:
+            depth = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise CliError(f"depth image {path} cannot be read as .npy: {exc}") from exc
+    else:
+        depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+        if depth is None:
+            raise CliError(f"depth image {path} cannot be decoded (use a 16-bit PNG in millimetres or a .npy array)")
+    if depth.ndim != 2:
+        raise CliError(f"depth image {path} has shape {depth.shape}; a depth image has one channel")
+    if depth.dtype == np.uint8:
+        raise CliError(f"depth image {path} is 8-bit; depth must be 16-bit (millimetres) or float (metres)")
+    if np.issubdtype(depth.dtype, np.floating):
+        return depth.astype(np.float32, copy=False)
+    return depth.astype(np.uint16, copy=False) if depth.dtype != np.uint16 else depth
+
+
+def _matrix(value: Any, rows: int, cols: int, what: str) -> np.ndarray:
+    if isinstance(value, dict) and "data" in value:  # camera_calibration YAML: {rows, cols, data}
+        value = value["data"]
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.size != rows * cols:
+        raise CliError(f"{what} has {arr.size} numbers, expected {rows * cols}")
+    return arr.reshape(rows, cols)
+
+
+def read_camera_info(path: Path) -> tuple[PinholeCamera, str]:
+    """The camera model and frame id of a CameraInfo-like JSON/YAML file.
+
+    Accepted keys: ``width``/``height`` (or ``image_width``/``image_height``), ``K``
+    (3x3 or 9 numbers; also ``k`` or ``camera_matrix``), ``D`` (also ``d`` or
+    ``distortion_coefficients``), ``distortion_model`` (default plumb_bob) and
+    ``frame_id`` (or ``header.frame_id``, default ``camera``).
+    """
+    if not path.is_file():
+        raise CliError(f"camera info {path} does not exist")
+    try:
+        data = json.loads(path.read_text()) if path.suffix == ".json" else yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:
+        raise CliError(f"camera info {path} cannot be parsed: {exc}") from exc
+    if not isinstance(data, dict):
+        raise CliError(f"camera info {path} must hold an object with width, height, K, D")
+
+    def pick(*names: str, default: Any = None) -> Any:
+        for n in names:
+            if n in data:
+                return data[n]
+        if default is None:
+            raise CliError(f"camera info {path} has no {names[0]!r}")
+        return default
+
+    try:
+        width, height = int(pick("width", "image_width")), int(pick("height", "image_height"))
+        K = _matrix(pick("K", "k", "camera_matrix"), 3, 3, f"K in {path}")
+        D = np.asarray(_flat(pick("D", "d", "distortion_coefficients", default=[])), dtype=np.float64).reshape(-1)
+        model = str(pick("distortion_model", default="plumb_bob"))
+        header: dict[str, Any] = data["header"] if isinstance(data.get("header"), dict) else {}
+        frame_id = str(data.get("frame_id") or header.get("frame_id") or "camera")
+        if model not in _MODELS:
+            raise CliError(f"camera info {path}: distortion_model {model!r} is not one of {', '.join(_MODELS)}")
+        return PinholeCamera(K, width, height, D, model), frame_id  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise CliError(f"camera info {path}: {exc}") from exc
+
+
+def _flat(value: Any) -> Any:
+    return value["data"] if isinstance(value, dict) and "data" in value else value
+
+
+def _rigid(translation: Any, rotation: Any, what: str) -> RigidTransform:
+    try:
+        t = np.asarray(translation, dtype=np.float64).reshape(3)
+        q = np.asarray(rotation, dtype=np.float64).reshape(4)
+        return RigidTransform.from_quat(t, q)
+    except (TypeError, ValueError) as exc:
+        raise CliError(
+            f"{what}: translation needs 3 numbers and rotation_xyzw 4 (a non-zero quaternion): {exc}"
+        ) from exc
+
+
+def parse_transform(spec: str) -> tuple[str, str, RigidTransform]:
+    """``parent:child:x,y,z:qx,qy,qz,qw`` (the rotation may be left out for identity)."""
+    parts = spec.split(":")
+    if len(parts) not in (3, 4) or not parts[0] or not parts[1]:
+        raise CliError(f"--transform {spec!r} is not PARENT:CHILD:X,Y,Z[:QX,QY,QZ,QW]")
+    try:
+        t = [float(v) for v in parts[2].split(",")]
+        q = [float(v) for v in parts[3].split(",")] if len(parts) == 4 else [0.0, 0.0, 0.0, 1.0]
+    except ValueError as exc:
+        raise CliError(f"--transform {spec!r}: {exc}") from exc
+    return parts[0], parts[1], _rigid(t, q, f"--transform {spec!r}")
+
+
+def read_transforms(path: Path) -> list[tuple[str, str, RigidTransform]]:
+    """Transforms of a JSON/YAML file: a list of ``{parent_frame, child_frame, translation, rotation_xyzw}``
+    or an object with such a list under ``transforms`` (a TransformBatch as JSON)."""
+    if not path.is_file():
+        raise CliError(f"transforms file {path} does not exist")
+    try:
+        data = json.loads(path.read_text()) if path.suffix == ".json" else yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:
+        raise CliError(f"transforms file {path} cannot be parsed: {exc}") from exc
+    items = data.get("transforms") if isinstance(data, dict) else data
+    if not isinstance(items, list):
+        raise CliError(f'transforms file {path} must hold a list of transforms (or {{"transforms": [...]}})')
+    out = []
+    for i, item in enumerate(items):
+        if not isinstance(item, dict) or not item.get("parent_frame") or not item.get("child_frame"):
+            raise CliError(
+                f"transforms file {path}, entry {i}: needs parent_frame, child_frame, translation, rotation_xyzw"
+            )
+        out.append(
+            (
+                str(item["parent_frame"]),
+                str(item["child_frame"]),
+                _rigid(item.get("translation"), item.get("rotation_xyzw", [0, 0, 0, 1]), f"{path}, entry {i}"),
+            )
+        )
+    return out

@@ -1,0 +1,95 @@
+"""The localizer as a real ``perception localizer`` process, over a real router."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from common.keys import FRAMES, RELIABLE, Keys
+from common.router_process import RouterProcess
+from common.schemas import (
+    Detections,
+    LocalizedDetections,
+    RGBDFrame,
+    ServiceStatus,
+    TransformBatch,
+)
+from common.zenoh_transport import ZenohTransport
+from services.localizer import scene
+from services.localizer.synthetic import Person
+
+KEYS = Keys(robot="itest")
+
+
+@pytest.mark.zenoh
+def test_localizer_process_over_router(
+    router: RouterProcess, zenoh_client: Callable[[], ZenohTransport], tmp_path: Path
+) -> None:
+    log = (tmp_path / "localizer.log").open("wb")
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "services",
+            "localizer",
+            "--robot",
+            "itest",
+            "--connect",
+            router.endpoint,
+            "--no-multicast-scouting",
+            "--transform-wait",
+            "1.0",
+        ],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        env={**os.environ, "RUST_LOG": "error"},
+    )
+    try:
+        client = zenoh_client()
+        out = client.subscribe(KEYS.localized("head"), LocalizedDetections, RELIABLE)
+        frames = client.publisher(KEYS.frames("head"), RGBDFrame, FRAMES)
+        dets = client.publisher(KEYS.detections("head"), Detections, RELIABLE)
+        tf = client.publisher(KEYS.tf(), TransformBatch, RELIABLE)
+        tf_static = client.publisher(KEYS.tf_static(), TransformBatch, RELIABLE)
+        deadline = time.monotonic() + 60.0
+        while not client.alive(KEYS.alive("localizer")):
+            assert proc.poll() is None, (tmp_path / "localizer.log").read_text()
+            assert time.monotonic() < deadline, "the localizer did not come up"
+            time.sleep(0.1)
+        assert dets.wait_for_subscribers(30.0) and frames.wait_for_subscribers(30.0)
+
+        people = [Person((0.4, 0.1, 3.0))]
+        got = None
+        seq = 0
+        while got is None and time.monotonic() < deadline:  # frames may be dropped under load: resend
+            seq += 1
+            f = scene.frame(seq, people)
+            tf_static.put(scene.tf_static())
+            tf.put(scene.tf(f.header.stamp_ns - scene.S // 10))
+            tf.put(scene.tf(f.header.stamp_ns + scene.S // 10))
+            frames.put(f)
+            dets.put(scene.detections(f, people))
+            got = out.recv(timeout=2.0)
+        assert got is not None, (tmp_path / "localizer.log").read_text()
+        msg = got.msg
+        assert msg.header.frame_id == "map" and msg.header.source == "head"
+        truth = scene.map_position(people[0], msg.header.stamp_ns)
+        assert np.linalg.norm(msg.detections[0].position - truth) < 0.01
+
+        statuses = [m for _, m in client.query(KEYS.status("localizer"), timeout=5.0) if isinstance(m, ServiceStatus)]
+        assert statuses and statuses[0].extra.get("boxes_localized", 0) >= 1
+    finally:
+        proc.terminate()
+        try:
+            assert proc.wait(timeout=15) == 0, "the localizer must exit cleanly on SIGTERM"
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+            log.close()

@@ -5,16 +5,18 @@ re-identification; this one needs no training):
 
 * Every crop is resized to :data:`CROP_H` x :data:`CROP_W` (64 x 32) pixels and converted
   to HSV (hue in degrees, saturation and value in [0, 1]).
-* **Lighting robustness.** Hue and saturation do not change when the light gets brighter
-  or dimmer (a common gain on R, G, B), so coloured pixels are binned on hue x saturation
-  only. Grey, black and white pixels have no reliable hue; they go to *achromatic* bins on
-  a value scale that is first divided by the crop's median value, so a global gain
-  cancels there too (values above the median share the top bin: the bright background
-  should not dominate, the dark-to-mid tones of clothes need the resolution). A pixel
-  is split smoothly between the two groups by its saturation (ramp 0.3 to 0.5; lower
-  saturations are mostly compression and sensor noise) and value, and hue is soft-binned (linear interpolation
-  between the two nearest of 8 circular bins), so small colour shifts move mass between
-  neighbouring bins instead of jumping.
+* **Lighting robustness.** A grey-world white balance first scales R, G and B so the
+  crop averages grey, which undoes most of a colour-temperature change (warm lamps,
+  daylight). Hue and saturation do not change when the light gets brighter or dimmer
+  (a common gain on R, G, B), so coloured pixels are binned on hue x saturation only.
+  Grey, black and white pixels have no reliable hue; they go to *achromatic* bins on a
+  value scale first divided by the crop's median value, so a global gain cancels there
+  too (values above the median share the top bin: the bright background should not
+  dominate, the dark-to-mid tones of clothes need the resolution). A pixel is split
+  smoothly between the two groups by its saturation (ramp 0.3 to 0.5; lower
+  saturations are mostly compression and sensor noise) and its value, and hue is
+  soft-binned (linear interpolation between the two nearest of 8 circular bins), so a
+  small colour shift moves mass between neighbouring bins instead of jumping.
 * **Stripes.** The crop is cut into 4 horizontal stripes: head (top 16 %), upper torso,
   lower torso (down to 55 %) and legs. Each stripe gets 32 bins (8 hue x 3 saturation +
   8 achromatic value), normalised to sum 1, so the descriptor is 4 x 32 = **128-D**.
@@ -69,6 +71,11 @@ class ColourParams:
     #: Divide value by this percentile of the crop's value before achromatic binning
     #: (None: bin the absolute value).
     value_percentile: float | None = 50.0
+    #: Grey-world white balance: "crop" scales R, G, B so the whole crop averages grey,
+    #: "border" uses only the crop's border (mostly background), "none" skips it.
+    white_balance: str = "crop"
+    #: Exponent on the white-balance gains (0 = off, 1 = full correction).
+    white_balance_strength: float = 1.0
     #: Relative value mapped onto the achromatic bins: [0, value_range].
     value_range: float = 1.0
 
@@ -100,6 +107,8 @@ class ColourDescriptor:
         #: (H,) stripe index of each row.
         self.stripe_of_row = np.searchsorted(np.asarray(STRIPES[1:-1]), rows, side="right")
         self._stripe_w = np.asarray(p.stripe_weights, np.float32)
+        #: (H, W) weights of the border (background) pixels for the white balance.
+        self._border = (r2 > 1.0).astype(np.float32)
 
     def __call__(self, crops: list[np.ndarray]) -> np.ndarray:
         return self.embed(crops)
@@ -120,7 +129,14 @@ class ColourDescriptor:
         """Descriptors of (N, CROP_H, CROP_W, 3) uint8 RGB crops -> (N, DIM) float32."""
         n = batch.shape[0]
         p = self.params
-        tall = batch.reshape(n * CROP_H, CROP_W, 3).astype(np.float32) * np.float32(1.0 / 255.0)
+        rgb = batch.astype(np.float32) * np.float32(1.0 / 255.0)
+        if p.white_balance != "none" and p.white_balance_strength > 0:
+            wb = self._border if p.white_balance == "border" else np.ones_like(self._border)
+            means = np.einsum("nhwc,hw->nc", rgb, wb) / wb.sum()  # (N, 3)
+            gains = means.mean(axis=1, keepdims=True) / np.maximum(means, 1e-3)
+            gains = np.clip(gains, 0.5, 2.0) ** p.white_balance_strength
+            rgb = np.clip(rgb * gains[:, None, None, :].astype(np.float32), 0.0, 1.0)
+        tall = rgb.reshape(n * CROP_H, CROP_W, 3)
         hsv = cv2.cvtColor(tall, cv2.COLOR_RGB2HSV).reshape(n, CROP_H, CROP_W, 3)
         hue, sat, val = hsv[..., 0], hsv[..., 1], hsv[..., 2]  # degrees, [0,1], [0,1]
 

@@ -65,11 +65,14 @@ def render_person(outfit: Outfit, rng: np.random.Generator, size: tuple[int, int
     """One view of ``outfit`` as an (H, W, 3) uint8 RGB crop of ``size`` (H, W).
 
     The person fills most of the crop (as a detector box would); position, width, leg
-    stride and arm swing jitter per call; the background is random low-frequency texture.
+    stride and arm swing jitter per call; the background is random low-frequency, mostly neutral texture.
     """
     h, w = size
-    small = rng.integers(60, 200, size=(4, 2, 3)).astype(np.uint8)
-    img = cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC).astype(np.float32)
+    # Floors and walls: mostly neutral tones with a slight tint, in soft patches.
+    grey = rng.uniform(70, 200, size=(4, 2, 1))
+    tint = rng.normal(0, 12, size=(4, 2, 3))
+    small = np.clip(grey + tint, 0, 255).astype(np.float32)
+    img = cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC)
     cx = w / 2 + rng.normal(0, 0.04 * w)
     s = 1.0 + rng.normal(0, 0.04)
     top = 0.04 * h + rng.normal(0, 0.01 * h)

@@ -17,7 +17,7 @@ from common.config import ConfigError
 from services.embedder.core.backend import Backend, EmbedderError
 from services.embedder.core.onnx_model import IMAGENET_MEAN, IMAGENET_STD
 
-__all__ = ["EmbedderConfig", "OnnxConfig", "ThresholdsConfig", "build_backend", "sidecar_path"]
+__all__ = ["EmbedderConfig", "OnnxConfig", "ThresholdsConfig", "build_backend", "sidecar_path", "with_sidecar"]
 
 
 class ThresholdsConfig(BaseModel):
@@ -90,7 +90,8 @@ def sidecar_path(model_path: str | Path) -> Path:
     return Path(model_path).expanduser().with_suffix(".json")
 
 
-def _with_sidecar(cfg: OnnxConfig) -> OnnxConfig:
+def with_sidecar(cfg: OnnxConfig) -> OnnxConfig:
+    """``cfg`` with the values it leaves unset taken from the model's ``MODEL.json``, if any."""
     side = sidecar_path(cfg.path)
     if not side.is_file():
         return cfg
@@ -114,7 +115,7 @@ def build_backend(config: EmbedderConfig) -> Backend:
     else:
         from services.embedder.core.onnx_model import OnnxEmbedder, OnnxParams
 
-        o = _with_sidecar(config.onnx)
+        o = with_sidecar(config.onnx)
         backend = OnnxEmbedder(OnnxParams(
             path=o.path, name=o.name, input_size=o.input_size, channel_order=o.channel_order, scale=o.scale,
             mean=o.mean, std=o.std, normalize=o.normalize, metric=o.metric,

@@ -48,9 +48,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=30)
     parser.add_argument("--threads", type=int, default=0, help="onnxruntime intra-op threads (0: default)")
     args = parser.parse_args()
+    from services.embedder.config import OnnxConfig, with_sidecar
     from services.embedder.core.onnx_model import OnnxEmbedder, OnnxParams
     from services.embedder.export_cli import default_model_path
-    from services.embedder.config import OnnxConfig, with_sidecar
 
     backends: list[tuple[str, Backend]] = [("colour (128-D)", ColourDescriptor())]
     tmp = tempfile.TemporaryDirectory()

@@ -105,7 +105,8 @@ def test_background_counts_less_than_the_person() -> None:
     centre_changed[:, 26:38] = (0, 255, 0)  # same pixel count, in the middle
     ratios = []
     for background_weight in (0.15, 1.0):
-        e = ColourDescriptor(ColourParams(background_weight=background_weight)).embed([base, bg_changed, centre_changed])
+        desc = ColourDescriptor(ColourParams(background_weight=background_weight))
+        e = desc.embed([base, bg_changed, centre_changed])
         ratios.append(np.linalg.norm(e[0] - e[1]) / np.linalg.norm(e[0] - e[2]))
     assert ratios[0] < 0.75 and ratios[0] < 0.8 * ratios[1], ratios
 

@@ -105,3 +105,17 @@ def test_provider_choice() -> None:
     assert choose_providers(("CPUExecutionProvider",), all_three) == ["CPUExecutionProvider"]
     with pytest.raises(EmbedderError, match="not available"):
         choose_providers(("CUDAExecutionProvider",), ["CPUExecutionProvider"])
+
+
+def test_output_that_is_not_n_by_d(tmp_path: Path) -> None:
+    from onnx import TensorProto, helper
+
+    from services.embedder.testing import _save
+
+    graph = helper.make_graph(
+        [helper.make_node("Identity", ["input"], ["output"])], "feature_map",
+        [helper.make_tensor_value_info("input", TensorProto.FLOAT, ["N", 3, H, W])],
+        [helper.make_tensor_value_info("output", TensorProto.FLOAT, ["N", 3, H, W])])
+    path = _save(graph, tmp_path / "map.onnx")
+    with pytest.raises(EmbedderError, match=r"expected \(1, D\)"):
+        OnnxEmbedder(OnnxParams(path=str(path), input_size=(H, W)))

@@ -198,3 +198,23 @@ def test_run_loop_serves_until_shutdown() -> None:
         worker.join(timeout=10.0)
     assert not worker.is_alive()
     assert rig.service.frames_sub.closed
+
+
+def test_duplicate_detection_indices_are_rejected() -> None:
+    rig = Rig()
+    f = frame(seq=9, stamp_ns=10)
+    rig.frames.put(f)
+    dets = Detections(header=f.header.model_copy(), detections=[
+        Detection(index=0, bbox_xyxy=BOX_RED, score=0.9), Detection(index=0, bbox_xyxy=BOX_GREEN, score=0.9)])
+    rig.dets.put(dets)
+    assert rig.service.poll() == 0
+    assert rig.counters.invalid == 1
+
+
+def test_configured_thresholds_replace_the_card_ones() -> None:
+    from services.embedder.config import ThresholdsConfig, build_backend
+
+    backend = build_backend(EmbedderConfig(thresholds=ThresholdsConfig(t_lower=0.2, t_upper=0.7, t_recover=0.3)))
+    rig = Rig(backend=backend)
+    t = rig.service.card.thresholds
+    assert t is not None and (t.t_lower, t.t_upper, t.t_recover) == (0.2, 0.7, 0.3)

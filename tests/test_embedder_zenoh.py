@@ -15,7 +15,6 @@ from common.keys import FRAMES, RELIABLE, Keys
 from common.router_process import RouterProcess
 from common.schemas import Detections, Embeddings, RGBDFrame
 from common.zenoh_transport import ZenohTransport
-
 from tests.test_embedder_service import BOX_GREEN, BOX_RED, detections, frame
 
 pytestmark = pytest.mark.zenoh

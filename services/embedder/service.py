@@ -127,6 +127,11 @@ class EmbedderService:
             boxes *= np.array([image.shape[1] / dets.image_width, image.shape[0] / dets.image_height] * 2)
             self.counters.count("rescaled_frames")
         crops, kept = crop_boxes(image, boxes)
+        indices = np.array([dets.detections[i].index for i in kept], np.int32)
+        if len(np.unique(indices)) != len(indices):
+            self.counters.invalid += 1
+            log.warning("frame %d: detections carry duplicate indices; not published", frame.header.seq)
+            return None
         if len(kept) < len(boxes):
             self.counters.count("empty_boxes", len(boxes) - len(kept))
         t0 = time.perf_counter()
@@ -139,11 +144,6 @@ class EmbedderService:
         ms = (time.perf_counter() - t0) * 1e3
         self.counters.gauge("embed_ms", round(ms, 3))
         self.counters.count("descriptors", len(kept))
-        indices = np.array([dets.detections[i].index for i in kept], np.int32)
-        if len(np.unique(indices)) != len(indices):
-            self.counters.invalid += 1
-            log.warning("frame %d: detections carry duplicate indices; not published", frame.header.seq)
-            return None
         return Embeddings(header=frame.header.model_copy(), model=self.card, indices=indices,
                           vectors=vectors.astype(np.float32, copy=False).reshape(len(kept), self.card.dim))
 

@@ -10,13 +10,14 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 __all__ = ["conv_model", "projection_model", "rank3_model"]
 
 
-def _save(graph: object, path: str | Path) -> Path:
+def _save(graph: Any, path: str | Path) -> Path:
     import onnx
     from onnx import helper
 
@@ -61,7 +62,7 @@ def conv_model(path: str | Path, height: int = 256, width: int = 128, dim: int =
     rng = np.random.default_rng(seed)
     channels = [3, 32, 64, 96, 128, 256, 512]
     nodes, inits, x = [], [], "input"
-    for i, (cin, cout) in enumerate(zip(channels[:-1], channels[1:])):
+    for i, (cin, cout) in enumerate(zip(channels[:-1], channels[1:], strict=True)):
         w = (rng.standard_normal((cout, cin, 3, 3)) * np.sqrt(2.0 / (cin * 9))).astype(np.float32)
         inits += [numpy_helper.from_array(w, f"w{i}"), numpy_helper.from_array(np.zeros(cout, np.float32), f"b{i}")]
         nodes.append(helper.make_node("Conv", [x, f"w{i}", f"b{i}"], [f"c{i}"], kernel_shape=[3, 3],

@@ -33,6 +33,7 @@ Everything after the per-crop resize is vectorised over all crops of a frame.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -77,7 +78,7 @@ class ColourParams:
     value_percentile: float | None = 50.0
     #: Grey-world white balance: "crop" scales R, G, B so the whole crop averages grey,
     #: "border" uses only the crop's border (mostly background), "none" skips it.
-    white_balance: str = "crop"
+    white_balance: Literal["crop", "border", "none"] = "crop"
     #: Exponent on the white-balance gains (0 = off, 1 = full correction).
     white_balance_strength: float = 1.0
     #: Relative value mapped onto the achromatic bins: [0, value_range].
@@ -161,7 +162,7 @@ class ColourDescriptor:
         h1 = (h0 + 1) % HUE_BINS
         s_bin = np.minimum((sat * SAT_BINS).astype(np.int64), SAT_BINS - 1)
         total = n * (len(STRIPES) - 1) * STRIPE_BINS
-        hist = np.bincount((block + h0 * SAT_BINS + s_bin).ravel(), (w_chroma * (1 - frac)).ravel(), total)
+        hist: np.ndarray = np.bincount((block + h0 * SAT_BINS + s_bin).ravel(), (w_chroma * (1 - frac)).ravel(), total)
         hist += np.bincount((block + h1 * SAT_BINS + s_bin).ravel(), (w_chroma * frac).ravel(), total)
 
         # Achromatic: soft bins of value relative to the crop's bright level.

@@ -110,8 +110,9 @@ class OnnxEmbedder:
         self._inv_std = (np.float32(p.scale) / np.asarray(p.std, np.float32)).reshape(1, 1, 1, 3)
         probe = self._run(np.zeros((1, p.input_size[0], p.input_size[1], 3), np.uint8))
         dim = int(probe.shape[1])
-        self.card = Card(name=p.name or path.stem, dim=dim, metric=p.metric, input_size=tuple(p.input_size),
-                         normalized=p.normalize, thresholds=p.thresholds)
+        self.card = Card(name=p.name or path.stem, dim=dim, metric=p.metric,
+                         input_size=(p.input_size[0], p.input_size[1]), normalized=p.normalize,
+                         thresholds=p.thresholds)
         log.info("onnx embedder %s: %d-D, input %dx%d, providers %s", self.card.name, dim,
                  p.input_size[0], p.input_size[1], self.providers)
 

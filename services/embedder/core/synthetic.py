@@ -51,8 +51,9 @@ def random_outfit(rng: np.random.Generator) -> Outfit:
         if rng.random() < 0.35:  # black, grey, white
             v = int(rng.integers(20, 235))
             return (v, v, v)
-        hsv = np.uint8([[[rng.integers(0, 180), rng.integers(110, 255), rng.integers(70, 240)]]])
-        return tuple(int(c) for c in cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)[0, 0])  # type: ignore[return-value]
+        hsv = np.array([rng.integers(0, 180), rng.integers(110, 255), rng.integers(70, 240)], np.uint8)
+        r, g, b = cv2.cvtColor(hsv.reshape(1, 1, 3), cv2.COLOR_HSV2RGB)[0, 0]
+        return (int(r), int(g), int(b))
 
     skins = [(235, 200, 170), (200, 150, 110), (150, 100, 70), (95, 65, 45)]
     hairs = [(20, 15, 10), (90, 60, 30), (200, 170, 90), (120, 120, 120)]
@@ -83,7 +84,8 @@ def render_person(outfit: Outfit, rng: np.random.Generator, size: tuple[int, int
     head_r = 0.075 * h * s
     head_c = (int(cx), int(top + head_r))
     cv2.ellipse(img, head_c, (int(head_r * 0.8), int(head_r)), 0, 0, 360, outfit.skin, -1)
-    cv2.ellipse(img, (head_c[0], int(top + 0.5 * head_r)), (int(head_r * 0.85), int(head_r * 0.6)), 0, 180, 360, outfit.hair, -1)
+    hair_c = (head_c[0], int(top + 0.5 * head_r))
+    cv2.ellipse(img, hair_c, (int(head_r * 0.85), int(head_r * 0.6)), 0, 180, 360, outfit.hair, -1)
     neck = top + 2 * head_r
     torso_w = 0.42 * w * s
     hip = neck + 0.36 * h * s
@@ -101,7 +103,7 @@ def render_person(outfit: Outfit, rng: np.random.Generator, size: tuple[int, int
         lx = cx + side * (leg_w / 2 + stride / 2)
         rect(lx - leg_w / 2, hip, lx + leg_w / 2, foot - 0.04 * h, outfit.trousers)
         rect(lx - leg_w / 2, foot - 0.04 * h, lx + leg_w / 2 + side * 0.03 * w, foot, outfit.shoes)
-    img += rng.normal(0, noise, img.shape).astype(np.float32)
-    img = cv2.GaussianBlur(img, (3, 3), 0.7)
-    out = np.clip(img, 0, 255).astype(np.uint8)
+    img += np.asarray(rng.normal(0.0, noise, img.shape), np.float32)
+    blurred = np.asarray(cv2.GaussianBlur(img, (3, 3), 0.7))
+    out = np.clip(blurred, 0, 255).astype(np.uint8)
     return illumination.apply(out) if illumination is not None else out

@@ -1,0 +1,130 @@
+"""Embedder configuration: which backend, how to feed an ONNX model, how much to buffer.
+
+Layered by :func:`common.config.load_config`: defaults -> file (section ``embedder``) ->
+environment ``PERCEPTION_EMBEDDER__FIELD`` (nested with ``__``, e.g.
+``PERCEPTION_EMBEDDER__ONNX__PATH``) -> CLI flags.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from common.config import ConfigError
+from services.embedder.core.backend import Backend, EmbedderError
+from services.embedder.core.onnx_model import IMAGENET_MEAN, IMAGENET_STD
+
+__all__ = ["EmbedderConfig", "OnnxConfig", "ThresholdsConfig", "build_backend", "sidecar_path", "with_sidecar"]
+
+
+class ThresholdsConfig(BaseModel):
+    """Tracker thresholds on the model's distance scale (from ``perception calibrate-embedder``)."""
+
+    model_config = ConfigDict(extra="forbid")
+    t_lower: float = Field(ge=0.0)
+    t_upper: float = Field(gt=0.0)
+    t_recover: float = Field(gt=0.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> ThresholdsConfig:
+        if not self.t_lower < self.t_upper:
+            raise ValueError(f"t_lower ({self.t_lower}) must be below t_upper ({self.t_upper})")
+        return self
+
+    def as_tuple(self) -> tuple[float, float, float]:
+        return (self.t_lower, self.t_upper, self.t_recover)
+
+
+class OnnxConfig(BaseModel):
+    """How to run an ONNX Re-ID model. A ``MODEL.json`` next to ``MODEL.onnx`` (as written
+    by ``perception export-embedder``) supplies values not set here."""
+
+    model_config = ConfigDict(extra="forbid")
+    path: str = Field(default="", description="the .onnx file")
+    name: str = Field(default="", description="model card name (default: the file name without .onnx)")
+    input_size: tuple[int, int] = Field(default=(256, 128), description="(H, W) the crops are resized to")
+    channel_order: Literal["rgb", "bgr"] = "rgb"
+    scale: float = Field(default=1.0 / 255.0, gt=0.0, description="pixel scale before mean/std")
+    mean: tuple[float, float, float] = IMAGENET_MEAN
+    std: tuple[float, float, float] = IMAGENET_STD
+    normalize: bool = Field(default=True, description="L2-normalise the outputs")
+    metric: Literal["euclidean", "cosine"] = "euclidean"
+    thresholds: ThresholdsConfig | None = None
+    providers: list[str] | None = Field(default=None, description="e.g. [CUDAExecutionProvider, CPUExecutionProvider]; "
+                                        "default: TensorRT, CUDA, CPU as available")
+    intra_op_threads: int = Field(default=0, ge=0, description="CPU threads (0 = onnxruntime's default)")
+
+    @model_validator(mode="after")
+    def _sizes(self) -> OnnxConfig:
+        if min(self.input_size) <= 0:
+            raise ValueError(f"input_size must be positive (H, W), got {self.input_size}")
+        if min(self.std) <= 0:
+            raise ValueError("std must be positive")
+        return self
+
+
+class EmbedderConfig(BaseModel):
+    """Settings of ``perception embedder``."""
+
+    model_config = ConfigDict(extra="forbid")
+    backend: Literal["colour", "onnx"] = "colour"
+    camera: str = Field(default="head", min_length=1, description="camera whose frames and detections are embedded")
+    onnx: OnnxConfig = Field(default_factory=OnnxConfig)
+    thresholds: ThresholdsConfig | None = Field(default=None, description="override the model card's thresholds")
+    frame_buffer: int = Field(default=8, ge=1, le=256, description="recent frames kept to pair with detections")
+    max_lag_s: float = Field(default=0.5, gt=0.0, description="detections older than the newest frame by more "
+                             "than this are dropped as stale instead of being embedded late")
+
+    @model_validator(mode="after")
+    def _onnx_path(self) -> EmbedderConfig:
+        if self.backend == "onnx" and not self.onnx.path:
+            raise ValueError("backend 'onnx' needs onnx.path (--model FILE.onnx)")
+        return self
+
+
+def sidecar_path(model_path: str | Path) -> Path:
+    """``MODEL.json`` beside ``MODEL.onnx``."""
+    return Path(model_path).expanduser().with_suffix(".json")
+
+
+def with_sidecar(cfg: OnnxConfig) -> OnnxConfig:
+    """``cfg`` with the values it leaves unset taken from the model's ``MODEL.json``, if any."""
+    side = sidecar_path(cfg.path)
+    if not side.is_file():
+        return cfg
+    try:
+        data: dict[str, Any] = json.loads(side.read_text())
+        merged = {**data, **cfg.model_dump(exclude_unset=True)}
+        return OnnxConfig.model_validate(merged)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"model description {side} is unusable: {exc}") from exc
+
+
+def build_backend(config: EmbedderConfig) -> Backend:
+    """The configured backend, ready to run. Raises EmbedderError or ConfigError."""
+    from dataclasses import replace
+
+    backend: Backend
+    if config.backend == "colour":
+        from services.embedder.core.colour import ColourDescriptor
+
+        backend = ColourDescriptor()
+    else:
+        from services.embedder.core.onnx_model import OnnxEmbedder, OnnxParams
+
+        o = with_sidecar(config.onnx)
+        backend = OnnxEmbedder(OnnxParams(
+            path=o.path, name=o.name, input_size=o.input_size, channel_order=o.channel_order, scale=o.scale,
+            mean=o.mean, std=o.std, normalize=o.normalize, metric=o.metric,
+            thresholds=o.thresholds.as_tuple() if o.thresholds else None,
+            providers=tuple(o.providers) if o.providers else None, intra_op_threads=o.intra_op_threads))
+    if config.thresholds is not None:
+        card = replace(backend.card, thresholds=config.thresholds.as_tuple())
+        try:
+            backend.card = card  # type: ignore[misc]
+        except AttributeError as exc:
+            raise EmbedderError(f"backend {type(backend).__name__} does not allow overriding its card") from exc
+    return backend

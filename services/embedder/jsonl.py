@@ -1,0 +1,62 @@
+"""Reading the detection JSON lines of ``perception detect`` and cropping their boxes.
+
+One line per image: ``{"image": path, "detections": [{"bbox_xyxy": [x0, y0, x1, y1],
+"score": s, ...}, ...], ...}``. A relative image path is looked up from the current
+directory first, then from the JSON file's directory.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Iterator
+
+import cv2
+import numpy as np
+
+from common.cli_util import CliError
+from services.embedder.core.backend import crop_boxes
+
+__all__ = ["crops_of_line", "read_lines"]
+
+
+def read_lines(path: str | Path) -> Iterator[tuple[int, dict[str, Any]]]:
+    """(line number, object) of every non-empty line; CliError on a missing file or bad line."""
+    p = Path(path)
+    if not p.is_file():
+        raise CliError(f"{p}: no such file (expected JSON lines from 'perception detect')")
+    with p.open() as fh:
+        for n, raw in enumerate(fh, 1):
+            if not raw.strip():
+                continue
+            try:
+                obj = json.loads(raw)
+            except json.JSONDecodeError as exc:
+                raise CliError(f"{p}:{n}: not valid JSON: {exc}") from exc
+            if not isinstance(obj, dict) or not isinstance(obj.get("image"), str) \
+                    or not isinstance(obj.get("detections", []), list):
+                raise CliError(f'{p}:{n}: expected {{"image": path, "detections": [...]}}')
+            yield n, obj
+
+
+def _image(line: dict[str, Any], where: str, base: Path) -> np.ndarray:
+    path = Path(line["image"])
+    if not path.is_absolute() and not path.is_file():
+        path = base / path
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise CliError(f"{where}: cannot read image {line['image']!r} (looked in . and {base})")
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def crops_of_line(line: dict[str, Any], where: str, base: Path) -> tuple[list[np.ndarray], np.ndarray]:
+    """Crops of a line's boxes (clamped, empty ones skipped) and the (K,) detection positions."""
+    boxes = []
+    for i, det in enumerate(line.get("detections", [])):
+        box = det.get("bbox_xyxy") if isinstance(det, dict) else None
+        if not isinstance(box, list) or len(box) != 4 or not all(isinstance(v, (int, float)) for v in box):
+            raise CliError(f"{where}: detection {i} has no bbox_xyxy [x0, y0, x1, y1]")
+        boxes.append(box)
+    if not boxes:
+        return [], np.zeros(0, np.int64)
+    return crop_boxes(_image(line, where, base), np.asarray(boxes, np.float64))

@@ -67,7 +67,8 @@ class Stream:
 
 
 STREAMS: tuple[Stream, ...] = (
-    Stream("frames", "frames/{camera}", "RGBDFrame", "camera driver, simulator, replay", "detector, localizer, embedder", FRAMES),
+    Stream("frames", "frames/{camera}", "RGBDFrame", "camera driver, simulator, replay",
+           "detector, embedder (latest-only); localizer (FIFO of a few frames, to pair each with its detections)", FRAMES),
     Stream("detections", "detections/{camera}", "Detections", "detector", "localizer, embedder", RELIABLE),
     Stream("localized", "localized/{camera}", "LocalizedDetections", "localizer", "tracker", RELIABLE),
     Stream("embeddings", "embeddings/{camera}", "Embeddings", "embedder", "tracker", RELIABLE),

@@ -37,7 +37,7 @@ class IdentityMemory:
         self.capacity = capacity
         self.next_id = next_id
         self.entries: dict[int, Gallery] = {}
-        #: Incremented on every change, so callers can tell when to persist.
+        #: Incremented whenever a descriptor set changes, so callers can tell when to persist.
         self.version = 0
 
     def __len__(self) -> int:
@@ -50,7 +50,6 @@ class IdentityMemory:
         """Take the next unused ID."""
         track_id = self.next_id
         self.next_id += 1
-        self.version += 1
         return track_id
 
     def archive(self, track_id: int, descriptors: np.ndarray) -> None:

@@ -70,6 +70,10 @@ class ReorderBuffer(Generic[I, S, R]):
         self._prune()
         return results
 
+    def latest(self) -> tuple[InputKey, I] | None:
+        """The newest input applied (key, input), or None."""
+        return self._log[-1] if self._log else None
+
     def _apply(self, key: InputKey, item: I) -> R:
         if key[0] - self._snaps[-1][0][0] >= self.snapshot_period_ns:
             self._snaps.append((key, self.snapshot()))

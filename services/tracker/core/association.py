@@ -123,6 +123,8 @@ def match(cost: np.ndarray, inf: float = 1e5) -> tuple[np.ndarray, np.ndarray, n
     rows, cols = linear_sum_assignment(cost)
     keep = cost[rows, cols] < inf
     matches = np.stack([rows[keep], cols[keep]], axis=1).astype(np.int64)
-    unmatched_d = np.setdiff1d(np.arange(n), matches[:, 0]).astype(np.int64)
-    unmatched_t = np.setdiff1d(np.arange(t), matches[:, 1]).astype(np.int64)
+    free_d, free_t = np.ones(n, bool), np.ones(t, bool)
+    free_d[matches[:, 0]] = False
+    free_t[matches[:, 1]] = False
+    unmatched_d, unmatched_t = np.flatnonzero(free_d).astype(np.int64), np.flatnonzero(free_t).astype(np.int64)
     return matches, unmatched_d, unmatched_t

@@ -6,7 +6,8 @@ similar descriptors among the stored ones and the new one are found, and the old
 two is pruned: redundant views go first, the newest appearance is always kept.
 
 The closest pair is found in O(n * D) per insertion by keeping, for every stored
-descriptor, its nearest neighbour in the gallery (squared distance and index).
+descriptor, its nearest neighbour in the gallery (squared distance and index). That
+bookkeeping starts when the gallery fills up; before, an insertion is a plain copy.
 
 Copies are copy-on-write: :meth:`copy` shares the arrays until either side changes, so
 a snapshot of a tracker costs almost nothing.
@@ -27,7 +28,7 @@ def pairwise_sq_distances(a: np.ndarray, b: np.ndarray, b_sq: np.ndarray | None 
     a_sq = np.einsum("ij,ij->i", a, a)
     if b_sq is None:
         b_sq = np.einsum("ij,ij->i", b, b)
-    d2 = a_sq[:, None] + b_sq[None, :] - 2.0 * (a @ b.T)
+    d2 = a_sq[:, None] + b_sq[None, :] - 2.0 * (b @ a.T).T  # (M, D) @ (D, N): BLAS's fast layout
     return np.maximum(d2, 0.0, out=d2)
 
 
@@ -67,8 +68,10 @@ class Gallery:
         x = np.asarray(x, dtype=np.float32)
         if self.n == 0:
             return np.full(len(x), np.inf)
-        d2 = pairwise_sq_distances(x, self._data[: self.n], self._sq[: self.n])
-        return np.sqrt(d2.min(axis=1)).astype(np.float64)
+        # min over the gallery of |g|^2 - 2 x.g, then add |x|^2: one product, one reduction
+        part = (self._sq[: self.n, None] - 2.0 * (self._data[: self.n] @ x.T)).min(axis=0)
+        d2 = part.astype(np.float64) + np.einsum("ij,ij->i", x, x)
+        return np.sqrt(np.maximum(d2, 0.0))
 
     # ---------------------------------------------------------------- mutation
     def _own(self) -> None:
@@ -89,22 +92,44 @@ class Gallery:
     def add(self, x: np.ndarray) -> None:
         """Insert one descriptor ``x`` (dim,), pruning one of the closest pair when full."""
         x = np.asarray(x, dtype=np.float32).reshape(self.dim)
-        if not np.all(np.isfinite(x)):
+        xx = float(x @ x)
+        if not np.isfinite(xx):
             raise ValueError("descriptor has non-finite values")
         self._own()
         n = self.n
-        d2_new = pairwise_sq_distances(x[None], self._data[:n], self._sq[:n])[0] if n else np.empty(0, np.float32)
         if n < self.capacity:
+            # not full: nothing to prune, so no neighbour bookkeeping until it fills up
             if n == len(self._data):
                 self._grow()
-            slot, self.n = n, n + 1
-        else:
-            slot = self._prune_slot(d2_new)
+            self._write(n, x, xx)
+            self.n = n + 1
+            if self.n == self.capacity:
+                self._build_neighbours()
+            return
+        # full: squared distances from x to every stored descriptor (one matrix-vector product)
+        d2 = self._sq[:n] + np.float32(xx) - 2.0 * (self._data[:n] @ x)
+        np.maximum(d2, 0.0, out=d2)
+        slot = self._prune_slot(d2)
+        d2[slot] = np.inf
+        self._write(slot, x, xx)
+        self._refresh_neighbours(slot, d2)
+
+    def _write(self, slot: int, x: np.ndarray, xx: float) -> None:
         self._data[slot] = x
-        self._sq[slot] = float(x @ x)
+        self._sq[slot] = xx
         self._age[slot] = self._counter
         self._counter += 1
-        self._refresh_neighbours(slot, d2_new, replaced=n >= self.capacity)
+
+    def _build_neighbours(self) -> None:
+        """Nearest neighbour of every stored descriptor, from the full distance matrix."""
+        n = self.n
+        if n == 1:
+            self._nn_d[0], self._nn_j[0] = np.inf, -1
+            return
+        d2 = pairwise_sq_distances(self._data[:n], self._data[:n], self._sq[:n])
+        np.fill_diagonal(d2, np.inf)
+        self._nn_j[:n] = d2.argmin(axis=1)
+        self._nn_d[:n] = d2[np.arange(n), self._nn_j[:n]]
 
     def extend(self, xs: np.ndarray) -> None:
         """Insert every row of ``xs`` (M, dim), oldest first."""
@@ -120,29 +145,27 @@ class Gallery:
         j = int(self._nn_j[i])
         return i if self._age[i] < self._age[j] else j
 
-    def _refresh_neighbours(self, slot: int, d2_new: np.ndarray, replaced: bool) -> None:
+    def _refresh_neighbours(self, slot: int, d2: np.ndarray) -> None:
+        """Update nearest neighbours after ``slot`` of a full gallery got a new descriptor;
+        ``d2`` (n,) holds the squared distances from it to every slot (``inf`` at ``slot``)."""
         n = self.n
         if n == 1:
             self._nn_d[0], self._nn_j[0] = np.inf, -1
             return
-        # distances from the new descriptor to every stored one, itself excluded
-        d2 = pairwise_sq_distances(self._data[slot : slot + 1], self._data[:n], self._sq[:n])[0]
-        d2[slot] = np.inf
-        if replaced:
-            # rows whose nearest neighbour was the pruned descriptor need a full recompute
-            stale = np.flatnonzero((self._nn_j[:n] == slot) & (np.arange(n) != slot))
-            if len(stale):
-                rows = pairwise_sq_distances(self._data[stale], self._data[:n], self._sq[:n])
-                rows[np.arange(len(stale)), stale] = np.inf
-                self._nn_j[stale] = rows.argmin(axis=1)
-                self._nn_d[stale] = rows[np.arange(len(stale)), self._nn_j[stale]]
+        # rows whose nearest neighbour was the pruned descriptor need a full recompute
+        stale = np.flatnonzero(self._nn_j[:n] == slot)
+        stale = stale[stale != slot]
+        if len(stale):
+            rows = pairwise_sq_distances(self._data[stale], self._data[:n], self._sq[:n])
+            rows[np.arange(len(stale)), stale] = np.inf
+            self._nn_j[stale] = rows.argmin(axis=1)
+            self._nn_d[stale] = rows[np.arange(len(stale)), self._nn_j[stale]]
         closer = d2 < self._nn_d[:n]
         closer[slot] = False
         self._nn_d[:n][closer] = d2[closer]
         self._nn_j[:n][closer] = slot
         j = int(np.argmin(d2))
         self._nn_d[slot], self._nn_j[slot] = d2[j], j
-        del d2_new
 
     def copy(self) -> Gallery:
         """A copy that shares storage until either side is modified."""

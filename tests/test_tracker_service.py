@@ -109,6 +109,17 @@ def test_missing_embeddings_fall_back_to_position_only(tmp_path: Path, memory_bu
     assert rig.service.counters.extra["dropped_late_embeddings"] == 1
 
 
+def test_frames_behind_a_waiting_frame_are_held_in_order(tmp_path: Path, memory_bus: MemoryBus) -> None:
+    rig = Rig(memory_bus, config(tmp_path))
+    rig.send(0, [(0, (2.0, 0.0, 1.0))], embeddings=False)  # the embedder is slow on frame 0
+    rig.send(1, [(0, (2.0, 0.0, 1.0))])
+    assert rig.service.poll() == 0  # frame 1 is complete but waits behind frame 0
+    rig.send(0, [(0, (2.0, 0.0, 1.0))], loc=False)
+    assert rig.service.poll() == 2
+    assert [m.header.seq for m in rig.outputs()] == [0, 1]
+    assert "rewinds" not in rig.service.counters.extra
+
+
 def test_empty_frames_need_no_embeddings(tmp_path: Path, memory_bus: MemoryBus) -> None:
     rig = Rig(memory_bus, config(tmp_path))
     rig.send(0, [], embeddings=False)

@@ -77,6 +77,7 @@ class TrackerService:
         self.clock = clock
         memory, stored_model = load_memory(config)
         self.model: str | None = config.embedding_model or stored_model
+        self._dim: int | None = None
         th = config.thresholds(self.model) if self.model else None
         self.tracker = Tracker(config.params(th), memory)
         self._have_thresholds = th is not None
@@ -105,8 +106,9 @@ class TrackerService:
         if self.model is None:
             self.model = card.name
             log.info("tracking with descriptors of embedding model %r", card.name)
-        if card.name != self.model:
+        if card.name != self.model or (self._dim is not None and card.dim != self._dim):
             return False
+        self._dim = card.dim
         if not self._have_thresholds:
             th = self.config.thresholds(card.name)
             if th is None and card.thresholds is not None:
@@ -160,8 +162,14 @@ class TrackerService:
         for key in expired:
             del self._pending[key]
             self.counters.drop("unpaired_embeddings")
+        # release in order: nothing behind a frame that still waits for its embeddings
+        ready_set = set(ready)
+        waiting = [k for k, p in self._pending.items() if p.loc is not None and k not in ready_set]
+        first_waiting = min(waiting, default=None)
         out = []
         for key in sorted(ready):
+            if first_waiting is not None and key > first_waiting:
+                break
             p = self._pending.pop(key)
             assert p.loc is not None
             out.append((key, _Frame(p.loc, p.emb)))
@@ -173,6 +181,7 @@ class TrackerService:
         if self._epoch_ns is None:
             self._epoch_ns = loc.header.stamp_ns
         positions, covs = positions_of(loc)
+        covs = covs + np.eye(3) * 1e-6  # keep R invertible for degenerate covariances
         descriptors = None
         if frame.emb is not None and self._have_thresholds:
             descriptors = descriptors_for(loc, frame.emb)
@@ -208,8 +217,13 @@ class TrackerService:
         self._drain(now)
         done = 0
         for key, frame in self._ready(now):
-            results = self.buffer.push(key, frame)
             self._done[key] = key[0]
+            try:
+                results = self.buffer.push(key, frame)
+            except (ValueError, np.linalg.LinAlgError) as exc:
+                self.counters.count("update_errors")
+                log.error("frame %s could not be tracked: %s", key, exc)
+                continue
             if not results:
                 continue
             done += len(results)

@@ -21,15 +21,15 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import logging  # noqa: E402
 import platform  # noqa: E402
-import tempfile
-import time
-from pathlib import Path
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from services.tracker.config import TrackerConfig
-from services.tracker.core import Gallery, Tracker
-from services.tracker.offline import read_detections, track, write_tracks
+from services.tracker.config import TrackerConfig  # noqa: E402
+from services.tracker.core import Gallery, Tracker  # noqa: E402
+from services.tracker.offline import read_detections, track, write_tracks  # noqa: E402
 
 DIM = 128
 FPS = 30.0

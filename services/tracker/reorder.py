@@ -19,7 +19,7 @@ from typing import Callable, Generic, TypeVar
 
 __all__ = ["InputKey", "ReorderBuffer"]
 
-I = TypeVar("I")  # an input
+In = TypeVar("In")  # an input
 S = TypeVar("S")  # a snapshot of the consumer's state
 R = TypeVar("R")  # what applying an input returns
 
@@ -29,10 +29,10 @@ _BEFORE_ALL: InputKey = (-1, "", -1)
 
 
 @dataclass
-class ReorderBuffer(Generic[I, S, R]):
+class ReorderBuffer(Generic[In, S, R]):
     """Applies inputs in key order through ``apply``; ``snapshot``/``restore`` rewind."""
 
-    apply: Callable[[I], R]
+    apply: Callable[[In], R]
     snapshot: Callable[[], S]
     restore: Callable[[S], None]
     window_ns: int = 500_000_000
@@ -40,14 +40,14 @@ class ReorderBuffer(Generic[I, S, R]):
     dropped_old: int = 0
     dropped_duplicate: int = 0
     rewinds: int = 0
-    _log: list[tuple[InputKey, I]] = field(default_factory=list)
+    _log: list[tuple[InputKey, In]] = field(default_factory=list)
     _snaps: list[tuple[InputKey, S]] = field(default_factory=list)
     newest_ns: int | None = None
 
     def __post_init__(self) -> None:
         self._snaps.append((_BEFORE_ALL, self.snapshot()))
 
-    def push(self, key: InputKey, item: I) -> list[R]:
+    def push(self, key: InputKey, item: In) -> list[R]:
         """Apply ``item``; returns the results of every input applied (several after a rewind).
 
         Returns ``[]`` when the input was dropped (too old, or a duplicate key).
@@ -70,11 +70,11 @@ class ReorderBuffer(Generic[I, S, R]):
         self._prune()
         return results
 
-    def latest(self) -> tuple[InputKey, I] | None:
+    def latest(self) -> tuple[InputKey, In] | None:
         """The newest input applied (key, input), or None."""
         return self._log[-1] if self._log else None
 
-    def _apply(self, key: InputKey, item: I) -> R:
+    def _apply(self, key: InputKey, item: In) -> R:
         if key[0] - self._snaps[-1][0][0] >= self.snapshot_period_ns:
             self._snaps.append((key, self.snapshot()))
         result = self.apply(item)
@@ -82,7 +82,7 @@ class ReorderBuffer(Generic[I, S, R]):
         self.newest_ns = key[0] if self.newest_ns is None else max(self.newest_ns, key[0])
         return result
 
-    def _rewind(self, key: InputKey, item: I) -> list[R]:
+    def _rewind(self, key: InputKey, item: In) -> list[R]:
         self.rewinds += 1
         # the latest snapshot taken before anything at or after ``key`` was applied
         i = bisect.bisect_right([k for k, _ in self._snaps], key) - 1

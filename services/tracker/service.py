@@ -18,14 +18,14 @@ import logging
 import threading
 import time
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
 from common.keys import RELIABLE, Keys
 from common.runtime import Counters, Shutdown
 from common.schemas import Embeddings, Header, LocalizedDetections, ModelCard, TrackState, Tracks
-from common.transport import Transport, wait_any
+from common.transport import Subscription, Transport, wait_any
 from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of, track_state, tracks_message
 from services.tracker.core import IdentityMemory, Tracker
@@ -134,8 +134,8 @@ class TrackerService:
                 continue
             p = self._pending.setdefault(key, _Pending())
             p.loc, p.arrived = loc, now
-        while (got := self.emb_sub.try_recv()) is not None:
-            emb = got.msg
+        while (got_emb := self.emb_sub.try_recv()) is not None:
+            emb = got_emb.msg
             key = self._key(emb.header)
             if key in self._done:
                 self.counters.drop("late_embeddings")
@@ -284,7 +284,7 @@ class TrackerService:
     # -------------------------------------------------------------------- run
     def run(self, shutdown: Shutdown) -> None:
         """Work until ``shutdown`` is set, then write the ID memory one last time."""
-        subs = [self.loc_sub, self.emb_sub]
+        subs: list[Subscription[Any]] = [self.loc_sub, self.emb_sub]
         try:
             while not shutdown.is_set():
                 wait_any(subs, self.transport.notify, min(0.2, self.next_timeout(self.clock())))

@@ -85,8 +85,10 @@ class Gallery:
         size = min(self.capacity, 2 * len(self._data))
         extra = size - len(self._data)
         self._data = np.concatenate([self._data, np.empty((extra, self.dim), np.float32)])
-        self._sq, self._age = np.concatenate([self._sq, np.empty(extra, np.float32)]), np.concatenate([self._age, np.empty(extra, np.int64)])
-        self._nn_d, self._nn_j = np.concatenate([self._nn_d, np.empty(extra, np.float32)]), np.concatenate([self._nn_j, np.empty(extra, np.int64)])
+        self._sq = np.concatenate([self._sq, np.empty(extra, np.float32)])
+        self._age = np.concatenate([self._age, np.empty(extra, np.int64)])
+        self._nn_d = np.concatenate([self._nn_d, np.empty(extra, np.float32)])
+        self._nn_j = np.concatenate([self._nn_j, np.empty(extra, np.int64)])
         self._shared = False
 
     def add(self, x: np.ndarray) -> None:

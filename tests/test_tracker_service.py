@@ -246,3 +246,28 @@ def test_inputs_in_another_frame_are_dropped(tmp_path: Path, memory_bus: MemoryB
     rig.loc_pub.put(LocalizedDetections(header=header))
     assert rig.service.poll() == 0
     assert rig.service.counters.extra["dropped_wrong_frame"] == 1
+
+
+def test_all_cameras_with_wildcard(tmp_path: Path, memory_bus: MemoryBus) -> None:
+    service = TrackerService(memory_bus.transport(), KEYS, config(tmp_path, camera="*"))
+    pub = memory_bus.transport().publisher(KEYS.localized("left"), LocalizedDetections, RELIABLE)
+    pub.put(LocalizedDetections(header=Header(stamp_ns=T0, frame_id="map", seq=0, source="left")))
+    assert service.poll() == 1
+
+
+def test_tracker_command_rejects_bad_config_before_connecting(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from services.cli import main
+
+    bad = tmp_path / "tracker.yaml"
+    bad.write_text("tracker:\n  join_wait_s: -1\n")
+    assert main(["tracker", "--tracker-config", str(bad), "--connect", "tcp/127.0.0.1:1"]) == 2
+    assert "join_wait_s" in capsys.readouterr().err
+    bad.write_text("appearance:\n  trinet: {t_lower: 700, t_upper: 300, t_recover: 400}\n")
+    assert main(["tracker", "--tracker-config", str(bad), "--connect", "tcp/127.0.0.1:1"]) == 2
+    assert "appearance.trinet" in capsys.readouterr().err
+
+
+def test_unreadable_memory_file_stops_the_start(tmp_path: Path) -> None:
+    (tmp_path / "memory.npz").write_bytes(b"garbage")
+    with pytest.raises(ValueError, match="not a tracker ID memory file"):
+        TrackerService(MemoryBus().transport(), KEYS, config(tmp_path))

@@ -271,3 +271,15 @@ def test_unreadable_memory_file_stops_the_start(tmp_path: Path) -> None:
     (tmp_path / "memory.npz").write_bytes(b"garbage")
     with pytest.raises(ValueError, match="not a tracker ID memory file"):
         TrackerService(MemoryBus().transport(), KEYS, config(tmp_path))
+
+
+def test_false_positives_are_forgotten_by_the_query(tmp_path: Path, memory_bus: MemoryBus) -> None:
+    rig = Rig(memory_bus, config(tmp_path))
+    rig.send(0, [(0, (2.0, 0.0, 1.0)), (2, (6.0, 6.0, 1.0))])  # person 2 only once: a false positive
+    rig.service.poll()
+    for k in range(1, 8):
+        rig.send(k, [(0, (2.0, 0.0, 1.0))])
+        rig.service.poll()
+    asker = memory_bus.transport()
+    assert asker.query(KEYS.track_query() + "?id=2")[0][1].tracks == []  # type: ignore[union-attr]
+    assert [t.id for t in asker.query(KEYS.track_query())[0][1].tracks] == [1]  # type: ignore[union-attr]

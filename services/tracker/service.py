@@ -85,6 +85,7 @@ class TrackerService:
         self._pending: dict[InputKey, _Pending] = {}
         self._done: dict[InputKey, int] = {}  # processed keys -> stamp, to spot late embeddings
         self._last_state: dict[int, TrackState] = {}
+        self._ever_confirmed: set[int] = set()
         self._state_lock = threading.Lock()
         self._saved_version = memory.version
         self._last_save = clock()
@@ -191,6 +192,7 @@ class TrackerService:
             self.counters.count("no_thresholds")
         result = self.tracker.update((loc.header.stamp_ns - self._epoch_ns) / 1e9, positions, descriptors,
                                      covs if self.config.use_detection_covariance else None)
+        self._ever_confirmed.update(v.id for v in result.confirmed)
         self.counters.count("updates")
         if not result.appearance_available and loc.detections:
             self.counters.count("position_only_frames")
@@ -199,8 +201,15 @@ class TrackerService:
         with self._state_lock:
             for view in result.tracks + result.deleted:
                 self._last_state[view.id] = track_state(view, result.appearance_available, self._epoch_ns)
+            for view in result.deleted:
+                if not view.ever_confirmed and not self._confirmed_before(view.id):
+                    del self._last_state[view.id]  # never output (a false positive): nothing to answer
         self._dirty = True
         return result
+
+    def _confirmed_before(self, track_id: int) -> bool:
+        """Whether an earlier track with this ID was ever Confirmed (its ID was recovered)."""
+        return track_id in self._ever_confirmed
 
     def _publish(self, frame: _Frame, result: FrameResult) -> None:
         assert self._epoch_ns is not None

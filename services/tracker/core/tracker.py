@@ -94,10 +94,12 @@ class Track:
     hits: int = 1  # consecutive associated frames (the creating detection is the first)
     misses: int = 0  # nominal frames since the last association
     total_hits: int = 1
+    ever_confirmed: bool = False
 
     def copy(self) -> Track:
         return Track(self.id, self.mean.copy(), self.cov.copy(), self.gallery.copy() if self.gallery else None,
-                     self.first_stamp, self.last_update, self.status, self.hits, self.misses, self.total_hits)
+                     self.first_stamp, self.last_update, self.status, self.hits, self.misses, self.total_hits,
+                     self.ever_confirmed)
 
 
 @dataclass(frozen=True)
@@ -113,6 +115,7 @@ class TrackView:
     age_s: float
     last_update: float
     gallery_size: int
+    ever_confirmed: bool = False
 
     @property
     def position(self) -> np.ndarray:
@@ -125,7 +128,7 @@ class TrackView:
     @classmethod
     def of(cls, t: Track, stamp: float) -> TrackView:
         return cls(t.id, t.status, t.mean.copy(), t.cov.copy(), t.total_hits, t.misses, max(0.0, stamp - t.first_stamp),
-                   t.last_update, len(t.gallery) if t.gallery else 0)
+                   t.last_update, len(t.gallery) if t.gallery else 0, t.ever_confirmed)
 
 
 @dataclass
@@ -274,7 +277,7 @@ class Tracker:
             mean, cov = kalman.initiate(positions[d], np.asarray(p.sigma0))
             t = Track(track_id, mean, cov, None, stamp, stamp)
             if p.n_init <= 1:
-                t.status = TrackStatus.CONFIRMED
+                t.status, t.ever_confirmed = TrackStatus.CONFIRMED, True
             if desc is not None:
                 self._add_descriptor(t, desc)
             self.tracks.append(t)
@@ -292,7 +295,7 @@ class Tracker:
         t.misses = 0
         t.last_update = stamp
         if t.status is TrackStatus.TENTATIVE and t.hits >= self.params.n_init:
-            t.status = TrackStatus.CONFIRMED
+            t.status, t.ever_confirmed = TrackStatus.CONFIRMED, True
 
     def _add_descriptor(self, t: Track, desc: np.ndarray) -> None:
         if t.gallery is None:

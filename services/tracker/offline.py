@@ -74,8 +74,8 @@ def frame_stamps(dets: Detections) -> tuple[np.ndarray, np.ndarray]:
     """Every frame number from the first to the last (F,), and its stamp (F,) in seconds.
 
     A frame with rows takes its first row's stamp; the others are interpolated linearly
-    from the frame numbers (extrapolated at a constant rate is never needed: the first
-    and the last frame always have rows).
+    from the frame numbers (no extrapolation is needed: the first and the last frame
+    always have rows).
     """
     if len(dets.frames) == 0:
         return np.zeros(0, np.int64), np.zeros(0)

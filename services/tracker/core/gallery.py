@@ -158,7 +158,9 @@ class Gallery:
         stale = np.flatnonzero(self._nn_j[:n] == slot)
         stale = stale[stale != slot]
         if len(stale):
-            rows = pairwise_sq_distances(self._data[stale], self._data[:n], self._sq[:n])
+            # (n, k) squared distances from every slot to the stale rows; one product
+            rows = (self._sq[:n, None] + self._sq[stale][None, :] - 2.0 * (self._data[:n] @ self._data[stale].T)).T
+            np.maximum(rows, 0.0, out=rows)
             rows[np.arange(len(stale)), stale] = np.inf
             self._nn_j[stale] = rows.argmin(axis=1)
             self._nn_d[stale] = rows[np.arange(len(stale)), self._nn_j[stale]]

@@ -140,7 +140,8 @@ def test_out_of_order_frames_are_reordered_and_stale_ones_dropped(tmp_path: Path
         rig.service.poll()
     rig.send(10, [(0, (2.0, 0.0, 1.0))])  # ... and arrives 1 s late: beyond the 500 ms window
     rig.service.poll()
-    assert rig.service.buffer.dropped_old == 1
+    assert rig.service.buffer.dropped_old == 1 and rig.service.counters.extra["dropped_too_old"] == 1
+    assert rig.service.counters.dropped == 1
     assert rig.outputs()[-1].header.seq == 39
 
 

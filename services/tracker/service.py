@@ -90,6 +90,7 @@ class TrackerService:
         self._saved_version = memory.version
         self._last_save = clock()
         self._dirty = False
+        self._last_old_log = -1e9
         self.buffer: ReorderBuffer[_Frame, TrackerState, FrameResult] = ReorderBuffer(
             apply=self._update, snapshot=self.tracker.snapshot, restore=self.tracker.restore,
             window_ns=int(config.reorder_window_s * 1e9))
@@ -227,12 +228,21 @@ class TrackerService:
         done = 0
         for key, frame in self._ready(now):
             self._done[key] = key[0]
+            old, dup = self.buffer.dropped_old, self.buffer.dropped_duplicate
             try:
                 results = self.buffer.push(key, frame)
             except (ValueError, np.linalg.LinAlgError) as exc:
                 self.counters.count("update_errors")
                 log.error("frame %s could not be tracked: %s", key, exc)
                 continue
+            if self.buffer.dropped_old > old:
+                self.counters.drop("too_old")
+                if now - self._last_old_log >= 1.0:  # at most one line per second
+                    self._last_old_log = now
+                    log.warning("dropping frame %s: more than %.3f s older than the newest frame (%d so far)", key,
+                                self.config.reorder_window_s, self.buffer.dropped_old)
+            if self.buffer.dropped_duplicate > dup:
+                self.counters.drop("duplicate")
             if not results:
                 continue
             done += len(results)
@@ -240,7 +250,6 @@ class TrackerService:
                 self.counters.count("rewinds")
             newest = self.buffer.latest() or (key, frame)
             self._publish(newest[1], results[-1])
-        self.counters.gauge("dropped_too_old", self.buffer.dropped_old)
         self._forget_done()
         self._persist(now)
         return done

@@ -234,3 +234,18 @@ def test_memory_round_trip_gives_same_ids_after_restart(tmp_path) -> None:
     restarted = Tracker(params(), memory)
     res = run_single(restarted, people, [True] * 3, start=100.0)
     assert res[0].recovered_ids == [1] and [t.id for t in res[-1].confirmed] == [1]
+
+
+def test_time_mode_estimates_velocity_in_metres_per_second_across_irregular_gaps() -> None:
+    tr = Tracker(params())
+    rng = np.random.default_rng(2)
+    stamps = np.cumsum(rng.choice([1 / FPS, 2 / FPS, 3 / FPS], size=60))  # frames dropped at random
+    ids = set()
+    res = None
+    for t in stamps:
+        pos = np.array([[1.5 * t, 0.5, 1.0]]) + rng.normal(scale=0.01, size=(1, 3))
+        res = tr.update(float(t), pos, None)  # position-only: the motion model carries association
+        ids |= {v.id for v in res.tracks}
+    assert ids == {1} and res is not None
+    assert res.tracks[0].velocity[0] == pytest.approx(1.5, abs=0.15)
+    assert res.tracks[0].velocity[2] == 0.0  # z is a random walk

@@ -1,0 +1,130 @@
+"""Tracker benchmark: time of one update vs people x gallery size, and `perception track` throughput.
+
+Run: ``.venv/bin/python benchmarks/tracker.py`` (about a minute on a 2-core VM;
+``--reps`` trades precision for time). Prints median and p95 in milliseconds.
+
+Each case starts a tracker with ``people`` Confirmed tracks whose galleries are already
+full (``gallery`` descriptors of dimension 128), then times updates in which every
+person is detected again with a fresh descriptor, i.e. steady state: Algorithm 1 over a
+full cost matrix, one Kalman update per track and one gallery insertion with pruning.
+"""
+
+from __future__ import annotations
+
+import os
+
+# The tracker's matrices are small: one BLAS thread is fastest, and on a shared machine
+# several threads make the tail latency explode. Set before numpy is imported.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import logging  # noqa: E402
+import platform  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from services.tracker.config import TrackerConfig  # noqa: E402
+from services.tracker.core import Gallery, Tracker  # noqa: E402
+from services.tracker.offline import read_detections, track, write_tracks  # noqa: E402
+
+DIM = 128
+FPS = 30.0
+
+
+def make_people(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Looks (n, DIM) unit vectors and positions (n, 3) on a grid 1.5 m apart."""
+    looks = rng.normal(size=(n, DIM))
+    looks /= np.linalg.norm(looks, axis=1, keepdims=True)
+    side = int(np.ceil(np.sqrt(n)))
+    pos = np.array([[1.5 * (i % side), 1.5 * (i // side), 1.0] for i in range(n)])
+    return looks, pos
+
+
+def observe(looks: np.ndarray, pos: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    desc = looks + rng.normal(scale=0.01, size=looks.shape)
+    desc /= np.linalg.norm(desc, axis=1, keepdims=True)
+    return pos + rng.normal(scale=0.01, size=pos.shape), desc.astype(np.float32)
+
+
+def bench_update(people: int, gallery: int, reps: int, config: TrackerConfig) -> tuple[float, float]:
+    """(median, p95) in ms of one update with ``people`` tracks holding full galleries."""
+    rng = np.random.default_rng(people * 1000 + gallery)
+    params = config.model_copy(update={"gallery_size": gallery}).params(config.thresholds("colour"))
+    tracker = Tracker(params)
+    looks, pos = make_people(people, rng)
+    t = 0.0
+    for _ in range(params.n_init):
+        tracker.update(t, *observe(looks, pos, rng))
+        t += 1 / FPS
+    for track_ in tracker.tracks:  # fill every gallery to capacity with views of its person
+        i = int(np.argmin(np.linalg.norm(pos[:, :2] - track_.mean[:2], axis=1)))
+        views = looks[i] + rng.normal(scale=0.01, size=(gallery, DIM))
+        track_.gallery = Gallery.from_descriptors(views / np.linalg.norm(views, axis=1, keepdims=True), gallery)
+    times = []
+    for _ in range(reps):
+        frame = observe(looks, pos, rng)
+        start = time.perf_counter()
+        tracker.update(t, *frame)
+        times.append(time.perf_counter() - start)
+        t += 1 / FPS
+    assert len(tracker.tracks) == people, "benchmark scenario lost tracks"
+    ms = np.array(times) * 1e3
+    return float(np.median(ms)), float(np.percentile(ms, 95))
+
+
+def bench_offline(people: int, frames: int, config: TrackerConfig, tmp: Path) -> tuple[float, float]:
+    """(frames/s of the tracking alone, frames/s including reading and writing the CSVs)."""
+    rng = np.random.default_rng(1)
+    looks, pos = make_people(people, rng)
+    lines = ["frame,stamp,x,y,z,score," + ",".join(f"e{i}" for i in range(DIM))]
+    for k in range(frames):
+        p, d = observe(looks, pos + np.array([0.01 * k, 0.0, 0.0]), rng)
+        for j in range(people):
+            lines.append(f"{k},{k / FPS:.6f},{p[j, 0]:.4f},{p[j, 1]:.4f},{p[j, 2]:.4f},0.9," + ",".join(f"{v:.5f}" for v in d[j]))
+    src, out = tmp / "dets.csv", tmp / "tracks.csv"
+    src.write_text("\n".join(lines) + "\n")
+    start = time.perf_counter()
+    dets = read_detections(src)
+    t_track = time.perf_counter()
+    rows = track(dets, config.params(config.thresholds("colour")))
+    t_done = time.perf_counter()
+    write_tracks(out, rows)
+    end = time.perf_counter()
+    return frames / (t_done - t_track), frames / (end - start)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--reps", type=int, default=60, help="timed updates per case (default 60)")
+    parser.add_argument("--people", type=int, nargs="+", default=[1, 5, 10, 20, 50])
+    parser.add_argument("--gallery", type=int, nargs="+", default=[10, 100, 500])
+    parser.add_argument("--offline-frames", type=int, default=600, help="frames of the `track` throughput file")
+    args = parser.parse_args()
+    logging.basicConfig(level=logging.WARNING)
+    config = TrackerConfig(memory_path=None)
+    print(f"tracker update, ms (median / p95), {DIM}-D descriptors, {args.reps} updates per case")
+    print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, python {platform.python_version()}, numpy {np.__version__}, "
+          f"BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}")
+    print()
+    print("| people | " + " | ".join(f"gallery {g}" for g in args.gallery) + " |")
+    print("|---:|" + "---:|" * len(args.gallery))
+    for n in args.people:
+        cells = []
+        for g in args.gallery:
+            med, p95 = bench_update(n, g, args.reps, config)
+            cells.append(f"{med:.3f} / {p95:.3f}")
+        print(f"| {n} | " + " | ".join(cells) + " |", flush=True)
+    print()
+    with tempfile.TemporaryDirectory() as tmp:
+        for people in (3, 10):
+            core_fps, total_fps = bench_offline(people, args.offline_frames, config, Path(tmp))
+            print(f"perception track, {people} people, {args.offline_frames} frames with {DIM}-D embeddings: "
+                  f"{core_fps:.0f} frames/s tracking, {total_fps:.0f} frames/s including CSV read/write")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,56 @@
+"""Translation between messages and the core's arrays (no transport, no state)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from common.schemas import Embeddings, Header, LocalizedDetections, TrackState, Tracks
+from services.tracker.core.tracker import FrameResult, TrackView
+
+__all__ = ["descriptors_for", "positions_of", "track_state", "tracks_message"]
+
+
+def positions_of(loc: LocalizedDetections) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (N, 3) and covariances (N, 3, 3) of a frame's localized detections."""
+    if not loc.detections:
+        return np.zeros((0, 3)), np.zeros((0, 3, 3))
+    return (np.stack([d.position for d in loc.detections]).astype(np.float64),
+            np.stack([d.cov for d in loc.detections]).astype(np.float64))
+
+
+def descriptors_for(loc: LocalizedDetections, emb: Embeddings) -> np.ndarray:
+    """Descriptors (N, D) float32 in the order of ``loc.detections``; NaN rows where the
+    embedder gave none for a detection index."""
+    out = np.full((len(loc.detections), emb.model.dim), np.nan, np.float32)
+    row_of = {int(i): r for r, i in enumerate(emb.indices.tolist())}
+    for n, det in enumerate(loc.detections):
+        r = row_of.get(det.index)
+        if r is not None:
+            out[n] = emb.vectors[r]
+    return out
+
+
+def track_state(view: TrackView, appearance: bool, epoch_ns: int = 0) -> TrackState:
+    """A core track as a :class:`TrackState`; core stamps are seconds since ``epoch_ns``.
+
+    ``appearance`` says whether this frame had descriptors; the track's own flag is also
+    False while it has none in its gallery.
+    """
+    return TrackState(
+        id=view.id,
+        status=view.status.value,
+        position=view.mean[:3].copy(),
+        velocity=view.mean[3:].copy(),
+        covariance=view.cov.copy(),
+        last_update_ns=max(0, epoch_ns + int(round(view.last_update * 1e9))),
+        hits=view.hits,
+        age_s=view.age_s,
+        misses=view.misses,
+        appearance_available=appearance and view.gallery_size > 0,
+    )
+
+
+def tracks_message(result: FrameResult, header: Header, model: str, epoch_ns: int) -> Tracks:
+    """The Confirmed tracks of ``result`` as a Tracks message. Core stamps are seconds since ``epoch_ns``."""
+    states = [track_state(v, result.appearance_available, epoch_ns) for v in result.confirmed]
+    return Tracks(header=header, tracks=states, appearance_available=result.appearance_available, embedding_model=model)

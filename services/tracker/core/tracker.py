@@ -1,0 +1,333 @@
+"""The multi-person tracker of seed 000 (III-C to III-E): Kalman filters, Algorithm 1,
+the Tentative/Confirmed/Deleted life cycle and Algorithm 2 over an ID memory.
+
+One call of :meth:`Tracker.update` processes one frame: predict every track, associate,
+update the matched tracks, age the missed ones, start tracks for the unmatched
+detections. Only Confirmed tracks are the tracker's output (:attr:`FrameResult.confirmed`).
+
+Time step (``TrackerParams.time_step``):
+
+* ``"frame"``: ``dt = 1`` per call and ``Q = diag(sigma_q**2)``, the thesis exactly
+  (velocities in metres per frame, each call one frame, gaps ignored).
+* ``"time"`` (default): ``dt`` is the difference of the stamps in seconds (velocities in
+  m/s) and the process noise is scaled by the elapsed time in nominal frames,
+  ``Q = diag(sigma_q**2) * dt / frame_period_s``: the variance a random walk accumulates
+  grows linearly with time, so a step over three dropped frames adds as much uncertainty
+  as three steps would. A missed update adds ``max(1, round(dt / frame_period_s))`` to the
+  track's miss count, so ``max_misses`` keeps meaning "frames of the nominal stream
+  without an association" (5 frames = 167 ms at 30 Hz) whether frames were seen empty or
+  never arrived. Confirmation counts associated updates, each of which is real evidence.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Literal
+
+import numpy as np
+
+from services.tracker.core import kalman
+from services.tracker.core.association import (
+    AppearanceGate,
+    appearance_cost,
+    chi2_gate,
+    gate_appearance,
+    gate_position,
+    innovation_distance,
+    match,
+    spatial_distance,
+)
+from services.tracker.core.gallery import Gallery
+from services.tracker.core.identity import IdentityMemory
+
+__all__ = ["FrameResult", "Track", "TrackStatus", "TrackView", "Tracker", "TrackerParams", "TrackerState"]
+
+_F6 = tuple[float, float, float, float, float, float]
+_F3 = tuple[float, float, float]
+
+
+class TrackStatus(str, Enum):
+    TENTATIVE = "tentative"
+    CONFIRMED = "confirmed"
+    DELETED = "deleted"
+
+
+@dataclass(frozen=True)
+class TrackerParams:
+    """Everything the core needs; defaults are seed 000's values (see the README table)."""
+
+    sigma0: _F6 = (0.2, 0.2, 0.2, 1.0, 1.0, 1.0)
+    sigma_q: _F6 = (0.2, 0.2, 0.2, 1.0, 1.0, 1.0)
+    sigma_r: _F3 = (0.2, 0.2, 0.2)
+    gate: AppearanceGate | None = None
+    t_recover: float = 400.0
+    n_init: int = 3
+    max_misses: int = 5
+    time_step: Literal["time", "frame"] = "time"
+    frame_period_s: float = 1.0 / 30.0
+    gallery_size: int = 500
+    memory_size: int = 500
+    position_gate_probability: float = 0.95
+    inf: float = 1e5
+
+    def __post_init__(self) -> None:
+        if self.n_init < 1 or self.max_misses < 1:
+            raise ValueError("n_init and max_misses must be at least 1")
+        if self.frame_period_s <= 0:
+            raise ValueError("frame_period_s must be positive")
+        if not 0 < self.position_gate_probability < 1:
+            raise ValueError("position_gate_probability must be in (0, 1)")
+
+
+@dataclass
+class Track:
+    """One track; ``mean`` (6,) and ``cov`` (6, 6) are the Kalman state."""
+
+    id: int
+    mean: np.ndarray
+    cov: np.ndarray
+    gallery: Gallery | None
+    first_stamp: float
+    last_update: float
+    status: TrackStatus = TrackStatus.TENTATIVE
+    hits: int = 1  # consecutive associated frames (the creating detection is the first)
+    misses: int = 0  # nominal frames since the last association
+    total_hits: int = 1
+    ever_confirmed: bool = False
+
+    def copy(self) -> Track:
+        return Track(self.id, self.mean.copy(), self.cov.copy(), self.gallery.copy() if self.gallery else None,
+                     self.first_stamp, self.last_update, self.status, self.hits, self.misses, self.total_hits,
+                     self.ever_confirmed)
+
+
+@dataclass(frozen=True)
+class TrackView:
+    """A read-only picture of a track after an update."""
+
+    id: int
+    status: TrackStatus
+    mean: np.ndarray
+    cov: np.ndarray
+    hits: int
+    misses: int
+    age_s: float
+    last_update: float
+    gallery_size: int
+    ever_confirmed: bool = False
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.mean[:3]
+
+    @property
+    def velocity(self) -> np.ndarray:
+        return self.mean[3:]
+
+    @classmethod
+    def of(cls, t: Track, stamp: float) -> TrackView:
+        return cls(t.id, t.status, t.mean.copy(), t.cov.copy(), t.total_hits, t.misses, max(0.0, stamp - t.first_stamp),
+                   t.last_update, len(t.gallery) if t.gallery else 0, t.ever_confirmed)
+
+
+@dataclass
+class FrameResult:
+    """What one update did."""
+
+    stamp: float
+    appearance_available: bool
+    tracks: list[TrackView] = field(default_factory=list)  # live tracks (tentative and confirmed)
+    deleted: list[TrackView] = field(default_factory=list)
+    new_ids: list[int] = field(default_factory=list)
+    recovered_ids: list[int] = field(default_factory=list)
+    matches: int = 0
+
+    @property
+    def confirmed(self) -> list[TrackView]:
+        """The tracker's output: Confirmed tracks only."""
+        return [t for t in self.tracks if t.status is TrackStatus.CONFIRMED]
+
+
+@dataclass
+class TrackerState:
+    """A snapshot for rewinding (see :meth:`Tracker.snapshot`)."""
+
+    tracks: list[Track]
+    memory: IdentityMemory
+    pending: list[tuple[int, Gallery]]
+    last_stamp: float | None
+
+
+class Tracker:
+    """Seed 000's tracker. ``params.gate`` None means there are no appearance thresholds:
+    every frame is then associated position-only."""
+
+    def __init__(self, params: TrackerParams, memory: IdentityMemory | None = None) -> None:
+        self.params = params
+        self.memory = memory if memory is not None else IdentityMemory(params.memory_size)
+        self.tracks: list[Track] = []
+        self.last_stamp: float | None = None
+        self._pending: list[tuple[int, Gallery]] = []  # galleries of tracks deleted in position-only frames
+        self._q_frame = np.asarray(params.sigma_q, dtype=np.float64) ** 2
+        self._r = np.diag(np.asarray(params.sigma_r, dtype=np.float64) ** 2)
+        self._position_gate = chi2_gate(params.position_gate_probability, 2)
+
+    # ----------------------------------------------------------------- helpers
+    def _step(self, stamp: float) -> tuple[float, float, int]:
+        """(dt for the motion model, Q scale, nominal frames elapsed) for this frame."""
+        if self.last_stamp is None:
+            return 0.0, 0.0, 1
+        if stamp < self.last_stamp:
+            raise ValueError(f"stamp {stamp} is older than the last update {self.last_stamp}; apply frames in order")
+        if self.params.time_step == "frame":
+            return 1.0, 1.0, 1
+        dt = stamp - self.last_stamp
+        frames = dt / self.params.frame_period_s
+        return dt, frames, max(1, int(round(frames)))
+
+    def live_ids(self) -> set[int]:
+        return {t.id for t in self.tracks}
+
+    def set_gate(self, gate: AppearanceGate | None, t_recover: float) -> None:
+        """Change the appearance thresholds (e.g. once the embedding model is known)."""
+        self.params = _replace(self.params, gate=gate, t_recover=t_recover)
+
+    # ------------------------------------------------------------------ update
+    def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
+               measurement_cov: np.ndarray | None = None) -> FrameResult:
+        """Process one frame.
+
+        ``stamp`` in seconds (sensor time). ``positions`` (N, 3) in the tracking frame.
+        ``descriptors`` (N, D) or None for a position-only frame; a row of NaN marks a
+        detection without a descriptor. ``measurement_cov`` (N, 3, 3) replaces the
+        thesis's fixed ``R`` per detection when given.
+        """
+        p = self.params
+        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        n = len(positions)
+        if descriptors is not None:
+            descriptors = np.asarray(descriptors, dtype=np.float32)
+            if descriptors.ndim != 2 or len(descriptors) != n:
+                raise ValueError(f"descriptors must be (N, D) with N = {n} detections, got shape {descriptors.shape}")
+        appearance = descriptors is not None and p.gate is not None
+        dt, q_scale, frames = self._step(stamp)
+        self.last_stamp = stamp
+        if appearance:
+            self._flush_pending()
+
+        # predict every track at once
+        if self.tracks and q_scale > 0:
+            means = np.stack([t.mean for t in self.tracks])
+            covs = np.stack([t.cov for t in self.tracks])
+            means, covs = kalman.predict(means, covs, dt, np.diag(self._q_frame * q_scale))
+            for t, m, c in zip(self.tracks, means, covs):
+                t.mean, t.cov = m, c
+        means = np.stack([t.mean for t in self.tracks]) if self.tracks else np.zeros((0, 6))
+        covs = np.stack([t.cov for t in self.tracks]) if self.tracks else np.zeros((0, 6, 6))
+
+        # associate
+        if appearance:
+            assert descriptors is not None and p.gate is not None
+            galleries = [t.gallery if t.gallery is not None else Gallery(max(1, descriptors.shape[1]), 1) for t in self.tracks]
+            cost = appearance_cost(descriptors, galleries)
+            spatial = spatial_distance(positions[:, :2], means[:, :2], covs[:, :2, :2])
+            cost = gate_appearance(cost, spatial, p.gate)
+        else:
+            cost = gate_position(innovation_distance(positions, means, covs, self._r), self._position_gate, p.inf)
+        matches, unmatched_d, unmatched_t = match(cost, p.inf)
+
+        result = FrameResult(stamp=stamp, appearance_available=appearance, matches=len(matches))
+        has_desc = (np.all(np.isfinite(descriptors), axis=1) if descriptors is not None and descriptors.shape[1]
+                    else np.zeros(n, bool)) if appearance else np.zeros(n, bool)
+
+        # update matched tracks at once
+        if len(matches):
+            d_idx, t_idx = matches[:, 0], matches[:, 1]
+            r = measurement_cov[d_idx] if measurement_cov is not None else self._r
+            new_means, new_covs = kalman.update(means[t_idx], covs[t_idx], positions[d_idx], r)
+            for k, (d, ti) in enumerate(matches.tolist()):
+                self._hit(self.tracks[ti], new_means[k], new_covs[k], stamp)
+                if has_desc[d]:
+                    self._add_descriptor(self.tracks[ti], descriptors[d])  # type: ignore[index]
+
+        # age missed tracks; delete after max_misses
+        deleted_idx = set()
+        for ti in unmatched_t.tolist():
+            t = self.tracks[ti]
+            t.hits = 0
+            t.misses += frames
+            t.status = TrackStatus.TENTATIVE
+            if t.misses >= p.max_misses:
+                t.status = TrackStatus.DELETED
+                deleted_idx.add(ti)
+                result.deleted.append(TrackView.of(t, stamp))
+                if t.gallery is not None and len(t.gallery):
+                    if appearance:
+                        self.memory.archive(t.id, t.gallery.descriptors)
+                    else:
+                        self._pending.append((t.id, t.gallery))
+        if deleted_idx:
+            self.tracks = [t for i, t in enumerate(self.tracks) if i not in deleted_idx]
+
+        # new tracks from the unmatched detections (Algorithm 2 for their IDs)
+        for d in unmatched_d.tolist():
+            desc = descriptors[d] if has_desc[d] else None  # type: ignore[index]
+            track_id, recovered = self.memory.assign(desc, self.live_ids() | {i for i, _ in self._pending}, p.t_recover)
+            mean, cov = kalman.initiate(positions[d], np.asarray(p.sigma0))
+            t = Track(track_id, mean, cov, None, stamp, stamp)
+            if p.n_init <= 1:
+                t.status, t.ever_confirmed = TrackStatus.CONFIRMED, True
+            if desc is not None:
+                self._add_descriptor(t, desc)
+            self.tracks.append(t)
+            result.new_ids.append(track_id)
+            if recovered:
+                result.recovered_ids.append(track_id)
+
+        result.tracks = [TrackView.of(t, stamp) for t in self.tracks]
+        return result
+
+    def _hit(self, t: Track, mean: np.ndarray, cov: np.ndarray, stamp: float) -> None:
+        t.mean, t.cov = mean, cov
+        t.hits += 1
+        t.total_hits += 1
+        t.misses = 0
+        t.last_update = stamp
+        if t.status is TrackStatus.TENTATIVE and t.hits >= self.params.n_init:
+            t.status, t.ever_confirmed = TrackStatus.CONFIRMED, True
+
+    def _add_descriptor(self, t: Track, desc: np.ndarray) -> None:
+        if t.gallery is None:
+            t.gallery = Gallery(len(desc), self.params.gallery_size)
+        t.gallery.add(desc)
+
+    def _flush_pending(self) -> None:
+        for track_id, gallery in self._pending:
+            self.memory.archive(track_id, gallery.descriptors)
+        self._pending.clear()
+
+    # ---------------------------------------------------------------- snapshots
+    def snapshot(self) -> TrackerState:
+        """The whole state, for :meth:`restore`; galleries are shared copy-on-write."""
+        return TrackerState([t.copy() for t in self.tracks], self.memory.copy(),
+                            [(i, g.copy()) for i, g in self._pending], self.last_stamp)
+
+    def restore(self, state: TrackerState) -> None:
+        """Go back to ``state`` (which stays valid for another restore)."""
+        self.tracks = [t.copy() for t in state.tracks]
+        self.memory = state.memory.copy()
+        self._pending = [(i, g.copy()) for i, g in state.pending]
+        self.last_stamp = state.last_stamp
+
+    def live_galleries(self) -> list[tuple[int, np.ndarray]]:
+        """(ID, descriptors (M, D)) of every live track and every pending archive."""
+        out = [(t.id, t.gallery.descriptors) for t in self.tracks if t.gallery is not None and len(t.gallery)]
+        return out + [(i, g.descriptors) for i, g in self._pending]
+
+
+def _replace(params: TrackerParams, **changes: object) -> TrackerParams:
+    from dataclasses import replace
+
+    return replace(params, **changes)  # type: ignore[arg-type]
+

@@ -1,0 +1,106 @@
+"""Offline tracking of a detections CSV file: the formats of ``perception track``.
+
+Input (header row required): ``frame,stamp,x,y,z,score`` then optionally ``e0,e1,...``;
+positions in the map frame in metres (z up), stamp in seconds, rows sorted by frame, one
+row per detection. Every frame from the first to the last is processed; a frame without
+rows has no detections and its stamp is interpolated from the frame numbers.
+
+Output: ``frame,stamp,id,x,y,z``, one row per Confirmed track per frame.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from services.tracker.core import Tracker, TrackerParams
+
+__all__ = ["Detections", "OUTPUT_HEADER", "read_detections", "track", "write_tracks"]
+
+INPUT_COLUMNS = ("frame", "stamp", "x", "y", "z", "score")
+OUTPUT_HEADER = "frame,stamp,id,x,y,z"
+
+
+class FormatError(ValueError):
+    """The detections file does not follow the format; the message says where."""
+
+
+@dataclass
+class Detections:
+    """A detections file: ``frames`` (M,) int64, ``stamps`` (M,) s, ``positions`` (M, 3),
+    ``scores`` (M,), ``descriptors`` (M, D) float32 or None."""
+
+    frames: np.ndarray
+    stamps: np.ndarray
+    positions: np.ndarray
+    scores: np.ndarray
+    descriptors: np.ndarray | None
+
+
+def read_detections(path: str | Path) -> Detections:
+    """Parse and validate a detections CSV file (raises :class:`FormatError`)."""
+    text = Path(path).read_text()
+    first, _, body = text.partition("\n")
+    header = [h.strip() for h in first.strip().split(",")]
+    if tuple(header[:6]) != INPUT_COLUMNS:
+        raise FormatError(f"{path}: the header must start with {','.join(INPUT_COLUMNS)}, got {first.strip()!r}")
+    extra = header[6:]
+    if extra != [f"e{i}" for i in range(len(extra))]:
+        raise FormatError(f"{path}: columns after 'score' must be e0,e1,...,e{len(extra) - 1} in order, got {','.join(extra)}")
+    try:
+        data = np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2, dtype=np.float64) if body.strip() else np.zeros((0, len(header)))
+    except ValueError as exc:
+        raise FormatError(f"{path}: {exc}") from exc
+    if data.shape[1] != len(header):
+        raise FormatError(f"{path}: rows have {data.shape[1]} values, the header names {len(header)}")
+    if not np.all(np.isfinite(data[:, :5])):
+        raise FormatError(f"{path}: frame, stamp, x, y and z must be finite numbers")
+    frames = data[:, 0]
+    if np.any(frames != np.round(frames)):
+        raise FormatError(f"{path}: frame numbers must be integers")
+    if np.any(np.diff(frames) < 0):
+        row = int(np.argmax(np.diff(frames) < 0)) + 3
+        raise FormatError(f"{path}: rows must be sorted by frame (line {row} goes back)")
+    descriptors = data[:, 6:].astype(np.float32) if extra else None
+    if descriptors is not None and not np.all(np.isfinite(descriptors)):
+        raise FormatError(f"{path}: embedding values must be finite numbers")
+    return Detections(frames.astype(np.int64), data[:, 1], data[:, 2:5], data[:, 5], descriptors)
+
+
+def frame_stamps(dets: Detections) -> tuple[np.ndarray, np.ndarray]:
+    """Every frame number from the first to the last (F,), and its stamp (F,) in seconds.
+
+    A frame with rows takes its first row's stamp; the others are interpolated linearly
+    from the frame numbers (no extrapolation is needed: the first and the last frame
+    always have rows).
+    """
+    if len(dets.frames) == 0:
+        return np.zeros(0, np.int64), np.zeros(0)
+    known, first_row = np.unique(dets.frames, return_index=True)
+    all_frames = np.arange(known[0], known[-1] + 1, dtype=np.int64)
+    return all_frames, np.interp(all_frames, known, dets.stamps[first_row])
+
+
+def track(dets: Detections, params: TrackerParams) -> list[tuple[int, float, int, float, float, float]]:
+    """Run the tracker over every frame; rows ``(frame, stamp, id, x, y, z)`` of Confirmed tracks."""
+    tracker = Tracker(params)
+    frames, stamps = frame_stamps(dets)
+    starts = np.searchsorted(dets.frames, frames, side="left")
+    ends = np.searchsorted(dets.frames, frames, side="right")
+    rows: list[tuple[int, float, int, float, float, float]] = []
+    for frame, stamp, a, b in zip(frames.tolist(), stamps.tolist(), starts.tolist(), ends.tolist()):
+        desc = dets.descriptors[a:b] if dets.descriptors is not None else None
+        result = tracker.update(stamp, dets.positions[a:b], desc)
+        for view in result.confirmed:
+            x, y, z = view.mean[:3].tolist()
+            rows.append((frame, stamp, view.id, x, y, z))
+    return rows
+
+
+def write_tracks(path: str | Path, rows: list[tuple[int, float, int, float, float, float]]) -> None:
+    """Write ``frame,stamp,id,x,y,z`` rows (stamps and positions to the microsecond / micrometre)."""
+    lines = [OUTPUT_HEADER] + [f"{f},{s:.6f},{i},{x:.6f},{y:.6f},{z:.6f}" for f, s, i, x, y, z in rows]
+    Path(path).write_text("\n".join(lines) + "\n")

@@ -1,0 +1,315 @@
+"""TrackerService: LocalizedDetections + Embeddings in, Tracks out, over any Transport.
+
+* Inputs of one source frame are joined on ``(source, stamp_ns, seq)``. Localized
+  detections wait up to ``join_wait_s`` for their embeddings; then the frame runs
+  position-only. A frame without detections needs no embeddings and runs at once.
+* Joined frames go through a :class:`ReorderBuffer`: applied in sensor-time order,
+  rewinding for late ones within ``reorder_window_s``, dropping (and counting) older ones.
+* After every update the Confirmed tracks are published. ``keys.track_query()`` answers
+  ``?id=K`` with a Tracks message holding that ID's last known state (empty if unknown).
+* The ID memory is loaded at start and written atomically when it changes, and every
+  ``memory_save_period_s`` with the galleries of the live tracks, so a restarted tracker
+  keeps identities.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from common.keys import RELIABLE, Keys
+from common.runtime import Counters, Shutdown
+from common.schemas import Embeddings, Header, LocalizedDetections, ModelCard, TrackState, Tracks
+from common.transport import Subscription, Transport, wait_any
+from services.tracker.config import AppearanceConfig, TrackerConfig
+from services.tracker.convert import descriptors_for, positions_of, track_state, tracks_message
+from services.tracker.core import IdentityMemory, Tracker
+from services.tracker.core.tracker import FrameResult, TrackerState
+from services.tracker.reorder import InputKey, ReorderBuffer
+
+__all__ = ["TrackerService", "load_memory"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class _Pending:
+    loc: LocalizedDetections | None = None
+    emb: Embeddings | None = None
+    arrived: float = 0.0  # monotonic time the localized detections arrived
+    emb_rejected: bool = False
+
+
+@dataclass
+class _Frame:
+    loc: LocalizedDetections
+    emb: Embeddings | None
+
+
+def load_memory(config: TrackerConfig) -> tuple[IdentityMemory, str | None]:
+    """The ID memory from ``config.memory_path`` (empty if the file does not exist).
+
+    Raises ``ValueError`` for an unreadable file or one written for another model.
+    """
+    path = config.memory_path
+    if path is None or not path.exists():
+        return IdentityMemory(config.memory_size), None
+    memory, model = IdentityMemory.load(path, capacity=config.memory_size)
+    if config.embedding_model and model and model != config.embedding_model:
+        raise ValueError(f"{path} holds identities of embedding model {model!r}, the tracker is configured for "
+                         f"{config.embedding_model!r}; move the file away or set memory_path to another file")
+    log.info("loaded %d identities from %s (next id %d)", len(memory), path, memory.next_id)
+    return memory, model or None
+
+
+class TrackerService:
+    """The tracker on a transport. ``poll()`` does one round of work; ``run()`` loops."""
+
+    def __init__(self, transport: Transport, keys: Keys, config: TrackerConfig, counters: Counters | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.transport, self.keys, self.config = transport, keys, config
+        self.counters = counters if counters is not None else Counters()
+        self.clock = clock
+        memory, stored_model = load_memory(config)
+        self.model: str | None = config.embedding_model or stored_model
+        self._dim: int | None = None
+        th = config.thresholds(self.model) if self.model else None
+        self.tracker = Tracker(config.params(th), memory)
+        self._have_thresholds = th is not None
+        self._epoch_ns: int | None = None
+        self._pending: dict[InputKey, _Pending] = {}
+        self._done: dict[InputKey, int] = {}  # processed keys -> stamp, to spot late embeddings
+        self._last_state: dict[int, TrackState] = {}
+        self._ever_confirmed: set[int] = set()
+        self._state_lock = threading.Lock()
+        self._saved_version = memory.version
+        self._last_save = clock()
+        self._dirty = False
+        self._last_old_log = -1e9
+        self.buffer: ReorderBuffer[_Frame, TrackerState, FrameResult] = ReorderBuffer(
+            apply=self._update, snapshot=self.tracker.snapshot, restore=self.tracker.restore,
+            window_ns=int(config.reorder_window_s * 1e9))
+        self.loc_sub = transport.subscribe(keys.localized(config.camera), LocalizedDetections, RELIABLE)
+        self.emb_sub = transport.subscribe(keys.embeddings(config.camera), Embeddings, RELIABLE)
+        self.publisher = transport.publisher(keys.tracks(), Tracks, RELIABLE)
+        transport.serve(keys.track_query(), self._answer_query)
+
+    # ---------------------------------------------------------------- inputs
+    def _key(self, header: Header) -> InputKey:
+        return (header.stamp_ns, header.source, header.seq)
+
+    def _accept_model(self, card: ModelCard) -> bool:
+        """Lock onto one embedding model and resolve its thresholds."""
+        if self.model is None:
+            self.model = card.name
+            log.info("tracking with descriptors of embedding model %r", card.name)
+        if card.name != self.model or (self._dim is not None and card.dim != self._dim):
+            return False
+        self._dim = card.dim
+        if not self._have_thresholds:
+            th = self.config.thresholds(card.name)
+            if th is None and card.thresholds is not None:
+                log.warning("no thresholds for embedding model %r in the tracker config; using the model card's %s",
+                            card.name, card.thresholds.model_dump())
+                th = AppearanceConfig(**card.thresholds.model_dump())
+            if th is not None:
+                self.tracker.set_gate(self.config.gate(th), th.t_recover)
+                self._have_thresholds = True
+        return True
+
+    def _drain(self, now: float) -> None:
+        while (got := self.loc_sub.try_recv()) is not None:
+            loc = got.msg
+            key = self._key(loc.header)
+            if key in self._done or (key in self._pending and self._pending[key].loc is not None):
+                self.counters.drop("duplicate")
+                continue
+            if loc.header.frame_id and loc.header.frame_id != self.config.frame_id:
+                self.counters.drop("wrong_frame")
+                log.warning("dropping localized detections in frame %r; the tracker works in %r",
+                            loc.header.frame_id, self.config.frame_id)
+                continue
+            p = self._pending.setdefault(key, _Pending())
+            p.loc, p.arrived = loc, now
+        while (got_emb := self.emb_sub.try_recv()) is not None:
+            emb = got_emb.msg
+            key = self._key(emb.header)
+            if key in self._done:
+                self.counters.drop("late_embeddings")
+                continue
+            p = self._pending.setdefault(key, _Pending(arrived=now))
+            if not self._accept_model(emb.model):
+                self.counters.drop("wrong_model")
+                p.emb_rejected = True
+                continue
+            p.emb = emb
+
+    def _ready(self, now: float) -> list[tuple[InputKey, _Frame]]:
+        ready, expired = [], []
+        for key, p in self._pending.items():
+            if p.loc is None:
+                if now - p.arrived > self.config.join_wait_s + self.config.reorder_window_s:
+                    expired.append(key)
+                continue
+            if p.emb is not None or p.emb_rejected or not p.loc.detections:
+                ready.append(key)
+            elif now - p.arrived >= self.config.join_wait_s:
+                self.counters.count("position_only_timeout")
+                ready.append(key)
+        for key in expired:
+            del self._pending[key]
+            self.counters.drop("unpaired_embeddings")
+        # release in order: nothing behind a frame that still waits for its embeddings
+        ready_set = set(ready)
+        waiting = [k for k, p in self._pending.items() if p.loc is not None and k not in ready_set]
+        first_waiting = min(waiting, default=None)
+        out = []
+        for key in sorted(ready):
+            if first_waiting is not None and key > first_waiting:
+                break
+            p = self._pending.pop(key)
+            assert p.loc is not None
+            out.append((key, _Frame(p.loc, p.emb)))
+        return out
+
+    # ---------------------------------------------------------------- update
+    def _update(self, frame: _Frame) -> FrameResult:
+        loc = frame.loc
+        if self._epoch_ns is None:
+            self._epoch_ns = loc.header.stamp_ns
+        positions, covs = positions_of(loc)
+        covs = covs + np.eye(3) * 1e-6  # keep R invertible for degenerate covariances
+        descriptors = None
+        if frame.emb is not None and self._have_thresholds:
+            descriptors = descriptors_for(loc, frame.emb)
+        elif not loc.detections and self._have_thresholds:
+            descriptors = np.zeros((0, 1), np.float32)
+        elif loc.detections and frame.emb is not None:
+            self.counters.count("no_thresholds")
+        result = self.tracker.update((loc.header.stamp_ns - self._epoch_ns) / 1e9, positions, descriptors,
+                                     covs if self.config.use_detection_covariance else None)
+        self._ever_confirmed.update(v.id for v in result.confirmed)
+        self.counters.count("updates")
+        if not result.appearance_available and loc.detections:
+            self.counters.count("position_only_frames")
+        if result.recovered_ids:
+            self.counters.count("ids_recovered", len(result.recovered_ids))
+        with self._state_lock:
+            for view in result.tracks + result.deleted:
+                self._last_state[view.id] = track_state(view, result.appearance_available, self._epoch_ns)
+            for view in result.deleted:
+                if not view.ever_confirmed and not self._confirmed_before(view.id):
+                    del self._last_state[view.id]  # never output (a false positive): nothing to answer
+        self._dirty = True
+        return result
+
+    def _confirmed_before(self, track_id: int) -> bool:
+        """Whether an earlier track with this ID was ever Confirmed (its ID was recovered)."""
+        return track_id in self._ever_confirmed
+
+    def _publish(self, frame: _Frame, result: FrameResult) -> None:
+        assert self._epoch_ns is not None
+        h = frame.loc.header
+        header = Header(stamp_ns=h.stamp_ns, frame_id=self.config.frame_id, seq=h.seq, source=h.source)
+        self.publisher.put(tracks_message(result, header, self.model or "", self._epoch_ns))
+        self.counters.gauge("tracks_confirmed", len(result.confirmed))
+        self.counters.gauge("tracks_live", len(result.tracks))
+        self.counters.gauge("ids_remembered", len(self.tracker.memory))
+
+    def poll(self, now: float | None = None) -> int:
+        """Take what has arrived, apply every frame that is ready, publish; returns updates done."""
+        now = self.clock() if now is None else now
+        self._drain(now)
+        done = 0
+        for key, frame in self._ready(now):
+            self._done[key] = key[0]
+            old, dup = self.buffer.dropped_old, self.buffer.dropped_duplicate
+            try:
+                results = self.buffer.push(key, frame)
+            except (ValueError, np.linalg.LinAlgError) as exc:
+                self.counters.count("update_errors")
+                log.error("frame %s could not be tracked: %s", key, exc)
+                continue
+            if self.buffer.dropped_old > old:
+                self.counters.drop("too_old")
+                if now - self._last_old_log >= 1.0:  # at most one line per second
+                    self._last_old_log = now
+                    log.warning("dropping frame %s: more than %.3f s older than the newest frame (%d so far)", key,
+                                self.config.reorder_window_s, self.buffer.dropped_old)
+            if self.buffer.dropped_duplicate > dup:
+                self.counters.drop("duplicate")
+            if not results:
+                continue
+            done += len(results)
+            if len(results) > 1:
+                self.counters.count("rewinds")
+            newest = self.buffer.latest() or (key, frame)
+            self._publish(newest[1], results[-1])
+        self._forget_done()
+        self._persist(now)
+        return done
+
+    def _forget_done(self) -> None:
+        if self.buffer.newest_ns is None or len(self._done) < 64:
+            return
+        horizon = self.buffer.newest_ns - 2 * int(self.config.reorder_window_s * 1e9) - int(self.config.join_wait_s * 1e9)
+        self._done = {k: s for k, s in self._done.items() if s >= horizon}
+
+    def next_timeout(self, now: float) -> float:
+        """Seconds until the earliest pending frame stops waiting for its embeddings."""
+        waits = [p.arrived + self.config.join_wait_s - now for p in self._pending.values() if p.loc is not None]
+        return max(0.0, min(waits, default=0.2))
+
+    # ------------------------------------------------------------- persistence
+    def _persist(self, now: float, force: bool = False) -> None:
+        path = self.config.memory_path
+        if path is None:
+            return
+        changed = self.tracker.memory.version != self._saved_version
+        periodic = self._dirty and now - self._last_save >= self.config.memory_save_period_s
+        if not (changed or periodic or (force and self._dirty)):
+            return
+        try:
+            self.tracker.memory.save(path, self.model or "", extra=self.tracker.live_galleries())
+        except (OSError, ValueError) as exc:
+            self.counters.count("memory_save_errors")
+            log.error("could not write the ID memory to %s: %s", path, exc)
+            return
+        self._saved_version = self.tracker.memory.version
+        self._last_save, self._dirty = now, False
+        self.counters.count("memory_saves")
+
+    # ------------------------------------------------------------------ query
+    def _answer_query(self, _key: str, params: dict[str, str]) -> list[Tracks]:
+        header = Header(stamp_ns=time.time_ns(), frame_id=self.config.frame_id, source="tracker")
+        with self._state_lock:
+            if "id" not in params:
+                states = list(self._last_state.values())
+            else:
+                try:
+                    state = self._last_state.get(int(params["id"]))
+                except ValueError:
+                    log.warning("track query with a non-integer id %r", params["id"])
+                    state = None
+                states = [state] if state is not None else []
+        return [Tracks(header=header, tracks=states, embedding_model=self.model or "")]
+
+    # -------------------------------------------------------------------- run
+    def run(self, shutdown: Shutdown) -> None:
+        """Work until ``shutdown`` is set, then write the ID memory one last time."""
+        subs: list[Subscription[Any]] = [self.loc_sub, self.emb_sub]
+        try:
+            while not shutdown.is_set():
+                wait_any(subs, self.transport.notify, min(0.2, self.next_timeout(self.clock())))
+                self.poll()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Write the ID memory with the live tracks' galleries (call once at shutdown)."""
+        self._persist(self.clock(), force=True)

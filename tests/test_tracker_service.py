@@ -261,10 +261,10 @@ def test_tracker_command_rejects_bad_config_before_connecting(tmp_path: Path, ca
 
     bad = tmp_path / "tracker.yaml"
     bad.write_text("tracker:\n  join_wait_s: -1\n")
-    assert main(["tracker", "--tracker-config", str(bad), "--connect", "tcp/127.0.0.1:1"]) == 2
+    assert main(["tracker", "--service-config", str(bad), "--connect", "tcp/127.0.0.1:1"]) == 2
     assert "join_wait_s" in capsys.readouterr().err
     bad.write_text("appearance:\n  trinet: {t_lower: 700, t_upper: 300, t_recover: 400}\n")
-    assert main(["tracker", "--tracker-config", str(bad), "--connect", "tcp/127.0.0.1:1"]) == 2
+    assert main(["tracker", "--service-config", str(bad), "--connect", "tcp/127.0.0.1:1"]) == 2
     assert "appearance.trinet" in capsys.readouterr().err
 
 
@@ -284,3 +284,11 @@ def test_false_positives_are_forgotten_by_the_query(tmp_path: Path, memory_bus: 
     asker = memory_bus.transport()
     assert asker.query(KEYS.track_query() + "?id=2")[0][1].tracks == []  # type: ignore[union-attr]
     assert [t.id for t in asker.query(KEYS.track_query())[0][1].tracks] == [1]  # type: ignore[union-attr]
+
+
+def test_shipped_colour_thresholds_match_the_embedder_card() -> None:
+    from services.embedder.core.colour import COLOUR_THRESHOLDS
+    from services.tracker.config import DEFAULT_APPEARANCE
+
+    shipped = DEFAULT_APPEARANCE["colour"]
+    assert (shipped["t_lower"], shipped["t_upper"], shipped["t_recover"]) == COLOUR_THRESHOLDS

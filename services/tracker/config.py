@@ -42,10 +42,12 @@ class AppearanceConfig(BaseModel):
 # Shipped thresholds, per embedding model. THE place to change them.
 #  * trinet: seed 000 (eq. 17 and 18), in TriNet's raw 128-D feature scale.
 #  * colour: the default colour-histogram embedder; L2-normalised, so distances lie in
-#    [0, 2]. Provisional values pending the embedder's calibration.
+#    [0, sqrt(2)]. Calibrated on PETS09 crops and synthetic lighting changes with
+#    `perception calibrate-embedder`; the embedder's model card carries the same values
+#    (services/embedder/core/colour.py, COLOUR_THRESHOLDS; a test keeps them equal).
 DEFAULT_APPEARANCE: dict[str, dict[str, float]] = {
     "trinet": {"t_lower": 300.0, "t_upper": 700.0, "t_recover": 400.0, "s_max": 0.05},
-    "colour": {"t_lower": 0.25, "t_upper": 0.6, "t_recover": 0.35},
+    "colour": {"t_lower": 0.35, "t_upper": 0.85, "t_recover": 0.40},
 }
 # --------------------------------------------------------------------------------------
 

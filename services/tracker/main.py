@@ -25,7 +25,7 @@ returning person their old ID (Algorithm 2). Subscribes to the localizer's
 LocalizedDetections and the embedder's Embeddings, publishes the Confirmed tracks
 after every frame, and answers `?id=K` queries on the track query key.
 
-Settings come from defaults (the paper's values) <- --tracker-config FILE (section
+Settings come from defaults (the paper's values) <- --service-config FILE (section
 'tracker' if present) <- PERCEPTION_TRACKER__FIELD environment variables <- flags.
 The ID memory is kept in --memory (default under ~/.local/state) so a restarted
 tracker keeps identities; --no-memory turns that off."""
@@ -33,7 +33,7 @@ tracker keeps identities; --no-memory turns that off."""
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("tracker")
-    g.add_argument("--tracker-config", type=Path, default=None, metavar="FILE",
+    g.add_argument("--service-config", type=Path, default=None, metavar="FILE",
                    help="YAML/JSON TrackerConfig (or a deploy file with a 'tracker' section)")
     g.add_argument("--camera", default=None, help="camera whose streams to track, '*' for all (default head)")
     g.add_argument("--embedding-model", default=None, metavar="NAME",
@@ -49,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def config_from_args(args: argparse.Namespace) -> TrackerConfig:
     overrides: dict[str, object] = {"camera": args.camera, "embedding_model": args.embedding_model,
                                     "time_step": args.time_step, "memory_path": args.memory}
-    path = args.tracker_config
+    path = args.service_config
     section = None
     if path is not None:
         from common.config import read_config_file

@@ -42,7 +42,9 @@ def _env_value(v: Any) -> Any:
     return str(v) if isinstance(v, (int, float)) else v
 
 
+#: A string that YAML may have typed as a number or boolean (``8080``, ``true``).
 EnvValue = Annotated[str, BeforeValidator(_env_value)]
+Arg = EnvValue
 Endpoints = list[str]
 
 
@@ -83,7 +85,7 @@ class RouterSpec(_Strict):
                               description="endpoints this router listens on")
     connect: Endpoints = Field(default_factory=list, description="other routers to connect to (the other PC's)")
     config: Path | None = Field(default=None, description="Zenoh JSON5 file; listen/connect above override it")
-    args: list[str] = Field(default_factory=list, description="extra flags for perception router")
+    args: list[Arg] = Field(default_factory=list, description="extra flags for perception router")
     env: dict[str, EnvValue] = Field(default_factory=dict)
     ready_timeout_s: float = Field(default=20.0, gt=0.0, le=600.0,
                                    description="how long to wait for the router to accept connections")
@@ -114,9 +116,9 @@ class ServiceSpec(_Strict):
 
     name: str = Field(pattern=_NAME, max_length=40, description="unique; prefixes the child's output")
     command: str | None = Field(default=None, pattern=_NAME, description="perception sub-command, e.g. tracker")
-    exec_: list[str] | None = Field(default=None, alias="exec", min_length=1,
+    exec_: list[Arg] | None = Field(default=None, alias="exec", min_length=1,
                                     description="argv of a program to run instead of a perception sub-command")
-    args: list[str] = Field(default_factory=list, description="extra arguments, appended last")
+    args: list[Arg] = Field(default_factory=list, description="extra arguments, appended last")
     config: dict[str, Any] | Path | None = Field(
         default=None, description="inline mapping (written to a temp YAML under the section named config_section) "
         "or a file path relative to the launch file; passed with config_flag")

@@ -259,6 +259,8 @@ def load_launch_file(path: str | Path, environ: Mapping[str, str]) -> LaunchFile
             value = err.get("input")
             shown = "" if isinstance(value, (dict, list)) or value is None else f" (got {value!r})"
             msg = str(err["msg"]).removeprefix("Value error, ")
+            if isinstance(value, bool) and err["type"] == "string_type":
+                msg += "; YAML reads yes/no/on/off/true/false as booleans, quote the value"
             lines.append(f"{_field_path(tuple(err['loc']), data)}: {msg}{shown}")
         raise LaunchFileError(f"invalid launch file {p}:\n  " + "\n  ".join(lines)) from exc
     base = p.resolve().parent

@@ -61,9 +61,10 @@ def _config_file(s: ServiceSpec, config_dir: Path) -> Path | None:
         return s.config
     section = s.section()
     data = {section: s.config} if section else s.config
+    config_dir.mkdir(parents=True, exist_ok=True)
     path = config_dir / f"{s.name}.yaml"
     path.write_text(f"# written by perception launch for service {s.name!r}\n"
-                    + yaml.safe_dump(data, sort_keys=False, default_flow_style=False))
+                    + yaml.safe_dump(data, sort_keys=False, default_flow_style=False), encoding="utf-8")
     return path
 
 

@@ -11,8 +11,8 @@ import pytest
 
 from common.keys import RELIABLE, Keys
 from common.router_process import free_port
-from common.schemas import Tracks
 from common.samples import example_messages
+from common.schemas import Tracks
 from common.zenoh_config import ZenohOptions
 from common.zenoh_transport import open_transport
 from tests.helpers.launcher import TIMEOUT, Launch

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import io
+import os
 import signal
 import subprocess
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -11,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from common.router_process import free_port
+from services.launcher.supervisor import ProcessSpec, Supervisor
 from tests.helpers.launcher import CHILD, PY, ROOT, TIMEOUT, Launch
 
 
@@ -97,7 +101,8 @@ services:
 
 @pytest.mark.parametrize(("body", "expected"), [
     ("services:\n  - name: x\n    exec: [\"${NOPE_NOT_SET}\"]\n", "environment variable NOPE_NOT_SET is not set"),
-    ("services:\n  - name: x\n    command: no-such-command\n", "services[0] (x).command: 'no-such-command' is not a perception command"),
+    ("services:\n  - name: x\n    command: no-such-command\n",
+     "services[0] (x).command: 'no-such-command' is not a perception command"),
     ("services:\n  - name: x\n    exec: [ls]\n    colour: red\n", "services[0] (x).colour: Extra inputs are not permitted"),
     ("services:\n  - name: x\n    exec: [ls]\n    command: tracker\n", "give exactly one of 'command'"),
     ("router:\n  listen: [localhost:7447]\n", "router.listen: endpoint 'localhost:7447' is not of the form PROTO/ADDRESS"),
@@ -172,3 +177,36 @@ services:
     launch.proc.send_signal(signal.SIGINT)
     assert launch.finish() == 0, launch.output()
     assert "router stopped (exit status 0)" in launch.output()
+
+
+def test_router_that_cannot_start_stops_the_launch_before_the_services(tmp_path: Path) -> None:
+    marker = tmp_path / "started"
+    f = tmp_path / "router.yaml"
+    # 192.0.2.1 (TEST-NET-1) is no address of this machine: the router cannot listen there.
+    f.write_text(f'router:\n  listen: ["tcp/192.0.2.1:7447"]\n'
+                 f'services:\n  - {{name: x, exec: ["{PY}", "{CHILD}", touch, "{marker}"]}}\n')
+    res = subprocess.run([PY, "-m", "services", "launch", str(f)], capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT)
+    assert res.returncode == 1, res.stdout + res.stderr
+    assert "router exited during start-up" in res.stderr and "not starting the others" in res.stderr
+    assert "[router] perception: error: could not open a Zenoh session" in res.stdout
+    assert not marker.exists()
+
+
+def test_supervisor_api_restarts_and_stops_on_request() -> None:
+    out = io.BytesIO()
+    specs = [ProcessSpec("sleeper", [PY, "-c", "import time; print('up', flush=True); time.sleep(3600)"], dict(os.environ)),
+             ProcessSpec("crash", [PY, CHILD, "crash", "1"], dict(os.environ), backoff_initial_s=0.01, backoff_max_s=0.05)]
+    sup = Supervisor(specs, out, handle_signals=False)
+    result: list[int] = []
+    thread = threading.Thread(target=lambda: result.append(sup.run()))
+    thread.start()
+    try:
+        deadline = time.monotonic() + TIMEOUT
+        while (sup.restarts("crash") < 2 or b"[sleeper] up" not in out.getvalue()) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert sup.restarts("crash") >= 2 and b"[sleeper] up\n" in out.getvalue()
+    finally:
+        sup.request_stop()
+        thread.join(TIMEOUT)
+    assert result == [0]
+    assert out.getvalue().count(b"[crash]   boom\n") >= 2

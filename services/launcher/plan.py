@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 import shlex
 import sys
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 
 import yaml
@@ -152,5 +152,5 @@ def render_plan(launch: LaunchFile, plan: list[ProcessSpec], environ: Mapping[st
     return "\n".join(lines)
 
 
-def _config_paths(argv: list[str]) -> list[Path]:
+def _config_paths(argv: Sequence[str]) -> list[Path]:
     return [Path(a) for a in argv if a.endswith((".yaml", ".yml")) and Path(a).is_file()]

@@ -21,7 +21,7 @@ import time
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import BinaryIO, Literal
+from typing import IO, BinaryIO, Literal
 
 __all__ = ["BackoffState", "ProcessSpec", "Supervisor", "describe_exit", "should_restart"]
 
@@ -106,6 +106,17 @@ def _port_open(host: str, port: int) -> bool:
         return False
 
 
+def _has_exited(proc: subprocess.Popen[bytes]) -> bool:
+    """Whether ``proc`` has exited, without reaping it: while it is a zombie its pid, and so
+    its process group id, cannot be reused, which makes signalling the group afterwards safe."""
+    if proc.returncode is not None:
+        return True
+    try:
+        return os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is not None
+    except ChildProcessError:
+        return True
+
+
 def _signal_group(proc: subprocess.Popen[bytes], sig: signal.Signals) -> None:
     try:
         os.killpg(proc.pid, sig)
@@ -184,8 +195,8 @@ class Supervisor:
         host, port = child.spec.ready_tcp  # type: ignore[misc]
         deadline = time.monotonic() + child.spec.ready_timeout_s
         while not self._stop_requests:
-            if child.proc is None or child.proc.poll() is not None:
-                rc = child.proc.wait() if child.proc is not None else -1
+            if child.proc is None or _has_exited(child.proc):
+                rc = self._reap(child) if child.proc is not None else child.last_rc or 127
                 log.error("%s exited during start-up (%s); not starting the others", child.spec.name, describe_exit(rc))
                 return False
             if _port_open(host, port):
@@ -205,7 +216,7 @@ class Supervisor:
             self._pump(max(0.0, min([self._tick_s, *(d - now for d in due)])))
             now = time.monotonic()
             for child in self._children:
-                if child.proc is not None and child.proc.poll() is not None:
+                if child.proc is not None and _has_exited(child.proc):
                     self._on_exit(child, now)
                 if child.next_start is not None and now >= child.next_start and not self._stop_requests:
                     child.restarts += 1
@@ -233,7 +244,7 @@ class Supervisor:
                 for child in phase:
                     if child.proc is None:
                         continue
-                    if child.proc.poll() is not None:
+                    if _has_exited(child.proc):
                         self._on_exit(child, now)
                     elif self._stop_requests > 1 or now - (child.term_at or now) > child.spec.stop_timeout_s:
                         log.warning("%s did not stop after SIGTERM; sending SIGKILL", child.spec.name)
@@ -260,14 +271,19 @@ class Supervisor:
         child.proc, child.started_at = proc, time.monotonic()
         log.info("started %s (pid %d)%s", s.name, proc.pid, f", restart #{child.restarts}" if child.restarts else "")
 
-    def _on_exit(self, child: _Child, now: float) -> None:
+    def _reap(self, child: _Child) -> int:
+        """Collect an exited child: its status, what is left in its group and its pipe."""
         proc = child.proc
         assert proc is not None
+        _signal_group(proc, signal.SIGKILL)  # whatever it left behind in its group (it is a zombie now)
         rc = proc.wait()
-        _signal_group(proc, signal.SIGKILL)  # whatever it left behind in its group
         if proc.stdout is not None and not proc.stdout.closed:
             self._read(proc.stdout, child, final=True)
         child.proc, child.last_rc = None, rc
+        return rc
+
+    def _on_exit(self, child: _Child, now: float) -> None:
+        rc = self._reap(child)
         run_s = now - child.started_at
         if child.term_at is not None:
             log.info("%s stopped (%s)", child.spec.name, describe_exit(rc))
@@ -297,7 +313,7 @@ class Supervisor:
             else:
                 self._read(key.fileobj, key.data, final=False)  # type: ignore[arg-type]
 
-    def _read(self, pipe: BinaryIO, child: _Child, *, final: bool) -> None:
+    def _read(self, pipe: IO[bytes], child: _Child, *, final: bool) -> None:
         fd = pipe.fileno()
         eof = False
         while True:

@@ -144,7 +144,8 @@ def render_plan(launch: LaunchFile, plan: list[ProcessSpec], environ: Mapping[st
         for k, v in sorted(changed.items()):
             lines.append(f"   env {k}={v}")
         for path in _config_paths(p.argv):
-            lines.append(f"   config {path}:")
+            temporary = path.parent.name.startswith("perception-launch-")
+            lines.append(f"   config {path}{' (a new temporary file at each launch)' if temporary else ''}:")
             lines += [f"     | {line}" for line in path.read_text().splitlines() if not line.startswith("#")]
     skipped = [s.name for s in launch.services if s.name not in started]
     if skipped:

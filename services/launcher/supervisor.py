@@ -142,6 +142,7 @@ class Supervisor:
                 tag = f"\x1b[{_COLOURS[i % len(_COLOURS)]}m".encode() + tag + b"\x1b[0m"
             self._children.append(_Child(s, tag, BackoffState(s.backoff_initial_s, s.backoff_max_s, s.stable_after_s)))
         self._out = out
+        self._out_broken = False
         self._handle_signals = handle_signals
         self._tick_s = tick_s
         self._sel = selectors.DefaultSelector()
@@ -346,8 +347,15 @@ class Supervisor:
             return
         lines = bytes(buf[:end]).splitlines(keepends=True)
         del buf[:end]
-        self._out.write(b"".join(child.prefix + line for line in lines))
-        self._out.flush()
+        if self._out_broken:
+            return
+        try:
+            self._out.write(b"".join(child.prefix + line for line in lines))
+            self._out.flush()
+        except (BrokenPipeError, ValueError):
+            # Whoever read our output has gone (e.g. `| head`): keep supervising, drop output.
+            self._out_broken = True
+            log.warning("output stream closed; children's output is discarded from now on")
 
     # -- signals ------------------------------------------------------------------------
     @contextmanager

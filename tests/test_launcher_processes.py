@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from common.router_process import free_port
+from common.router_process import RouterProcess, free_port
 from services.launcher.supervisor import ProcessSpec, Supervisor
 from tests.helpers.launcher import CHILD, PY, ROOT, TIMEOUT, Launch
 
@@ -210,3 +210,13 @@ def test_supervisor_api_restarts_and_stops_on_request() -> None:
         thread.join(TIMEOUT)
     assert result == [0]
     assert out.getvalue().count(b"[crash]   boom\n") >= 2
+
+
+@pytest.mark.zenoh
+def test_router_port_already_taken_is_reported_not_mistaken_for_ready(router: RouterProcess, tmp_path: Path) -> None:
+    f = tmp_path / "twice.yaml"
+    f.write_text(f'router:\n  listen: ["{router.endpoint}"]\nservices:\n  - {{name: x, exec: ["{PY}", "{CHILD}", crash, "0"]}}\n')
+    res = subprocess.run([PY, "-m", "services", "launch", str(f)], capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT)
+    assert res.returncode == 1
+    assert f"something already accepts connections on 127.0.0.1:{router.port} (another router?)" in res.stderr
+    assert "started" not in res.stderr and "boom" not in res.stdout

@@ -187,6 +187,11 @@ class Supervisor:
         for child in self._children:
             if self._stop_requests:
                 return False
+            if child.spec.ready_tcp is not None and _port_open(*child.spec.ready_tcp):
+                host, port = child.spec.ready_tcp
+                log.error("something already accepts connections on %s:%d (another router?); not starting %s "
+                          "or anything after it", host, port, child.spec.name)
+                return False
             self._spawn(child)
             if child.spec.ready_tcp is not None and not self._wait_ready(child):
                 return False

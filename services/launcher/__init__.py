@@ -1,0 +1,1 @@
+"""``perception launch``: run routers and services from a launch file as supervised child processes."""

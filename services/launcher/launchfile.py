@@ -1,0 +1,283 @@
+"""The launch file: a validated YAML description of the processes ``perception launch`` runs.
+
+Loading is three steps, all before anything is started:
+
+1. parse the YAML (a mapping at the top);
+2. substitute ``${VAR}``, ``${VAR:-default}`` (unset or empty) and ``${VAR-default}`` (unset
+   only) in every string value from the environment; ``$$`` is a literal ``$``;
+3. validate with pydantic (``extra="forbid"`` everywhere), resolving relative paths against
+   the launch file's folder.
+
+Any problem raises :class:`LaunchFileError` whose message names the file and the field,
+e.g. ``services[1] (tracker).restart: Input should be 'always', 'on-failure' or 'never'``.
+Service configs are passed through untouched: each service validates its own.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import yaml
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from common.keys import validate_chunk
+from common.zenoh_config import ZenohOptions
+
+__all__ = ["Backoff", "LaunchFile", "LaunchFileError", "RouterSpec", "ServiceSpec", "ZenohDefaults",
+           "load_launch_file", "substitute"]
+
+_VAR = re.compile(r"\$(?:(\$)|\{([A-Za-z_][A-Za-z0-9_]*)(?:(:?-)([^}]*))?\}|(\{[^}]*\}?))")
+_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
+
+
+class LaunchFileError(ValueError):
+    """A launch file that cannot be used; the message names the file and the field."""
+
+
+def _env_value(v: Any) -> Any:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    return str(v) if isinstance(v, (int, float)) else v
+
+
+#: A string that YAML may have typed as a number or boolean (``8080``, ``true``).
+EnvValue = Annotated[str, BeforeValidator(_env_value)]
+Arg = EnvValue
+Endpoints = list[str]
+
+
+def _check_endpoints(v: list[str]) -> list[str]:
+    try:
+        ZenohOptions(connect=v)
+    except ValidationError as exc:
+        raise ValueError(str(exc.errors(include_url=False)[0]["msg"]).removeprefix("Value error, ")) from exc
+    return v
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Backoff(_Strict):
+    """Restart delays after a crash: ``initial_s``, doubled each time up to ``max_s``.
+
+    Back to ``initial_s`` once the child has run ``stable_after_s`` without exiting.
+    """
+
+    initial_s: float = Field(default=0.5, gt=0.0, le=3600.0, description="first restart delay")
+    max_s: float = Field(default=30.0, gt=0.0, le=3600.0, description="longest restart delay")
+    stable_after_s: float = Field(default=10.0, ge=0.0, le=86400.0,
+                                  description="a run this long resets the delay to initial_s")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Backoff:
+        if self.max_s < self.initial_s:
+            raise ValueError(f"max_s ({self.max_s}) must be at least initial_s ({self.initial_s})")
+        return self
+
+
+class RouterSpec(_Strict):
+    """``perception router`` on this PC, started first and waited for until it accepts TCP."""
+
+    listen: Endpoints = Field(default_factory=lambda: ["tcp/127.0.0.1:7447"], min_length=1,
+                              description="endpoints this router listens on")
+    connect: Endpoints = Field(default_factory=list, description="other routers to connect to (the other PC's)")
+    config: Path | None = Field(default=None, description="Zenoh JSON5 file; listen/connect above override it")
+    args: list[Arg] = Field(default_factory=list, description="extra flags for perception router")
+    env: dict[str, EnvValue] = Field(default_factory=dict)
+    ready_timeout_s: float = Field(default=20.0, gt=0.0, le=600.0,
+                                   description="how long to wait for the router to accept connections")
+    stop_timeout_s: float = Field(default=5.0, gt=0.0, le=600.0)
+    backoff: Backoff = Field(default_factory=Backoff)
+
+    @field_validator("listen", "connect")
+    @classmethod
+    def _ep(cls, v: list[str]) -> list[str]:
+        return _check_endpoints(v)
+
+
+class ZenohDefaults(_Strict):
+    """Zenoh settings passed to every ``command:`` service (and as environment to ``exec:`` ones)."""
+
+    connect: Endpoints | None = Field(default=None, description="router endpoints; default: the router's first "
+                                      "listen endpoint, else the services' own default (tcp/127.0.0.1:7447)")
+    config: Path | None = Field(default=None, description="Zenoh JSON5 file passed as --config")
+
+    @field_validator("connect")
+    @classmethod
+    def _ep(cls, v: list[str] | None) -> list[str] | None:
+        return None if v is None else _check_endpoints(v)
+
+
+class ServiceSpec(_Strict):
+    """One supervised child: a ``perception`` sub-command or any program (``exec``)."""
+
+    name: str = Field(pattern=_NAME, max_length=40, description="unique; prefixes the child's output")
+    command: str | None = Field(default=None, pattern=_NAME, description="perception sub-command, e.g. tracker")
+    exec_: list[Arg] | None = Field(default=None, alias="exec", min_length=1,
+                                    description="argv of a program to run instead of a perception sub-command")
+    args: list[Arg] = Field(default_factory=list, description="extra arguments, appended last")
+    config: dict[str, Any] | Path | None = Field(
+        default=None, description="inline mapping (written to a temp YAML under the section named config_section) "
+        "or a file path relative to the launch file; passed with config_flag")
+    config_flag: str = Field(default="--service-config", pattern=r"^--?[A-Za-z0-9][A-Za-z0-9-]*$",
+                             description="the flag that takes the service's YAML config file")
+    config_section: str | None = Field(default=None, description="top-level key an inline config is written under "
+                                       "(default: the command's name; '' writes it as the whole file)")
+    connect: Endpoints | None = Field(default=None, description="overrides zenoh.connect for this service")
+    common_flags: bool = Field(default=True, description="pass --robot/--connect/--config (Zenoh) to the command")
+    env: dict[str, EnvValue] = Field(default_factory=dict)
+    restart: Literal["always", "on-failure", "never"] = "on-failure"
+    backoff: Backoff = Field(default_factory=Backoff)
+    stop_timeout_s: float = Field(default=10.0, gt=0.0, le=600.0,
+                                  description="SIGTERM, then SIGKILL after this many seconds")
+    enabled: bool = True
+
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+
+    @field_validator("connect")
+    @classmethod
+    def _ep(cls, v: list[str] | None) -> list[str] | None:
+        return None if v is None else _check_endpoints(v)
+
+    @model_validator(mode="after")
+    def _one_program(self) -> ServiceSpec:
+        if (self.command is None) == (self.exec_ is None):
+            raise ValueError("give exactly one of 'command' (a perception sub-command) or 'exec' (an argv list)")
+        return self
+
+    def section(self) -> str | None:
+        """The key an inline config is nested under in the written file (None: the whole file)."""
+        if self.config_section is not None:
+            return self.config_section or None
+        return self.command
+
+
+class LaunchFile(_Strict):
+    """The whole launch file."""
+
+    robot: str | None = Field(default=None, description="robot name in every key (--robot)")
+    key_prefix: str | None = Field(default=None, description="first key segment(s) (--key-prefix env)")
+    env: dict[str, EnvValue] = Field(default_factory=dict, description="environment for every child")
+    router: RouterSpec | None = None
+    zenoh: ZenohDefaults = Field(default_factory=ZenohDefaults)
+    services: list[ServiceSpec] = Field(default_factory=list)
+
+    @field_validator("robot")
+    @classmethod
+    def _robot(cls, v: str | None) -> str | None:
+        return None if v is None else validate_chunk(v, "robot name")
+
+    @model_validator(mode="after")
+    def _unique(self) -> LaunchFile:
+        seen: set[str] = {"router"} if self.router is not None else set()
+        for s in self.services:
+            if s.name in seen:
+                why = "is the router's name" if s.name == "router" else "is used twice"
+                raise ValueError(f"service name {s.name!r} {why}; names must be unique")
+            seen.add(s.name)
+        if not self.services and self.router is None:
+            raise ValueError("nothing to launch: give a router and/or services")
+        return self
+
+
+def substitute(data: Any, environ: Mapping[str, str], where: str = "") -> Any:
+    """``data`` with ``${VAR}`` references in its string values replaced from ``environ``."""
+    if isinstance(data, dict):
+        return {k: substitute(v, environ, f"{where}.{k}" if where else str(k)) for k, v in data.items()}
+    if isinstance(data, list):
+        return [substitute(v, environ, f"{where}[{i}]") for i, v in enumerate(data)]
+    if not isinstance(data, str) or "$" not in data:
+        return data
+
+    def one(m: re.Match[str]) -> str:
+        dollar, name, op, default, bad = m.groups()
+        if dollar:
+            return "$"
+        if bad is not None:
+            raise LaunchFileError(f"{where or '(root)'}: malformed reference '${bad}' "
+                                  "(use ${VAR}, ${VAR:-default} or $$ for a literal $)")
+        value = environ.get(name)
+        if value is None or (op == ":-" and value == ""):
+            if op is None:
+                raise LaunchFileError(f"{where or '(root)'}: environment variable {name} is not set "
+                                      f"(set it, or write ${{{name}:-default}})")
+            return default
+        return value
+
+    return _VAR.sub(one, data)
+
+
+def _field_path(loc: tuple[Any, ...], raw: Mapping[str, Any]) -> str:
+    out = ""
+    node: Any = raw
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+            try:
+                node = node[part]
+            except (IndexError, KeyError, TypeError):
+                node = None
+            if isinstance(node, dict) and isinstance(node.get("name"), str) and out.startswith("services"):
+                out += f" ({node['name']})"
+        else:
+            out += f".{part}" if out else str(part)
+            node = node.get(part) if isinstance(node, dict) else None
+    return out or "(root)"
+
+
+def _resolve(p: Path | None, base: Path, field: str) -> Path | None:
+    if p is None:
+        return None
+    path = p.expanduser() if p.is_absolute() or str(p).startswith("~") else base / p
+    if not path.is_file():
+        raise LaunchFileError(f"{field}: file {path} does not exist")
+    return path
+
+
+def load_launch_file(path: str | Path, environ: Mapping[str, str]) -> LaunchFile:
+    """Read, substitute and validate ``path``; relative file paths become absolute."""
+    p = Path(path)
+    try:
+        raw = yaml.safe_load(p.read_text())
+    except FileNotFoundError as exc:
+        raise LaunchFileError(f"launch file {p} does not exist") from exc
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise LaunchFileError(f"launch file {p} cannot be read: {exc}") from exc
+    if not isinstance(raw, dict):
+        raise LaunchFileError(f"launch file {p} must hold a mapping (robot, router, zenoh, services...)")
+    try:
+        data = substitute(raw, environ)
+        launch = LaunchFile.model_validate(data)
+    except LaunchFileError as exc:
+        raise LaunchFileError(f"invalid launch file {p}: {exc}") from exc
+    except ValidationError as exc:
+        lines = []
+        for err in exc.errors(include_url=False):
+            value = err.get("input")
+            shown = "" if isinstance(value, (dict, list)) or value is None else f" (got {value!r})"
+            msg = str(err["msg"]).removeprefix("Value error, ")
+            if isinstance(value, bool) and err["type"] == "string_type":
+                msg += "; YAML reads yes/no/on/off/true/false as booleans, quote the value"
+            lines.append(f"{_field_path(tuple(err['loc']), data)}: {msg}{shown}")
+        raise LaunchFileError(f"invalid launch file {p}:\n  " + "\n  ".join(lines)) from exc
+    base = p.resolve().parent
+    try:
+        updates: dict[str, Any] = {}
+        if launch.router is not None and launch.router.config is not None:
+            updates["router"] = launch.router.model_copy(
+                update={"config": _resolve(launch.router.config, base, "router.config")})
+        if launch.zenoh.config is not None:
+            updates["zenoh"] = launch.zenoh.model_copy(update={"config": _resolve(launch.zenoh.config, base, "zenoh.config")})
+        services = []
+        for i, s in enumerate(launch.services):
+            if isinstance(s.config, Path):
+                s = s.model_copy(update={"config": _resolve(s.config, base, f"services[{i}] ({s.name}).config")})
+            services.append(s)
+        updates["services"] = services
+    except LaunchFileError as exc:
+        raise LaunchFileError(f"invalid launch file {p}: {exc}") from exc
+    return launch.model_copy(update=updates)

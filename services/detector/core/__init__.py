@@ -24,6 +24,7 @@ class Detector(Protocol):
     """
 
     name: str
+    needs_depth: bool
 
     def detect(self, rgb: np.ndarray, depth: np.ndarray | None = None,
                camera: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]: ...

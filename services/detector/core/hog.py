@@ -51,6 +51,7 @@ class HogDetector:
     """
 
     name = "hog"
+    needs_depth = False
 
     def __init__(self, params: HogParams | None = None) -> None:
         self.params = params if params is not None else HogParams()

@@ -68,7 +68,7 @@ def clip_boxes(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
     return out
 
 
-def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float, score_threshold: float = 0.0,
+def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float, score_threshold: float = -np.inf,
         max_detections: int | None = None) -> np.ndarray:
     """Greedy non-maximum suppression; indices of the kept boxes, best score first.
 
@@ -83,8 +83,9 @@ def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float, score_thres
         return np.zeros(0, np.int64)
     b, s = boxes[candidates], scores[candidates]
     xywh = np.column_stack([b[:, :2], b[:, 2:] - b[:, :2]])
-    # NMSBoxes only needs the order of the scores and refuses negative thresholds.
-    keep = cv2.dnn.NMSBoxes(xywh.tolist(), (s - s.min()).tolist(), 0.0, float(iou_threshold),
+    # NMSBoxes only needs the order of the scores, refuses negative thresholds and keeps
+    # only scores strictly above the threshold: shift the scores to start at 1.
+    keep = cv2.dnn.NMSBoxes(xywh.tolist(), (s - s.min() + 1.0).tolist(), 0.0, float(iou_threshold),
                             top_k=int(max_detections or 0))
     keep = candidates[np.asarray(keep, np.int64).reshape(-1)]
     return keep[np.argsort(-scores[keep], kind="stable")]

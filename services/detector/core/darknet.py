@@ -153,6 +153,6 @@ class DarknetDetector:
         h, w = image.shape[:2]
         centre = rows[:, :2] * (w, h)
         half = rows[:, 2:4] * (w, h) / 2.0
-        boxes = np.column_stack([centre - half, centre + half])
+        boxes = clip_boxes(np.column_stack([centre - half, centre + half]), w, h)
         order = nms(boxes, scores, p.nms_iou, max_detections=p.max_detections)
-        return clip_boxes(boxes[order], w, h), np.clip(scores[order], 0.0, 1.0).astype(np.float32)
+        return boxes[order], np.clip(scores[order], 0.0, 1.0).astype(np.float32)

@@ -188,6 +188,7 @@ class YoloOnnxDetector:
         boxes, scores, _ = decode_yolo(output, p.layout, p.person_class, p.conf_threshold, p.num_classes)
         if len(boxes) == 0:
             return empty_result()
-        keep = nms(boxes, scores, p.nms_iou, max_detections=p.max_detections)
         h, w = image.shape[:2]
-        return clip_boxes(box.to_original(boxes[keep]), w, h), np.clip(scores[keep], 0.0, 1.0).astype(np.float32)
+        boxes = clip_boxes(box.to_original(boxes), w, h)
+        keep = nms(boxes, scores, p.nms_iou, max_detections=p.max_detections)
+        return boxes[keep], np.clip(scores[keep], 0.0, 1.0).astype(np.float32)

@@ -131,6 +131,16 @@ def choose_providers(requested: Sequence[str] | None, available: Sequence[str]) 
     return chosen or list(available)
 
 
+def _ort_errors() -> tuple[type[BaseException], ...]:
+    """onnxruntime's own exception types (they derive from Exception directly), plus RuntimeError."""
+    from onnxruntime.capi import onnxruntime_pybind11_state as state
+
+    names = ("Fail", "InvalidArgument", "NoSuchFile", "NoModel", "EngineError", "RuntimeException",
+             "InvalidProtobuf", "ModelLoaded", "NotImplemented", "InvalidGraph", "EPFail")
+    found = tuple(getattr(state, n) for n in names if isinstance(getattr(state, n, None), type))
+    return (*found, RuntimeError)
+
+
 def check_model_file(path: Path, what: str, setting: str) -> None:
     """Raise :class:`DetectorError` unless ``path`` is a non-empty readable file."""
     if not path.is_file():
@@ -164,7 +174,7 @@ class YoloOnnxDetector:
         options.log_severity_level = 3
         try:
             self.session = ort.InferenceSession(str(model), sess_options=options, providers=self.providers)
-        except Exception as exc:  # onnxruntime raises its own exception types for unreadable graphs
+        except _ort_errors() as exc:
             raise DetectorError(f"ONNX model {model} cannot be loaded ({type(exc).__name__}: {exc}); "
                                 "is the file complete (not truncated) and an ONNX export of a YOLO model?") from exc
         inputs = self.session.get_inputs()
@@ -184,7 +194,10 @@ class YoloOnnxDetector:
         p = self.params
         padded, box = letterbox(image, self.input_hw)
         blob = np.ascontiguousarray(padded.transpose(2, 0, 1)[None], dtype=np.float32) * np.float32(1 / 255.0)
-        (output,) = self.session.run([self.output_name], {self.input_name: blob})
+        try:
+            (output,) = self.session.run([self.output_name], {self.input_name: blob})
+        except _ort_errors() as exc:
+            raise DetectorError(f"onnxruntime failed on a {blob.shape} input: {exc}") from exc
         boxes, scores, _ = decode_yolo(output, p.layout, p.person_class, p.conf_threshold, p.num_classes)
         if len(boxes) == 0:
             return empty_result()

@@ -64,7 +64,8 @@ class DetectorService:
         """Detect people in ``frame`` and publish them; None (counted, logged) if the frame is unusable."""
         try:
             rgb = frame.rgb.to_array()
-            depth = frame.depth.depth_m() if frame.depth is not None else None
+            # Only the backends that use depth pay for decoding it.
+            depth = frame.depth.depth_m() if frame.depth is not None and self.detector.needs_depth else None
         except ValueError as exc:
             self.counters.drop("bad_image")
             self._warn("bad_image", "frame %d from %s: cannot decode image: %s", frame.header.seq, frame.header.source, exc)

@@ -1,0 +1,194 @@
+"""Detector backends: ms per frame at 640x480 and 320x240, median and p95.
+
+    python benchmarks/detector.py [--repeats 30] [--backends hog,depth,...]
+
+Inputs: a PETS09 frame resized to each size when ../shared/data is present (else a
+rendered scene) for the RGB backends; a rendered floor + people + table scene for
+``depth``. No model is downloaded: ``yolo-onnx`` runs a graph built here (strided
+convolutions on a 640x640 input and three heads concatenated to the YOLOv8 output
+shape (1, 84, 8400), random weights), and ``darknet`` a YOLOv3-tiny-shaped cfg at
+416x416 with random weights. They measure the pipeline cost (letterbox, inference,
+decoding, NMS) of networks of that size, not accuracy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import cv2  # noqa: E402
+
+from services.detector.core.darknet import DarknetDetector, DarknetParams  # noqa: E402
+from services.detector.core.depth import DepthClusterDetector, DepthParams  # noqa: E402
+from services.detector.core.hog import HogDetector, HogParams  # noqa: E402
+from services.detector.core.yolo_onnx import YoloOnnxDetector, YoloParams  # noqa: E402
+from services.detector.synthetic import Block, render_depth, scene_intrinsics  # noqa: E402
+
+SIZES = ((640, 480), (320, 240))
+SHARED = Path(os.environ.get("PERCEPTION_SHARED_DATA", ROOT.parent / "shared" / "data"))
+
+
+def yolo_v8_like_onnx(path: Path, seed: int = 0) -> Path:
+    """Backbone of stride-2 3x3 convs (16..256 channels) and 1x1 heads at strides 8/16/32 -> (1, 84, 8400)."""
+    import onnx
+    from onnx import TensorProto, helper, numpy_helper
+
+    rng = np.random.default_rng(seed)
+    inits, nodes = [], []
+
+    def conv(x: str, cin: int, cout: int, k: int, stride: int, name: str, bias: float = 0.0, act: bool = True) -> str:
+        w = (rng.normal(size=(cout, cin, k, k)) * np.sqrt(2.0 / (cin * k * k))).astype(np.float32)
+        inits.append(numpy_helper.from_array(w, f"{name}_w"))
+        inits.append(numpy_helper.from_array(np.full(cout, bias, np.float32), f"{name}_b"))
+        nodes.append(helper.make_node("Conv", [x, f"{name}_w", f"{name}_b"], [f"{name}_c"], kernel_shape=[k, k],
+                                      strides=[stride, stride], pads=[k // 2] * 4))
+        if not act:
+            return f"{name}_c"
+        nodes.append(helper.make_node("Relu", [f"{name}_c"], [name]))
+        return name
+
+    x, cin = "images", 3
+    feats = {}
+    for i, cout in enumerate((16, 32, 64, 128, 256)):  # strides 2, 4, 8, 16, 32
+        x = conv(x, cin, cout, 3, 2, f"b{i}")
+        x = conv(x, cout, cout, 3, 1, f"b{i}x")
+        cin = cout
+        feats[2 ** (i + 1)] = (x, cout)
+    heads = []
+    for stride in (8, 16, 32):
+        f, c = feats[stride]
+        h = conv(f, c, 84, 1, 1, f"head{stride}", bias=-6.0, act=False)
+        inits.append(numpy_helper.from_array(np.array([1, 84, -1], np.int64), f"shape{stride}"))
+        nodes.append(helper.make_node("Reshape", [h, f"shape{stride}"], [f"flat{stride}"]))
+        heads.append(f"flat{stride}")
+    nodes.append(helper.make_node("Concat", heads, ["cat"], axis=2))
+    nodes.append(helper.make_node("Sigmoid", ["cat"], ["output0"]))
+    graph = helper.make_graph(nodes, "yolo_v8_like", [helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, 640, 640])],
+                              [helper.make_tensor_value_info("output0", TensorProto.FLOAT, [1, 84, 8400])], initializer=inits)
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
+    model.ir_version = 8
+    path.write_bytes(model.SerializeToString())
+    return path
+
+
+def yolov3_tiny_like_darknet(folder: Path, seed: int = 0) -> tuple[Path, Path]:
+    """A YOLOv3-tiny-shaped cfg (416x416, 80 classes, two YOLO heads) with random weights."""
+    rng = np.random.default_rng(seed)
+    lines = ["[net]", "width=416", "height=416", "channels=3", ""]
+    weights: list[np.ndarray] = []
+    channels = [3]
+
+    def conv(filters: int, size: int, bn: bool = True, act: str = "leaky", bias: float = 0.0) -> None:
+        lines.extend(["[convolutional]", f"batch_normalize={int(bn)}", f"filters={filters}", f"size={size}", "stride=1",
+                      "pad=1", f"activation={act}", ""])
+        cin = channels[-1]
+        if bn:
+            weights.extend([np.zeros(filters), np.ones(filters), np.zeros(filters), np.ones(filters)])
+        else:
+            weights.append(np.full(filters, bias))
+        weights.append(rng.normal(size=filters * cin * size * size) * np.sqrt(2.0 / (cin * size * size)))
+        channels.append(filters)
+
+    def other(text: str, out_channels: int) -> None:
+        lines.extend([*text.split("\n"), ""])
+        channels.append(out_channels)
+
+    yolo = "[yolo]\nmask={mask}\nanchors=10,14,23,27,37,58,81,82,135,169,344,319\nclasses=80\nnum=6"
+    for i, f in enumerate((16, 32, 64, 128, 256, 512)):
+        conv(f, 3)
+        other(f"[maxpool]\nsize=2\nstride={2 if i < 5 else 1}", f)
+    conv(1024, 3)
+    conv(256, 1)
+    conv(512, 3)
+    conv(255, 1, bn=False, act="linear", bias=-6.0)
+    other(yolo.format(mask="3,4,5"), 255)
+    other("[route]\nlayers=-4", 256)
+    conv(128, 1)
+    other("[upsample]\nstride=2", 128)
+    other("[route]\nlayers=-1,8", 128 + 256)
+    conv(256, 3)
+    conv(255, 1, bn=False, act="linear", bias=-6.0)
+    other(yolo.format(mask="0,1,2"), 255)
+    cfg = folder / "yolov3-tiny-like.cfg"
+    cfg.write_text("\n".join(lines))
+    path = folder / "yolov3-tiny-like.weights"
+    header = np.array([0, 2, 0], np.int32).tobytes() + np.array([0], np.int64).tobytes()
+    path.write_bytes(header + np.concatenate(weights).astype(np.float32).tobytes())
+    return cfg, path
+
+
+def rgb_frame(width: int, height: int) -> np.ndarray:
+    frame = SHARED / "pets09" / "frame_0040.png"
+    if frame.is_file():
+        bgr = cv2.imread(str(frame))
+        return cv2.cvtColor(cv2.resize(bgr, (width, height), interpolation=cv2.INTER_LINEAR), cv2.COLOR_BGR2RGB)
+    return depth_scene(width, height)[0]
+
+
+def depth_scene(width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    K = scene_intrinsics(width, height)
+    blocks = [Block(-0.8, 3.5, 0.5, 1.75, 0.3), Block(0.9, 4.5, 0.45, 1.6, 0.3), Block(0.0, 2.6, 1.0, 0.75, 0.6)]
+    depth, rgb = render_depth(blocks, K, width, height, 1.2, 10.0)
+    rng = np.random.default_rng(0)
+    depth = depth + rng.normal(0, 0.005, depth.shape).astype(np.float32) * depth ** 2  # ~quadratic depth noise
+    return rgb, depth, K
+
+
+def measure(fn: Callable[[], object], repeats: int, warmup: int = 2) -> tuple[float, float]:
+    for _ in range(warmup):
+        fn()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append((time.perf_counter() - start) * 1000.0)
+    return float(np.median(times)), float(np.percentile(times, 95))
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--repeats", type=int, default=30)
+    parser.add_argument("--backends", default="hog,hog-x2.25,depth,depth+hog,yolo-onnx,darknet")
+    args = parser.parse_args()
+    wanted = args.backends.split(",")
+    tmp = Path(tempfile.mkdtemp(prefix="detector-bench-"))
+    factories: dict[str, Callable[[], object]] = {
+        "hog": lambda: HogDetector(),
+        "hog-x2.25": lambda: HogDetector(HogParams(upsample=2.25)),
+        "depth": lambda: DepthClusterDetector(DepthParams(camera_height_m=1.2, tilt_deg=10.0)),
+        "depth+hog": lambda: DepthClusterDetector(DepthParams(camera_height_m=1.2, tilt_deg=10.0, hog_confirm=True,
+                                                              hog_min_score=0.0)),
+        "yolo-onnx": lambda: YoloOnnxDetector(YoloParams(model=yolo_v8_like_onnx(tmp / "v8like.onnx"),
+                                                         providers=("CPUExecutionProvider",))),
+        "darknet": lambda: DarknetDetector(DarknetParams(*yolov3_tiny_like_darknet(tmp))),
+    }
+    print(f"# detector backends, ms per frame over {args.repeats} frames ({os.cpu_count()} CPUs, "
+          f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} OpenCV threads)")
+    print("| backend | input | median ms | p95 ms |")
+    print("|---|---|---:|---:|")
+    for name in wanted:
+        detector = factories[name]()
+        for width, height in SIZES:
+            if name.startswith("depth"):
+                rgb, depth, K = depth_scene(width, height)
+                run: Callable[[], object] = lambda: detector.detect(rgb, depth, K)  # noqa: E731
+            else:
+                rgb = rgb_frame(width, height)
+                run = lambda: detector.detect(rgb)  # noqa: E731
+            median, p95 = measure(run, args.repeats)
+            print(f"| {name} | {width}x{height} | {median:.1f} | {p95:.1f} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,30 @@
+"""The detector's pure core: every backend behind ``detect(rgb, depth=None, camera=None)``.
+
+No Zenoh, no pydantic messages, no I/O beyond reading model files at construction.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from services.detector.core.boxes import DetectorError
+
+__all__ = ["Detector", "DetectorError"]
+
+
+class Detector(Protocol):
+    """A person detector.
+
+    ``detect`` takes ``rgb`` (H, W, 3) uint8 RGB, optionally ``depth`` (H, W) float32
+    metres registered to ``rgb`` (NaN = invalid) and ``camera`` (3, 3) float64
+    intrinsics K, and returns ``(boxes (N, 4) float32 xyxy pixels, scores (N,)
+    float32 in [0, 1])``, best score first.
+    """
+
+    name: str
+    needs_depth: bool
+
+    def detect(self, rgb: np.ndarray, depth: np.ndarray | None = None,
+               camera: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]: ...

@@ -1,0 +1,185 @@
+"""Seed 002's RGB-D people detector: depth clusters standing on the ground plane.
+
+Per frame: back-project the (sub-sampled) depth image, average it on a voxel grid,
+update the ground plane (RANSAC then least squares, started from the previous
+estimate, see :mod:`ground`), drop the floor, split the rest into Euclidean clusters,
+keep the clusters of person height and project each one to an image box from its top
+down to its foot point on the floor. HOG can optionally confirm each box. No model
+file, no GPU: this is the detector a CPU-only robot runs at frame rate.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from services.detector.core.boxes import DetectorError, as_rgb, clip_boxes, empty_result
+from services.detector.core.ground import GroundParams, Plane, initial_plane, refine_plane
+from services.detector.core.hog import HogDetector
+
+__all__ = ["DepthClusterDetector", "DepthParams", "backproject", "cluster_points", "voxel_grid"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class DepthParams:
+    """Settings of :class:`DepthClusterDetector` (seed 002 defaults)."""
+
+    camera_height_m: float = 1.2
+    tilt_deg: float = 0.0
+    voxel_m: float = 0.06
+    pixel_step: int = 2
+    min_depth_m: float = 0.3
+    max_depth_m: float = 8.0
+    ground: GroundParams = field(default_factory=GroundParams)
+    floor_clearance_m: float = 0.12
+    max_point_height_m: float = 2.6
+    cluster_tolerance_m: float = 0.13
+    min_cluster_points: int = 15
+    min_height_m: float = 1.4
+    max_height_m: float = 2.3
+    max_width_m: float = 1.5
+    max_bottom_m: float = 0.6
+    hog_confirm: bool = False
+    hog_min_score: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not 0 < self.min_height_m < self.max_height_m:
+            raise DetectorError(f"depth: need 0 < min_height_m < max_height_m, got {self.min_height_m}, {self.max_height_m}")
+        if self.voxel_m <= 0 or self.cluster_tolerance_m <= 0 or self.pixel_step < 1:
+            raise DetectorError("depth: voxel_m and cluster_tolerance_m must be > 0 and pixel_step >= 1")
+
+
+def backproject(depth: np.ndarray, K: np.ndarray, step: int, min_m: float, max_m: float) -> np.ndarray:
+    """Camera-frame points (N, 3) float32 of every ``step``-th pixel of ``depth`` (H, W) metres in range."""
+    d = depth[::step, ::step]
+    rows, cols = np.nonzero((d > min_m) & (d < max_m))  # NaN compares False
+    z = d[rows, cols].astype(np.float32)
+    u = cols.astype(np.float32) * step
+    v = rows.astype(np.float32) * step
+    x = (u - K[0, 2]) * z / K[0, 0]
+    y = (v - K[1, 2]) * z / K[1, 1]
+    return np.column_stack([x, y, z]).astype(np.float32)
+
+
+def voxel_grid(points: np.ndarray, size: float) -> np.ndarray:
+    """Centroids (M, 3) float64 of the points (N, 3) falling in each occupied ``size`` m voxel."""
+    if len(points) == 0:
+        return np.zeros((0, 3))
+    cells = np.floor(points / size).astype(np.int64)
+    cells -= cells.min(axis=0)
+    dims = cells.max(axis=0) + 1
+    flat = (cells[:, 0] * dims[1] + cells[:, 1]) * dims[2] + cells[:, 2]
+    _, inverse, counts = np.unique(flat, return_inverse=True, return_counts=True)
+    sums = np.zeros((len(counts), 3))
+    for axis in range(3):
+        sums[:, axis] = np.bincount(inverse, weights=points[:, axis], minlength=len(counts))
+    return sums / counts[:, None]
+
+
+def cluster_points(points: np.ndarray, tolerance: float) -> tuple[int, np.ndarray]:
+    """Euclidean clusters: (count, labels (N,)); points closer than ``tolerance`` share a cluster."""
+    n = len(points)
+    if n == 0:
+        return 0, np.zeros(0, np.int64)
+    pairs = cKDTree(points).query_pairs(tolerance, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs), np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    count, labels = connected_components(graph, directed=False)
+    return int(count), labels
+
+
+class DepthClusterDetector:
+    """People as person-height depth clusters on the ground plane.
+
+    ``detect(rgb, depth, camera)``: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32
+    metres registered to it (NaN invalid), ``camera`` (3, 3) K. Returns boxes (N, 4)
+    float32 xyxy and scores (N,) float32: the HOG score when ``hog_confirm`` is on,
+    otherwise the height plausibility (1 in the middle of the height range, 0.5 at its
+    ends). The ground plane is state carried from frame to frame (``plane``).
+    """
+
+    name = "depth"
+    needs_depth = True
+
+    def __init__(self, params: DepthParams | None = None, hog: HogDetector | None = None, seed: int = 0) -> None:
+        self.params = params if params is not None else DepthParams()
+        self.initial = initial_plane(self.params.camera_height_m, self.params.tilt_deg)
+        self.plane = self.initial
+        self.plane_inliers = 0
+        self.heights = np.zeros(0)
+        self._hog = hog if hog is not None else (HogDetector() if self.params.hog_confirm else None)
+        self._rng = np.random.default_rng(seed)
+
+    def reset(self) -> None:
+        """Forget the tracked ground plane (after the head or the floor changed abruptly)."""
+        self.plane = self.initial
+
+    def detect(self, rgb: np.ndarray, depth: np.ndarray | None = None,
+               camera: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        image = as_rgb(rgb)
+        if depth is None:
+            raise DetectorError("the depth backend needs a depth image registered to the colour image")
+        if camera is None:
+            raise DetectorError("the depth backend needs the camera intrinsics K")
+        depth = np.asarray(depth, np.float32)
+        K = np.asarray(camera, np.float64).reshape(3, 3)
+        if depth.shape != image.shape[:2]:
+            raise DetectorError(f"depth shape {depth.shape} differs from the image {image.shape[:2]}")
+        p = self.params
+        points = voxel_grid(backproject(depth, K, p.pixel_step, p.min_depth_m, p.max_depth_m), p.voxel_m)
+        self.plane, self.plane_inliers = refine_plane(points, self.plane, p.ground, self._rng)
+        if self.plane_inliers == 0:
+            log.debug("ground plane not refined this frame; keeping the previous estimate")
+        height = self.plane.height(points)
+        above = (height > p.floor_clearance_m) & (height < p.max_point_height_m)
+        points, height = points[above], height[above]
+        count, labels = cluster_points(points, p.cluster_tolerance_m)
+        boxes, scores, heights = [], [], []
+        for label in range(count):
+            member = labels == label
+            if member.sum() < p.min_cluster_points:
+                continue
+            top, bottom = float(height[member].max()), float(height[member].min())
+            if not p.min_height_m <= top <= p.max_height_m or bottom > p.max_bottom_m:
+                continue
+            cluster = points[member]
+            feet = self.plane.project(cluster)
+            if np.ptp(feet, axis=0).max() > p.max_width_m:
+                continue
+            box = self._project(np.vstack([cluster, feet.mean(axis=0, keepdims=True)]), K)
+            if box is None:
+                continue
+            boxes.append(box)
+            heights.append(top)
+            mid, half = (p.min_height_m + p.max_height_m) / 2, (p.max_height_m - p.min_height_m) / 2
+            scores.append(1.0 - 0.5 * min(abs(top - mid) / half, 1.0))
+        if not boxes:
+            self.heights = np.zeros(0)
+            return empty_result()
+        h, w = image.shape[:2]
+        out_boxes = clip_boxes(np.array(boxes), w, h)
+        out_scores = np.array(scores)
+        heights_arr = np.array(heights)
+        if self._hog is not None and p.hog_confirm:
+            hog_scores = np.array([self._hog.score_window(image, b) for b in out_boxes])
+            keep = hog_scores >= p.hog_min_score
+            out_boxes, out_scores, heights_arr = out_boxes[keep], hog_scores[keep], heights_arr[keep]
+        order = np.argsort(-out_scores, kind="stable")
+        self.heights = heights_arr[order]
+        return out_boxes[order], out_scores[order].astype(np.float32)
+
+    def _project(self, points: np.ndarray, K: np.ndarray) -> np.ndarray | None:
+        """Image box (4,) of ``points`` (N, 3), padded by half a voxel; None if behind the camera."""
+        z = points[:, 2]
+        if np.any(z <= 1e-3):
+            return None
+        u = K[0, 0] * points[:, 0] / z + K[0, 2]
+        v = K[1, 1] * points[:, 1] / z + K[1, 2]
+        pad = K[0, 0] * self.params.voxel_m / 2 / z
+        return np.array([(u - pad).min(), (v - pad).min(), (u + pad).max(), (v + pad).max()])

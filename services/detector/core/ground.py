@@ -1,0 +1,107 @@
+"""Ground-plane estimation for the depth detector (seed 002, section 4.1).
+
+A plane is ``(normal (3,), offset)`` with ``normal . p + offset = height above the
+ground`` for a point ``p`` (3,) in the camera optical frame (x right, y down, z forward)
+and ``normal`` the unit up vector. Each frame the previous plane selects candidate
+floor points; RANSAC finds the dominant plane among them and least squares refines it
+on its inliers, so the estimate follows small slope changes and camera oscillations.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["GroundParams", "Plane", "fit_plane_lsq", "initial_plane", "refine_plane"]
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Unit up ``normal`` (3,) float64 and ``offset`` so that ``normal . p + offset`` is the height of ``p``."""
+
+    normal: np.ndarray
+    offset: float
+
+    def height(self, points: np.ndarray) -> np.ndarray:
+        """Signed height above the plane of ``points`` (N, 3): (N,)."""
+        return points @ self.normal + self.offset
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Feet of ``points`` (N, 3) on the plane: (N, 3)."""
+        return points - self.height(points)[:, None] * self.normal[None, :]
+
+    def angle_to(self, other: Plane) -> float:
+        """Angle between the two normals in radians."""
+        return float(np.arccos(np.clip(self.normal @ other.normal, -1.0, 1.0)))
+
+
+def initial_plane(camera_height_m: float, tilt_deg: float) -> Plane:
+    """The floor seen by a camera ``camera_height_m`` above it, pitched down by ``tilt_deg``."""
+    t = np.deg2rad(tilt_deg)
+    return Plane(np.array([0.0, -np.cos(t), -np.sin(t)]), float(camera_height_m))
+
+
+@dataclass(frozen=True)
+class GroundParams:
+    """Settings of :func:`refine_plane`."""
+
+    window_m: float = 0.25
+    inlier_m: float = 0.04
+    iterations: int = 60
+    max_step_deg: float = 10.0
+    max_step_m: float = 0.3
+    min_inliers: int = 30
+
+
+def fit_plane_lsq(points: np.ndarray, up_hint: np.ndarray) -> Plane | None:
+    """Least-squares plane through ``points`` (N, 3), its normal oriented like ``up_hint``."""
+    if len(points) < 3:
+        return None
+    centroid = points.mean(axis=0)
+    _, sv, vt = np.linalg.svd(points - centroid, full_matrices=False)
+    if sv[1] < 1e-9:
+        return None
+    normal = vt[2] if vt[2] @ up_hint >= 0 else -vt[2]
+    return Plane(normal, float(-normal @ centroid))
+
+
+def refine_plane(points: np.ndarray, previous: Plane, params: GroundParams,
+                 rng: np.random.Generator) -> tuple[Plane, int]:
+    """One update of the ground plane from ``points`` (N, 3); returns (plane, inlier count).
+
+    Candidates are the points within ``window_m`` of ``previous``. RANSAC samples
+    ``iterations`` triples at once (vectorised) and keeps the plane with the most points
+    within ``inlier_m`` whose normal is within ``max_step_deg`` of the previous one;
+    least squares on its inliers gives the result. With too few inliers, or a step
+    larger than ``max_step_deg``/``max_step_m``, the previous plane is kept (count 0).
+    """
+    cand = points[np.abs(previous.height(points)) < params.window_m]
+    if len(cand) < params.min_inliers:
+        return previous, 0
+    idx = rng.integers(0, len(cand), size=(params.iterations, 3))
+    a, b, c = cand[idx[:, 0]], cand[idx[:, 1]], cand[idx[:, 2]]
+    normals = np.cross(b - a, c - a)
+    norms = np.linalg.norm(normals, axis=1)
+    ok = norms > 1e-9
+    normals[ok] /= norms[ok, None]
+    normals *= np.where(normals @ previous.normal >= 0, 1.0, -1.0)[:, None]
+    ok &= normals @ previous.normal >= np.cos(np.deg2rad(params.max_step_deg))
+    if not ok.any():
+        return previous, 0
+    normals, a = normals[ok], a[ok]
+    offsets = -np.einsum("ij,ij->i", normals, a)
+    inliers = np.abs(cand @ normals.T + offsets[None, :]) < params.inlier_m  # (M, K)
+    best = int(np.argmax(inliers.sum(axis=0)))
+    support = cand[inliers[:, best]]
+    if len(support) < params.min_inliers:
+        return previous, 0
+    plane = fit_plane_lsq(support, previous.normal)
+    if plane is None:
+        return previous, 0
+    plane_inliers = np.abs(plane.height(cand)) < params.inlier_m
+    if plane_inliers.sum() >= 3:
+        plane = fit_plane_lsq(cand[plane_inliers], previous.normal) or plane
+    if plane.angle_to(previous) > np.deg2rad(params.max_step_deg) or abs(plane.offset - previous.offset) > params.max_step_m:
+        return previous, 0
+    return plane, int(plane_inliers.sum())

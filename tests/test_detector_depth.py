@@ -1,0 +1,125 @@
+"""depth backend (seed 002): ground plane, clustering, person-height filter, boxes, on rendered scenes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from services.detector.core.boxes import DetectorError, iou_matrix
+from services.detector.core.depth import DepthClusterDetector, DepthParams, cluster_points, voxel_grid
+from services.detector.core.ground import GroundParams, initial_plane, refine_plane
+from services.detector.synthetic import Block, render_depth, scene_intrinsics
+
+W, H = 640, 480
+CAMERA_HEIGHT = 1.2
+PEOPLE = [Block(-0.8, 3.5, 0.5, 1.75, 0.3), Block(0.9, 4.5, 0.45, 1.60, 0.3)]
+TABLE = Block(0.0, 2.6, 1.0, 0.75, 0.6)
+SITTING = Block(1.3, 2.8, 0.5, 1.15, 0.5)
+
+
+def expected_box(block: Block, K: np.ndarray, tilt_deg: float) -> np.ndarray:
+    """Image box of a block's 8 corners (what a perfect detector would draw)."""
+    t = np.deg2rad(tilt_deg)
+    x_c, y_c, z_c = np.array([1.0, 0, 0]), np.array([0, -np.cos(t), -np.sin(t)]), np.array([0, -np.sin(t), np.cos(t)])
+    xs = [block.x - block.width / 2, block.x + block.width / 2]
+    ys = [0.0, block.height]
+    zs = [block.z - block.depth / 2, block.z + block.depth / 2]
+    corners = np.array([[x, y, z] for x in xs for y in ys for z in zs]) - [0.0, CAMERA_HEIGHT, 0.0]
+    cam = corners @ np.column_stack([x_c, y_c, z_c])
+    u = K[0, 0] * cam[:, 0] / cam[:, 2] + K[0, 2]
+    v = K[1, 1] * cam[:, 1] / cam[:, 2] + K[1, 2]
+    return np.array([u.min(), v.min(), u.max(), v.max()])
+
+
+def scene(blocks: list[Block], tilt_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    K = scene_intrinsics(W, H)
+    depth, rgb = render_depth(blocks, K, W, H, CAMERA_HEIGHT, tilt_deg)
+    return rgb, depth, K
+
+
+@pytest.mark.parametrize("tilt", [0.0, 15.0])
+def test_finds_two_people_not_the_table(tilt: float) -> None:
+    rgb, depth, K = scene([*PEOPLE, TABLE], tilt)
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=tilt))
+    for _ in range(2):  # the plane is carried from frame to frame
+        boxes, scores = det.detect(rgb, depth, K)
+    assert len(boxes) == 2
+    truth = np.array([expected_box(p, K, tilt) for p in PEOPLE])
+    iou = iou_matrix(boxes, truth)
+    assert iou.max(axis=0).min() > 0.7, iou
+    assert iou_matrix(boxes, expected_box(TABLE, K, tilt)[None]).max() < 0.1
+    assert np.all((scores > 0) & (scores <= 1))
+    np.testing.assert_allclose(np.sort(det.heights), [1.60, 1.75], atol=0.08)
+    assert det.plane_inliers > 100
+    np.testing.assert_allclose(det.plane.offset, CAMERA_HEIGHT, atol=0.02)
+
+
+def test_plane_converges_from_a_wrong_initial_guess() -> None:
+    rgb, depth, K = scene([*PEOPLE, TABLE], 20.0)
+    det = DepthClusterDetector(DepthParams(camera_height_m=1.3, tilt_deg=14.0))
+    for _ in range(4):
+        boxes, _ = det.detect(rgb, depth, K)
+    assert det.plane.angle_to(initial_plane(CAMERA_HEIGHT, 20.0)) < np.deg2rad(0.5)
+    assert abs(det.plane.offset - CAMERA_HEIGHT) < 0.02
+    assert len(boxes) == 2
+
+
+def test_sitting_people_need_a_lower_height_range() -> None:
+    rgb, depth, K = scene([PEOPLE[0], SITTING], 10.0)
+    default = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=10.0))
+    assert len(default.detect(rgb, depth, K)[0]) == 1
+    relaxed = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=10.0, min_height_m=1.0))
+    assert len(relaxed.detect(rgb, depth, K)[0]) == 2
+
+
+def test_hog_confirmation_rejects_shapes_that_are_not_people() -> None:
+    rgb, depth, K = scene(PEOPLE, 0.0)  # flat grey boxes: person-sized, but HOG sees no person
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, hog_confirm=True, hog_min_score=0.5))
+    assert len(det.detect(rgb, depth, K)[0]) == 0
+    lenient = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, hog_confirm=True, hog_min_score=0.0))
+    boxes, scores = lenient.detect(rgb, depth, K)
+    assert len(boxes) == 2 and np.all(scores < 0.5)
+
+
+def test_invalid_depth_and_empty_scene() -> None:
+    rgb, depth, K = scene(PEOPLE, 0.0)
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT))
+    nan = np.full_like(depth, np.nan)
+    boxes, scores = det.detect(rgb, nan, K)
+    assert boxes.shape == (0, 4) and scores.shape == (0,)
+    noisy = depth.copy()
+    noisy[::7, ::5] = np.nan  # holes do not break the clusters
+    assert len(det.detect(rgb, noisy, K)[0]) == 2
+
+
+def test_depth_backend_needs_depth_and_intrinsics() -> None:
+    rgb, depth, K = scene(PEOPLE, 0.0)
+    det = DepthClusterDetector()
+    with pytest.raises(DetectorError, match="depth image"):
+        det.detect(rgb, None, K)
+    with pytest.raises(DetectorError, match="intrinsics"):
+        det.detect(rgb, depth, None)
+    with pytest.raises(DetectorError, match="differs"):
+        det.detect(rgb, depth[:100], K)
+
+
+def test_voxel_grid_averages_per_cell() -> None:
+    pts = np.array([[0.01, 0.01, 0.01], [0.05, 0.05, 0.05], [0.2, 0.0, 0.0]])
+    out = voxel_grid(pts, 0.06)
+    assert len(out) == 2
+    np.testing.assert_allclose(sorted(out[:, 0]), [0.03, 0.2])
+
+
+def test_clusters_split_by_gap() -> None:
+    a = np.column_stack([np.linspace(0, 1, 20), np.zeros(20), np.zeros(20)])
+    b = a + [0.0, 0.0, 0.5]
+    count, labels = cluster_points(np.vstack([a, b]), 0.1)
+    assert count == 2 and len(set(labels[:20])) == 1 and labels[0] != labels[20]
+
+
+def test_refine_plane_keeps_previous_without_floor() -> None:
+    rng = np.random.default_rng(0)
+    prior = initial_plane(1.2, 0.0)
+    wall = np.column_stack([rng.uniform(-1, 1, 500), rng.uniform(-1, 0.5, 500), np.full(500, 3.0)])
+    plane, inliers = refine_plane(wall, prior, GroundParams(), rng)
+    assert inliers == 0 and plane is prior

@@ -1,0 +1,191 @@
+"""The detector service through the in-memory transport: headers, latest-only frames, counted failures."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from common.keys import FRAMES, RELIABLE, Keys
+from common.memory import MemoryBus
+from common.runtime import Counters, ServiceRuntime
+from common.samples import camera_info, rgbd_frame
+from common.schemas import Detections, Header, Image, RGBDFrame
+from services.detector.config import DetectorConfig, build_detector
+from services.detector.core.boxes import DetectorError
+from services.detector.service import DetectorService
+from services.detector.synthetic import Block, render_depth, scene_intrinsics
+
+KEYS = Keys(robot="testbot")
+
+
+class FixedDetector:
+    """Two boxes per frame; optionally blocks in ``detect`` until released (a slow model)."""
+
+    name = "fixed"
+    needs_depth = False
+
+    def __init__(self, block_first: bool = False) -> None:
+        self.entered = threading.Event()
+        self.release = threading.Event()
+        if not block_first:
+            self.release.set()
+        self.calls = 0
+
+    def detect(self, rgb: np.ndarray, depth: np.ndarray | None = None,
+               camera: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        self.calls += 1
+        self.entered.set()
+        assert self.release.wait(30.0), "test never released the detector"
+        boxes = np.array([[10, 20, 50, 120], [200, 40, 260, 200]], np.float32)
+        return boxes, np.array([0.9, 0.6], np.float32)
+
+
+def make(bus: MemoryBus, config: DetectorConfig | None = None, detector: object | None = None):  # type: ignore[no-untyped-def]
+    config = config or DetectorConfig(camera="head")
+    counters = Counters()
+    service = DetectorService(bus.transport(), KEYS, config, counters, detector=detector)  # type: ignore[arg-type]
+    client = bus.transport()
+    frames = client.publisher(KEYS.frames(config.camera), RGBDFrame, FRAMES)
+    out = client.subscribe(KEYS.detections(config.camera), Detections, RELIABLE)
+    return service, counters, frames, out
+
+
+def test_detections_carry_the_frame_header(memory_bus: MemoryBus) -> None:
+    service, counters, frames, out = make(memory_bus, detector=FixedDetector())
+    frame = rgbd_frame(320, 240, seq=17, stamp_ns=1_700_000_000_123_456_789)
+    frames.put(frame)
+    service.step(5.0)
+    got = out.recv(5.0)
+    assert got is not None
+    msg = got.msg
+    assert msg.header == frame.header
+    assert (msg.image_width, msg.image_height) == (320, 240)
+    assert msg.detector == "fixed" and msg.inference_ms is not None and msg.inference_ms >= 0
+    assert [d.index for d in msg.detections] == [0, 1]
+    assert msg.detections[0].bbox_xyxy == (10.0, 20.0, 50.0, 120.0) and msg.detections[0].score == pytest.approx(0.9)
+    assert counters.extra["frames_processed"] == 1 and "inference_ms" in counters.extra
+
+
+def test_real_hog_backend_end_to_end(memory_bus: MemoryBus) -> None:
+    service, _, frames, out = make(memory_bus)
+    frames.put(rgbd_frame(320, 240, seq=3))
+    assert service.step(5.0) is not None
+    got = out.recv(5.0)
+    assert got is not None and got.msg.detector == "hog" and got.msg.header.seq == 3
+
+
+def test_slow_model_only_sees_the_newest_frame(memory_bus: MemoryBus) -> None:
+    detector = FixedDetector(block_first=True)
+    service, counters, frames, out = make(memory_bus, detector=detector)
+    runtime = ServiceRuntime("detector", memory_bus.transport(), KEYS, counters=counters)
+    runtime.watch(service.frames, service.publisher)
+    stop = threading.Event()
+
+    def loop() -> None:
+        while not stop.is_set():
+            service.step(0.2)
+
+    worker = threading.Thread(target=loop, daemon=True)
+    frames.put(rgbd_frame(160, 120, seq=1))
+    worker.start()
+    try:
+        assert detector.entered.wait(10.0)
+        for seq in range(2, 7):  # arrive while the model is busy with frame 1
+            frames.put(rgbd_frame(160, 120, seq=seq))
+        detector.release.set()
+        seqs = []
+        while 6 not in seqs:
+            got = out.recv(10.0)
+            assert got is not None, f"no detections after {seqs}"
+            seqs.append(got.msg.header.seq)
+    finally:
+        stop.set()
+        worker.join(5.0)
+    assert seqs == [1, 6]
+    assert detector.calls == 2
+    assert counters.extra["dropped_stale"] == 4
+    status = runtime.status()
+    assert status.dropped == 4 and status.received == 6 and status.published == 2
+
+
+def test_depth_backend_counts_frames_without_depth(memory_bus: MemoryBus) -> None:
+    config = DetectorConfig(backend="depth")
+    service, counters, frames, out = make(memory_bus, config)
+    header = Header(stamp_ns=5, seq=1, source="head", frame_id="camera")
+    rgb_only = RGBDFrame(header=header, rgb=Image.from_array(np.zeros((120, 160, 3), np.uint8), "rgb8", header),
+                         camera_info=camera_info(160, 120))
+    frames.put(rgb_only)
+    assert service.step(5.0) is None
+    assert counters.extra["dropped_no_depth"] == 1
+    assert out.try_recv() is None
+
+
+def test_depth_backend_end_to_end(memory_bus: MemoryBus) -> None:
+    config = DetectorConfig(backend="depth", depth={"camera_height_m": 1.2})  # type: ignore[arg-type]
+    service, _, frames, out = make(memory_bus, config)
+    K = scene_intrinsics(320, 240)
+    depth, rgb = render_depth([Block(0.0, 3.0, 0.5, 1.8, 0.3)], K, 320, 240, 1.2, 0.0)
+    header = Header(stamp_ns=9, seq=2, source="head", frame_id="camera")
+    info = camera_info(320, 240)
+    info.K[:] = K
+    frame = RGBDFrame(header=header, rgb=Image.from_array(rgb, "rgb8", header),
+                      depth=Image.from_array(np.nan_to_num(depth * 1000).astype(np.uint16), "16UC1", header),
+                      camera_info=info)
+    frames.put(frame)
+    service.step(5.0)
+    got = out.recv(5.0)
+    assert got is not None and got.msg.detector == "depth" and len(got.msg.detections) == 1
+
+
+def test_undecodable_image_is_counted_and_skipped(memory_bus: MemoryBus) -> None:
+    service, counters, frames, out = make(memory_bus, detector=FixedDetector())
+    header = Header(stamp_ns=1, seq=1, source="head")
+    broken = RGBDFrame(header=header, camera_info=camera_info(64, 48),
+                       rgb=Image(header=header, encoding="jpeg", dtype="uint8", shape=(48, 64, 3), data=b"not a jpeg"))
+    frames.put(broken)
+    assert service.step(5.0) is None
+    assert counters.extra["dropped_bad_image"] == 1
+    frames.put(rgbd_frame(64, 48, seq=2))  # and it keeps going
+    assert service.step(5.0) is not None
+
+
+def test_wrong_message_type_is_counted_invalid(memory_bus: MemoryBus) -> None:
+    service, _, _, _ = make(memory_bus, detector=FixedDetector())
+    wrong = memory_bus.transport().publisher(KEYS.frames("head"), Image, FRAMES)
+    header = Header(stamp_ns=1)
+    wrong.put(Image.from_array(np.zeros((4, 4, 3), np.uint8), "rgb8", header))
+    assert service.step(0.5) is None
+    assert service.frames.stats.invalid == 1
+
+
+def test_detector_errors_are_counted(memory_bus: MemoryBus) -> None:
+    class Failing(FixedDetector):
+        def detect(self, rgb, depth=None, camera=None):  # type: ignore[no-untyped-def]
+            raise DetectorError("image must be non-empty")
+
+    service, counters, frames, _ = make(memory_bus, detector=Failing())
+    frames.put(rgbd_frame(64, 48))
+    assert service.step(5.0) is None
+    assert counters.extra["dropped_detector_error"] == 1
+
+
+def test_config_refuses_depth_without_depth() -> None:
+    with pytest.raises(ValidationError, match="depth_available"):
+        DetectorConfig(backend="depth", depth_available=False)
+    with pytest.raises(ValidationError, match="yolo.model"):
+        DetectorConfig(backend="yolo-onnx")
+    with pytest.raises(ValidationError, match="darknet.cfg"):
+        DetectorConfig(backend="darknet", darknet={"cfg": "a.cfg"})  # type: ignore[arg-type]
+    with pytest.raises(ValidationError, match="min_height_m"):
+        DetectorConfig(depth={"min_height_m": 2.5})  # type: ignore[arg-type]
+    with pytest.raises(ValidationError):
+        DetectorConfig(hog={"upsampling": 2})  # type: ignore[arg-type]
+
+
+def test_missing_model_fails_at_build(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    config = DetectorConfig(backend="yolo-onnx", yolo={"model": tmp_path / "absent.onnx"})  # type: ignore[arg-type]
+    with pytest.raises(DetectorError, match="absent.onnx does not exist"):
+        build_detector(config)

@@ -12,7 +12,7 @@ import pytest
 from services.cli import main as cli_main
 from services.detector.core.boxes import DetectorError, as_rgb
 from services.detector.core.hog import HogDetector
-from detector_models import constant_yolo_onnx, tiny_darknet
+from tests.detector_models import constant_yolo_onnx, tiny_darknet
 
 
 @pytest.mark.parametrize("image", [np.zeros((0, 0, 3), np.uint8), np.zeros((10, 0, 3), np.uint8), np.zeros(5, np.uint8)])
@@ -95,8 +95,8 @@ def test_cli_errors_name_the_problem(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert message in err and "Traceback" not in err
 
 
-def test_detector_config_file_section(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_service_config_file_section(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     config = tmp_path / "robot.yaml"
     config.write_text("detector:\n  backend: depth\n  depth_available: false\n")
-    assert cli_main(["detector", "--detector-config", str(config)]) == 2
+    assert cli_main(["detector", "--service-config", str(config)]) == 2
     assert "depth_available" in capsys.readouterr().err

@@ -11,14 +11,14 @@ from services.detector.config import BACKENDS, DetectorConfig, build_detector
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
 
-__all__ = ["add_backend_arguments", "detector_from_args", "load_detector_config"]
+__all__ = ["add_backend_arguments", "detector_from_args", "load_service_config"]
 
 ENV_PREFIX = "PERCEPTION_DETECTOR"
 
 
 def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("detector")
-    g.add_argument("--detector-config", dest="detector_config", default=None, metavar="FILE",
+    g.add_argument("--service-config", dest="service_config", default=None, metavar="FILE",
                    help="YAML/JSON config; its 'detector' section is read if present (env PERCEPTION_DETECTOR__FIELD overrides)")
     g.add_argument("--backend", choices=BACKENDS, default=None, help="detector backend (default hog)")
     g.add_argument("--model", default=None, metavar="ONNX", help="yolo-onnx: path of the .onnx model (yolo.model)")
@@ -43,7 +43,7 @@ def _prune(tree: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def load_detector_config(args: argparse.Namespace, extra: dict[str, Any] | None = None) -> DetectorConfig:
+def load_service_config(args: argparse.Namespace, extra: dict[str, Any] | None = None) -> DetectorConfig:
     """Defaults -> --config file (section ``detector``) -> environment -> flags; CliError if invalid."""
     providers = [p.strip() for p in args.providers.split(",") if p.strip()] if args.providers else None
     overrides = _prune({
@@ -54,17 +54,17 @@ def load_detector_config(args: argparse.Namespace, extra: dict[str, Any] | None 
         "darknet": {"cfg": args.darknet_cfg, "weights": args.darknet_weights, "conf_threshold": args.conf},
     })
     section = None
-    if args.detector_config is not None:
+    if args.service_config is not None:
         from common.config import read_config_file
 
         try:
-            section = "detector" if "detector" in read_config_file(args.detector_config) else None
+            section = "detector" if "detector" in read_config_file(args.service_config) else None
         except ConfigError as exc:
             raise CliError(str(exc)) from exc
     try:
-        return load_config(DetectorConfig, args.detector_config, env_prefix=ENV_PREFIX, overrides=overrides, section=section)
+        return load_config(DetectorConfig, args.service_config, env_prefix=ENV_PREFIX, overrides=overrides, section=section)
     except ConfigError as exc:
-        raise CliError(f"{exc}\n(fix it in {args.detector_config or 'the flags'} or the PERCEPTION_DETECTOR__* environment)") from exc
+        raise CliError(f"{exc}\n(fix it in {args.service_config or 'the flags'} or the PERCEPTION_DETECTOR__* environment)") from exc
 
 
 def detector_from_args(config: DetectorConfig) -> Detector:

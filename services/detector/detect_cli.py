@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from common.cli_util import CliError
-from services.detector.cli_args import add_backend_arguments, detector_from_args, load_detector_config
+from services.detector.cli_args import add_backend_arguments, detector_from_args, load_service_config
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
 
@@ -73,7 +73,7 @@ def write_records(detector: Detector, images: list[Path], out: TextIO) -> int:
 
 
 def main(args: argparse.Namespace) -> int:
-    config = load_detector_config(args)
+    config = load_service_config(args)
     if config.backend == "depth":
         raise CliError("the depth backend needs depth images and intrinsics; use --backend hog, yolo-onnx or darknet")
     detector = detector_from_args(config)

@@ -10,7 +10,7 @@ from common.cli_util import CliError, add_key_arguments, keys_from_args
 from common.runtime import Counters, ServiceRuntime, Shutdown
 from common.zenoh_config import add_zenoh_arguments, options_from_args
 from common.zenoh_transport import TransportError, open_transport
-from services.detector.cli_args import add_backend_arguments, detector_from_args, load_detector_config
+from services.detector.cli_args import add_backend_arguments, detector_from_args, load_service_config
 from services.detector.service import DetectorService
 
 DESCRIPTION = """\
@@ -34,7 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     extra = {"camera": args.camera, "depth_available": False if args.no_depth else None}
-    config = load_detector_config(args, extra)
+    config = load_service_config(args, extra)
     detector = detector_from_args(config)
     keys = keys_from_args(args)
     try:

@@ -1,0 +1,39 @@
+"""Every service config in deploy/ is valid for the service that will read it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+from pydantic import BaseModel
+
+from common.config import load_config
+from services.detector.config import DetectorConfig
+from services.embedder.config import EmbedderConfig
+from services.launcher.launchfile import load_launch_file
+from services.localizer.config import LocalizerConfig
+from services.tracker.config import TrackerConfig
+
+DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
+MODELS: dict[str, type[BaseModel]] = {
+    "detector": DetectorConfig,
+    "localizer": LocalizerConfig,
+    "embedder": EmbedderConfig,
+    "tracker": TrackerConfig,
+}
+
+
+@pytest.mark.parametrize("launch_file", sorted(DEPLOY.glob("*.yaml")), ids=lambda p: p.name)
+def test_inline_service_configs_validate(launch_file: Path, tmp_path: Path) -> None:
+    launch = load_launch_file(launch_file, environ={})
+    for spec in launch.services:
+        model = MODELS.get(spec.command or "")
+        if model is None or spec.config is None:
+            continue
+        if isinstance(spec.config, dict):
+            cfg_file = tmp_path / f"{spec.name}.yaml"
+            cfg_file.write_text(yaml.safe_dump(spec.config))
+        else:
+            cfg_file = Path(spec.config)
+        load_config(model, cfg_file)  # raises ConfigError naming the bad key

@@ -14,7 +14,7 @@ from abc import ABC, abstractmethod
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, BinaryIO, Iterator
+from typing import TYPE_CHECKING, Any, BinaryIO, Iterator
 
 from common.codec import encode
 from common.schemas import MESSAGE_TYPES, Message
@@ -141,16 +141,34 @@ class McapSource(Source):
         self._file: BinaryIO = path.open("rb")
         try:
             self._reader = make_reader(self._file)
-            self._summary = self._reader.get_summary()
         except _mcap_errors() as exc:
             self._file.close()
             raise SourceError(path, f"not a readable MCAP file ({type(exc).__name__}: {exc})") from exc
+        try:
+            self._summary = self._reader.get_summary()
+        except _mcap_errors() as exc:  # no valid footer: cut off, read what is there
+            log.debug("%s: no summary (%s), reading linearly", path, exc)
+            self._summary = None
         self._truncated = self._summary is None
         self._streams: dict[str, type[Message]] = {}
         self._channels: dict[int, str] = {}
         if self._summary is not None:
             for ch in self._summary.channels.values():
                 self._consider(ch, self._summary.schemas.get(ch.schema_id))
+        else:
+            self._discover_channels()
+
+    def _discover_channels(self) -> None:
+        """Without a summary, find the channels by reading the file once."""
+        n = 0
+        try:
+            for schema, channel, _ in self._messages():
+                self._consider(channel, schema)
+                n += 1
+        except _mcap_errors() as exc:
+            if n == 0:
+                self._file.close()
+                raise SourceError(self.path, f"not a readable MCAP file ({type(exc).__name__}: {exc})") from exc
 
     def _consider(self, channel: object, schema: object) -> bool:
         ch_id, topic = channel.id, channel.topic  # type: ignore[attr-defined]
@@ -174,17 +192,26 @@ class McapSource(Source):
     def streams(self) -> dict[str, type[Message]]:
         return dict(self._streams)
 
+    def _messages(self) -> Iterator[tuple[Any, Any, Any]]:
+        if not self._truncated:
+            return self._reader.iter_messages(log_time_order=True)
+        from mcap.reader import NonSeekingReader
+
+        self._file.seek(0)  # written in receive order, so file order is log-time order
+        return NonSeekingReader(self._file).iter_messages(log_time_order=False)
+
     def items(self) -> Iterator[Item]:
         n = 0
         try:
-            for schema, channel, message in self._reader.iter_messages(log_time_order=True):
-                if channel.id not in self._channels and not (self._truncated and self._consider(channel, schema)):
+            for schema, channel, message in self._messages():
+                if channel.id not in self._channels:
                     continue
                 n += 1
                 yield Item(message.publish_time, message.log_time, channel.topic,
                            self._streams[channel.topic], payload=message.data)
         except _mcap_errors() as exc:
-            raise SourceError(self.path, f"damaged or truncated after {n} messages ({type(exc).__name__}: {exc})") from exc
+            what = "not a readable MCAP file" if n == 0 else f"damaged or truncated after {n} messages"
+            raise SourceError(self.path, f"{what} ({type(exc).__name__}: {exc})") from exc
         if self._truncated:
             raise SourceError(self.path, f"truncated: the file ends without its summary after {n} messages "
                               "(the recorder was killed?); the messages before the cut were replayed")
@@ -206,7 +233,7 @@ class McapSource(Source):
         names: dict[str, str] = {}
         start, end = 0, 0
         try:
-            for schema, channel, message in self._reader.iter_messages(log_time_order=False):
+            for schema, channel, message in self._messages():
                 counts[channel.topic] += 1
                 names[channel.topic] = schema.name if schema else "?"
                 start = message.log_time if not start else min(start, message.log_time)

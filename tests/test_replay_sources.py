@@ -134,6 +134,17 @@ def test_bag_topic_flags_and_unknown_image_encoding(tmp_path: Path) -> None:
     assert "cannot be the depth stream" in src.skipped["/front/info"]
 
 
+def test_a_ros2_mcap_file_without_its_folder_is_read_as_a_bag(tmp_path: Path) -> None:
+    run = SyntheticRun(frames=4)
+    folder = write_bag(tmp_path / "run", run, "ros2-mcap")
+    (mcap_file,) = folder.glob("*.mcap")
+    bare = tmp_path / "bare.mcap"
+    bare.write_bytes(mcap_file.read_bytes())
+    with open_source(bare) as src:
+        assert src.summary().format == "ROS 2 bag"
+        assert len([it for it in src.items() if it.key == FRAMES]) == 4
+
+
 def _record(path: Path, msgs: list[tuple[str, Any, int]]) -> None:
     with McapRecorder(path, key_exprs=[KEYS.all()], writer_version="test") as rec:
         for key, msg, log_ns in msgs:
@@ -190,6 +201,26 @@ def test_replay_engine_in_memory_orders_by_stamp_and_selects(tmp_path: Path) -> 
     other = bus.transport().subscribe("pp/other/**", None, RELIABLE)
     replay(rate=None, remap=[("pp/robot", "pp/other")])
     assert other.stats.received == 10
+
+
+def test_loop_replays_until_stopped(tmp_path: Path) -> None:
+    stamps = [10**18 + i * 10**6 for i in range(5)]
+    _record(tmp_path / "r.mcap", [(FRAMES, rgbd_frame(16, 12, seq=i, stamp_ns=s), s) for i, s in enumerate(stamps)])
+    bus = MemoryBus()
+    sub = bus.transport().subscribe(FRAMES, None, RELIABLE)
+    stop = threading.Event()
+    with open_source(tmp_path / "r.mcap") as src:
+        replayer = Replayer(bus.transport(), src, ReplayOptions(rate=None, loop=True, wait_subscribers_s=0))
+        worker = threading.Thread(target=replayer.run, args=(stop,))
+        worker.start()
+        got: list[int] = []
+        while len(got) < 12 and (r := sub.recv(timeout=30)) is not None:
+            got.append(r.msg.header.stamp_ns)
+        stop.set()
+        worker.join(timeout=30)
+    assert not worker.is_alive()
+    assert got[:12] == (stamps * 3)[:12]
+    assert replayer.stats.passes >= 2
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:

@@ -112,6 +112,7 @@ def test_record_then_replay_is_lossless_and_ordered(tmp_path: Path, router: Rout
                 "tf": client.publisher(KEYS.tf(), TransformBatch, FIFO)}
         for p in pubs.values():
             assert p.wait_for_subscribers(TIMEOUT), "the recorder did not subscribe"
+        client.session.put(KEYS.detections("head"), b"not a perception message")  # counted, not recorded
         sent: list[tuple[str, Message]] = []
         t0 = 1_700_000_000_000_000_000
         for i in range(15):
@@ -131,6 +132,7 @@ def test_record_then_replay_is_lossless_and_ordered(tmp_path: Path, router: Rout
             recorder.wait()
     assert recorder.returncode == 0, stderr
     assert f"{KEYS.frames('head')} [perception.RGBDFrame]: 15" in stdout, stdout
+    assert "1 invalid" in stdout, stdout
     sub = zenoh_client().subscribe(KEYS.all(), None, FIFO)
     _replay(out, router)
     got = _collect(sub, len(sent), skip=_is_status)
@@ -154,3 +156,25 @@ def test_rate_two_takes_about_half_as_long(tmp_path: Path, router: RouterProcess
     # the pacer never publishes early, so the lower bounds are firm; the upper ones allow for load
     assert 1.9 < spans["1"] < 3.5, spans
     assert 0.95 < spans["2"] < 1.7, spans
+
+
+def test_a_bag_whose_images_cannot_be_converted_fails_naming_the_encoding(tmp_path: Path, router: RouterProcess) -> None:
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    T = store.types
+    bag = tmp_path / "yuv.bag"
+    with Writer1(bag) as w:
+        conn = w.add_connection("/camera/rgb/image_raw", "sensor_msgs/msg/Image", typestore=store)
+        for i in range(3):
+            stamp = T["builtin_interfaces/msg/Time"](sec=100 + i, nanosec=0)
+            img = T["sensor_msgs/msg/Image"](header=T["std_msgs/msg/Header"](seq=i, stamp=stamp, frame_id="cam"),
+                                             height=2, width=2, encoding="yuv422", is_bigendian=0, step=4,
+                                             data=np.zeros(8, np.uint8))
+            w.write(conn, (100 + i) * 10**9, store.serialize_ros1(img, "sensor_msgs/msg/Image"))
+    cmd = _perception("replay", str(bag), "--wait-subscribers", "0", "--no-progress", router=router)
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert f"perception: error: {bag}: nothing was replayed" in proc.stderr
+    assert "image encoding 'yuv422' is not supported" in proc.stderr

@@ -188,7 +188,7 @@ class BagSource(Source):
             note = (f"-> {route.role}" + (f" of camera {route.camera}" if route.camera else "")) if route else \
                 f"skipped: {self.plan.skipped.get(topic, '')}"
             streams.append(StreamSummary(topic, info.msgtype or "?", info.msgcount, note))
-        kind = "ROS 1 bag" if self.path.is_file() else "ROS 2 bag"
+        kind = "ROS 2 bag" if self.path.is_dir() or self.path.suffix == ".mcap" else "ROS 1 bag"
         return Summary(kind, streams, r.start_time, r.end_time)
 
     def close(self) -> None:

@@ -249,6 +249,16 @@ class McapSource(Source):
         self._file.close()
 
 
+def _mcap_profile(path: Path) -> str:
+    from mcap.reader import make_reader
+
+    try:
+        with path.open("rb") as f:
+            return str(make_reader(f).get_header().profile)
+    except _mcap_errors():
+        return ""  # McapSource reports what is wrong with it
+
+
 def open_source(path: Path | str, bag_options: BagOptions | None = None) -> Source:
     """Open an MCAP recording, a ROS 1 ``.bag`` or a ROS 2 bag folder."""
     p = Path(path)
@@ -269,6 +279,10 @@ def open_source(path: Path | str, bag_options: BagOptions | None = None) -> Sour
     if not head:
         raise SourceError(p, "the file is empty")
     if head.startswith(MCAP_MAGIC):
+        if _mcap_profile(p) == "ros2":  # a ROS 2 bag's MCAP file on its own (no metadata.yaml)
+            from services.replay.bag_source import BagOptions, BagSource
+
+            return BagSource(p, bag_options or BagOptions())
         return McapSource(p)
     if head.startswith(ROSBAG1_MAGIC):
         from services.replay.bag_source import BagOptions, BagSource

@@ -20,6 +20,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -28,6 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from common.keys import Delivery, Keys  # noqa: E402
 from common.router_process import RouterProcess, free_port  # noqa: E402
 from common.samples import rgbd_frame  # noqa: E402
+from common.transport import Subscription  # noqa: E402
 from common.zenoh_config import ZenohOptions  # noqa: E402
 from common.zenoh_transport import open_transport  # noqa: E402
 from services.replay.recorder import McapRecorder  # noqa: E402
@@ -52,7 +54,7 @@ def write_recording(path: Path, frames: int) -> int:
 def one_run(path: Path, frames: int, subscriber: ZenohOptions, replay_zenoh: list[str]) -> tuple[float, list[float]]:
     """(seconds from first to last frame, gaps between frames in ms)."""
     with open_transport(subscriber) as t:
-        sub = t.subscribe(KEYS.frames("head"), None, FIFO)
+        sub: Subscription[Any] = t.subscribe(KEYS.frames("head"), None, FIFO)
         cmd = [sys.executable, "-m", "services", "-q", "replay", str(path), "--max", "--no-progress",
                "--wait-subscribers", "30", *replay_zenoh]
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

@@ -101,11 +101,11 @@ class BagSource(Source):
     def items(self) -> Iterator[Item]:
         keys = self.options.keys
         cams: dict[str, _Camera] = {}
-        for cam, roles in self.plan.cameras().items():
+        for name, roles in self.plan.cameras().items():
             if "rgb" not in roles:
                 continue
             pairer: RgbdPairer[tuple[Image, int]] = RgbdPairer(self.options.pair_tolerance_ns, expect_depth="depth" in roles)
-            cams[cam] = _Camera(cam, pairer)
+            cams[name] = _Camera(name, pairer)
         conns = [c for c in self._reader.connections if c.topic in self.plan.routes]
         try:
             for conn, log_ns, raw in self._reader.messages(connections=conns):
@@ -146,18 +146,17 @@ class BagSource(Source):
             raise
         except Exception as exc:  # rosbags' readers raise their own and OS errors on damaged files
             raise SourceError(self.path, f"damaged or truncated ({type(exc).__name__}: {exc})") from exc
-        for cam in cams.values():
-            yield from self._frames(cam, cam.pairer.flush())
-            if cam.waiting:
-                self.problem(cam.name, f"{len(cam.waiting)} frames dropped: no camera info received")
-            st = cam.pairer.stats
-            if st.rgb_without_depth:
-                self.problem(cam.name, f"colour images without a depth image within "
+        for c in cams.values():
+            yield from self._frames(c, c.pairer.flush())
+            if c.waiting:
+                self.problem(c.name, f"{len(c.waiting)} frames dropped: no camera info received")
+            if c.pairer.stats.rgb_without_depth:
+                self.problem(c.name, f"colour images without a depth image within "
                              f"{self.options.pair_tolerance_ns / 1e6:g} ms (published without depth)")
 
     def _frames(self, cam: _Camera, pairs: list[tuple[int, tuple[Image, int], tuple[Image, int] | None]]) -> Iterator[Item]:
-        for stamp, (rgb, log_ns), depth in pairs:
-            cam.waiting.append((stamp, rgb, depth[0] if depth else None, log_ns))
+        for stamp, (rgb_img, rgb_log_ns), paired in pairs:
+            cam.waiting.append((stamp, rgb_img, paired[0] if paired else None, rgb_log_ns))
         if cam.info is None:
             while len(cam.waiting) > self.options.max_waiting_frames:
                 cam.waiting.popleft()

@@ -44,10 +44,10 @@ class Progress:
     def update(self, position_s: float, nbytes: int) -> None:
         self.sent += 1
         self.meter.add(nbytes)
-        if self._pos0 is None:
-            self._pos0 = position_s
-        self._pos = position_s
         now = time.monotonic()
+        if self._pos0 is None:
+            self._pos0, self._wall0 = position_s, now
+        self._pos = position_s
         if self.enabled and now - self._last_show >= self.period_s:
             self._last_show = now
             self._show()

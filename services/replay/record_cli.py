@@ -58,7 +58,7 @@ def drain(subs: list[Subscription[Any]]) -> list[Received[Any]]:
 def record(transport: Transport, recorder: McapRecorder, exprs: list[str], runtime: ServiceRuntime,
            shutdown: Shutdown, duration_s: float | None) -> list[Subscription[Any]]:
     """Record until ``shutdown`` or ``duration_s``; returns the subscriptions (for their stats)."""
-    subs = [transport.subscribe(e, None, RECORD_DELIVERY) for e in exprs]
+    subs: list[Subscription[Any]] = [transport.subscribe(e, None, RECORD_DELIVERY) for e in exprs]
     runtime.watch(*subs)
     own_status = runtime.keys.status(runtime.name, runtime.instance)
     deadline = None if duration_s is None else time.monotonic() + duration_s

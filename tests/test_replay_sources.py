@@ -289,3 +289,20 @@ def test_truncated_mcap_is_reported_after_the_readable_part(tmp_path: Path) -> N
     assert [decode_any(it.encoded()) for it in got] == [m for _, m, _ in msgs[: len(got)]]
     proc = _cli("inspect", str(path))
     assert proc.returncode == 0 and "truncated" in proc.stdout, proc.stdout + proc.stderr
+
+
+def test_topic_map_file_and_flags(tmp_path: Path) -> None:
+    from common.config import ConfigError
+    from services.replay.config import load_topic_map
+
+    path = tmp_path / "topics.yaml"
+    path.write_text("cameras:\n  front:\n    rgb: /front/rgb\n    depth: /front/depth\nodom: []\npair_tolerance_ms: 30\n")
+    cfg = load_topic_map(path, "front", {"camera_info": "/front/info", "tf": ["/tf", "/tf2"]})
+    assert cfg.camera_dict() == {"front": {"rgb": "/front/rgb", "depth": "/front/depth", "camera_info": "/front/info"}}
+    assert cfg.list_dict() == {"tf": ["/tf", "/tf2"], "odom": []} and cfg.pair_tolerance_ms == 30
+    path.write_text("cameras:\n  front:\n    colour: /front/rgb\n")
+    with pytest.raises(ConfigError, match="colour"):
+        load_topic_map(path, "front", {})
+    path.write_text("cameras:\n  front:\n    rgb: front/rgb\n")
+    with pytest.raises(ConfigError, match="must start with '/'"):
+        load_topic_map(path, "front", {})

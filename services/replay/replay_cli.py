@@ -65,6 +65,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                    help="wait up to S seconds for subscribers on every stream before starting (default 2)")
     parser.add_argument("--remap", action="append", default=[], metavar="OLD=NEW",
                         help="publish keys starting with OLD under NEW instead, repeatable")
+    parser.add_argument("--linger", type=float, default=0.5, metavar="S",
+                        help="keep the session open S seconds after the last message, so that what is still "
+                             "queued is delivered (default 0.5)")
     parser.add_argument("--no-progress", action="store_true", help="no progress display")
     add_topic_arguments(parser)
     add_zenoh_arguments(parser)
@@ -135,6 +138,8 @@ def main(args: argparse.Namespace) -> int:
                 stats = replayer.run(shutdown)
             except SourceError as exc:
                 error, stats = exc, replayer.stats
+            if stats.total and args.linger > 0:
+                shutdown.wait(args.linger)  # Zenoh drops what is still queued when the session closes
         report(source, stats)
         if error is not None:
             raise CliError(str(error))

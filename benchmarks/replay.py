@@ -8,7 +8,8 @@ would) and times the frames from the first to the last arrival.
     .venv/bin/python benchmarks/replay.py [--frames 150] [--runs 3]
 
 Prints frames/s and MB/s (median over runs) and the median and p95 gap between
-frames. Shared memory is on, as between processes of one host.
+frames. Shared memory is on, as between processes of one host, except in the row that
+turns it off in both processes (payloads then go through the router's TCP links).
 """
 
 from __future__ import annotations
@@ -101,10 +102,16 @@ def main() -> None:
               f"{os.cpu_count()} CPUs")
         print("| path | frames/s | MB/s | median gap ms | p95 gap ms |")
         print("|---|---|---|---|---|")
+        no_shm = Path(tmp) / "no_shm.json5"
+        no_shm.write_text('{ transport: { shared_memory: { enabled: false } } }')
         with RouterProcess() as router:
             client = ZenohOptions(mode="client", connect=[router.endpoint])
             print(measure("via router (clients)", path, args.frames, frame_bytes, args.runs, client,
                           ["--connect", router.endpoint]), flush=True)
+            client_no_shm = ZenohOptions(mode="client", connect=[router.endpoint], shared_memory=False)
+            print(measure("via router, shared memory off (as between PCs)", path, args.frames, frame_bytes,
+                          args.runs, client_no_shm, ["--connect", router.endpoint, "--config", str(no_shm)]),
+                  flush=True)
         port = free_port()
         endpoint = f"tcp/127.0.0.1:{port}"
         peer = ZenohOptions(mode="peer", listen=[endpoint])

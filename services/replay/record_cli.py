@@ -27,7 +27,7 @@ On SIGINT/SIGTERM what was received is written and the file is closed properly.
 
 examples:
   perception record --output run.mcap
-  perception record --keys 'pp/robot/perception/v1/tracks' --keys 'pp/robot/perception/v1/tf*' -o tracks.mcap"""
+  perception record --keys 'pp/robot/perception/v1/tracks' --keys 'pp/robot/perception/v1/tf' -o tracks.mcap"""
 
 #: Recording must not lose messages: a deep FIFO (overflow is counted and reported).
 RECORD_DELIVERY = Delivery(latest=False, queue=1024, congestion="block")

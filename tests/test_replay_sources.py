@@ -250,6 +250,9 @@ def test_cli_errors_name_the_file_and_the_problem(tmp_path: Path) -> None:
     with Writer2(empty, version=9) as w2:
         w2.add_connection("/camera/rgb/image_raw", "sensor_msgs/msg/Image", typestore=get_typestore(Stores.ROS2_HUMBLE))
     _assert_clean_error(_cli("replay", str(empty)), empty, "no messages")
+    cut_bag = write_bag(tmp_path / "cut.bag", SyntheticRun(frames=3), "ros1")
+    cut_bag.write_bytes(cut_bag.read_bytes()[:3000])
+    _assert_clean_error(_cli("inspect", str(cut_bag)), cut_bag, "not a readable ROS bag")
     # a recording whose channels are not msgpack: nothing to replay, named encoding
     from mcap.writer import Writer
 

@@ -178,3 +178,22 @@ def test_a_bag_whose_images_cannot_be_converted_fails_naming_the_encoding(tmp_pa
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
     assert f"perception: error: {bag}: nothing was replayed" in proc.stderr
     assert "image encoding 'yuv422' is not supported" in proc.stderr
+
+
+def test_a_truncated_recording_is_replayed_up_to_the_cut_then_fails(tmp_path: Path, router: RouterProcess,
+                                                                    zenoh_client: Callable[[], ZenohTransport]) -> None:
+    path = tmp_path / "cut.mcap"
+    t0 = 1_700_000_000_000_000_000
+    with McapRecorder(path, compression="none", chunk_size=32_000) as rec:
+        for i in range(40):
+            rec.write(KEYS.frames("head"), rgbd_frame(64, 48, seq=i, stamp_ns=t0 + i * 1_000_000, seed=i), t0 + i * 1_000_000)
+    path.write_bytes(path.read_bytes()[: path.stat().st_size * 2 // 3])
+    sub = zenoh_client().subscribe(KEYS.frames("head"), None, FIFO)
+    cmd = _perception("replay", str(path), "--wait-subscribers", "30", "--no-progress", router=router)
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert f"perception: error: {path}: truncated after" in proc.stderr, proc.stderr
+    replayed = int(proc.stdout.split("replayed ", 1)[1].split()[0])
+    assert 0 < replayed < 40, proc.stdout
+    got = _collect(sub, replayed)
+    assert [r.msg.header.seq for r in got] == list(range(replayed))

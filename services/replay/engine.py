@@ -22,7 +22,7 @@ from common.transport import Publisher, Transport
 from services.replay.core.mapping import remap_key
 from services.replay.core.timeline import DEFAULT_REORDER_WINDOW_NS, Pacer, Reorderer, TimeWindow
 from services.replay.progress import Progress
-from services.replay.sources import Item, Source
+from services.replay.sources import Item, Source, SourceError
 
 __all__ = ["ReplayOptions", "ReplayStats", "Replayer", "StopFlag"]
 
@@ -135,8 +135,12 @@ class Replayer:
         t0: int | None = None
 
         def ordered() -> Iterator[tuple[int, Item]]:
-            for it in self.source.items():
-                yield from reorderer.push(it.stamp_ns, it)
+            try:
+                for it in self.source.items():
+                    yield from reorderer.push(it.stamp_ns, it)
+            except SourceError:
+                yield from reorderer.flush()  # what was read before the damage still goes out
+                raise
             yield from reorderer.flush()
 
         for t_ns, item in ordered():

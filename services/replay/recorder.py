@@ -25,16 +25,20 @@ Compression = Literal["zstd", "lz4", "none"]
 
 
 class McapRecorder:
-    """Appends messages to ``path``; call :meth:`finish` (or use ``with``) to close the file."""
+    """Appends messages to ``path``; call :meth:`finish` (or use ``with``) to close the file.
+
+    Messages are written in chunks of about ``chunk_size`` bytes (compressed together),
+    so a recorder that is killed loses at most its last chunk.
+    """
 
     def __init__(self, path: Path, *, compression: Compression = "zstd", key_exprs: Sequence[str] = (),
-                 writer_version: str = "") -> None:
+                 writer_version: str = "", chunk_size: int = 1024 * 1024) -> None:
         from mcap.writer import CompressionType, Writer
 
         comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[compression]
         self.path = path
         self._file = path.open("wb")
-        self._writer = Writer(self._file, compression=comp)
+        self._writer = Writer(self._file, compression=comp, chunk_size=chunk_size)
         self._writer.start(profile="perception", library=f"people-perception {writer_version}".strip())
         self._writer.add_metadata("perception", {
             "schema_versions": json.dumps({name: m.SCHEMA_VERSION for name, m in sorted(MESSAGE_TYPES.items())}),

@@ -168,6 +168,9 @@ class McapSource(Source):
         except _mcap_errors() as exc:
             if n == 0:
                 self._file.close()
+                if type(exc).__name__ == "EndOfFile":
+                    raise SourceError(self.path, "truncated before its first complete chunk: no message can be read "
+                                      "(the recorder was killed?)") from exc
                 raise SourceError(self.path, f"not a readable MCAP file ({type(exc).__name__}: {exc})") from exc
 
     def _consider(self, channel: object, schema: object) -> bool:
@@ -210,7 +213,10 @@ class McapSource(Source):
                 yield Item(message.publish_time, message.log_time, channel.topic,
                            self._streams[channel.topic], payload=message.data)
         except _mcap_errors() as exc:
-            what = "not a readable MCAP file" if n == 0 else f"damaged or truncated after {n} messages"
+            if type(exc).__name__ == "EndOfFile":
+                raise SourceError(self.path, f"truncated after {n} messages: the file ends mid-record (the recorder "
+                                  "was killed?); the messages before the cut were replayed") from exc
+            what = "not a readable MCAP file" if n == 0 else f"damaged after {n} messages"
             raise SourceError(self.path, f"{what} ({type(exc).__name__}: {exc})") from exc
         if self._truncated:
             raise SourceError(self.path, f"truncated: the file ends without its summary after {n} messages "

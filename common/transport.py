@@ -170,6 +170,15 @@ class Publisher(Generic[M]):
         if not self._matching():
             self.unmatched += 1
 
+    def put_encoded(self, data: bytes) -> None:
+        """Publish a payload that is already an encoded message of this publisher's type.
+
+        For replaying recordings without a decode/encode round trip; the caller vouches
+        for the bytes (subscribers still validate them).
+        """
+        self._send(data)
+        self.published += 1
+
     def has_subscribers(self) -> bool:
         return self._matching()
 

@@ -204,13 +204,15 @@ def test_replay_engine_in_memory_orders_by_stamp_and_selects(tmp_path: Path) -> 
 
 
 def test_loop_replays_until_stopped(tmp_path: Path) -> None:
-    stamps = [10**18 + i * 10**6 for i in range(5)]
+    # Paced at recorded speed (10 ms apart): as fast as possible, an endless loop would
+    # overflow the subscriber's bounded FIFO before a loaded test process reads it.
+    stamps = [10**18 + i * 10**7 for i in range(5)]
     _record(tmp_path / "r.mcap", [(FRAMES, rgbd_frame(16, 12, seq=i, stamp_ns=s), s) for i, s in enumerate(stamps)])
     bus = MemoryBus()
     sub = bus.transport().subscribe(FRAMES, None, RELIABLE)
     stop = threading.Event()
     with open_source(tmp_path / "r.mcap") as src:
-        replayer = Replayer(bus.transport(), src, ReplayOptions(rate=None, loop=True, wait_subscribers_s=0))
+        replayer = Replayer(bus.transport(), src, ReplayOptions(rate=1.0, loop=True, wait_subscribers_s=0))
         worker = threading.Thread(target=replayer.run, args=(stop,))
         worker.start()
         got: list[int] = []

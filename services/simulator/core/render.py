@@ -80,10 +80,10 @@ class Renderer:
         rx, ry = (u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy
         self._rays_cam = (rx.astype(np.float32), ry.astype(np.float32))  # camera-frame ray x, y (z = 1)
         self._inv_norm = (1.0 / np.sqrt(rx * rx + ry * ry + 1.0)).astype(np.float32)
-        boxes = [b for b in apartment.boxes]
-        self._box_lo = np.array([b.lo for b in boxes], dtype=np.float32)
-        self._box_hi = np.array([b.hi for b in boxes], dtype=np.float32)
-        self._box_colour = np.array([b.colour for b in boxes], dtype=np.float32)
+        boxes = list(apartment.boxes)
+        self._box_lo = np.array([b.lo for b in boxes], dtype=np.float32).reshape(-1, 3)
+        self._box_hi = np.array([b.hi for b in boxes], dtype=np.float32).reshape(-1, 3)
+        self._box_colour = np.array([b.colour for b in boxes], dtype=np.float32).reshape(-1, 3)
         rng = np.random.default_rng(seed)
         self._rng = rng
         pad = 64

@@ -117,7 +117,7 @@ def _clothes_in_view(rng: np.random.Generator, apt: Apartment, alike: bool) -> W
          Action("dress", 0), Action("wait", seconds=2.0), Action("roam")],
         [Action("roam")],
     ]
-    walkers = _walkers(rng, apt, plans, [(1.2, 5.0), (4.8, 5.8)], alike, per_person=2,
+    walkers = _walkers(rng, apt, plans, [(1.2, 5.0), (5.3, 6.3)], alike, per_person=2,
                        avoid=[(_STILL_POSE[0], _STILL_POSE[1], 0.5)], regions=[LIVING])
     return World(apt, walkers, [1, 2], _robot(static_trajectory(*_STILL_POSE), HeadMotion(), rng), False, 68.0)
 
@@ -129,7 +129,7 @@ def _clothes_out_of_view(rng: np.random.Generator, apt: Apartment, alike: bool) 
         [Action("roam", seconds=25.0), Action("goto", "kitchen"), Action("wait", seconds=4.0), Action("dress", 1),
          Action("goto", "tv"), Action("roam")],
     ]
-    walkers = _walkers(rng, apt, plans, [(1.2, 5.0), (4.8, 5.8)], alike, per_person=2,
+    walkers = _walkers(rng, apt, plans, [(1.2, 5.0), (5.3, 6.3)], alike, per_person=2,
                        avoid=[(_STILL_POSE[0], _STILL_POSE[1], 0.5)], regions=[LIVING])
     return World(apt, walkers, [1, 2], _robot(static_trajectory(*_STILL_POSE), HeadMotion(), rng), False, 56.7)
 

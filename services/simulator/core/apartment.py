@@ -90,7 +90,8 @@ class Apartment:
             xs = np.arange(self.bounds_lo[0] + r / 2, self.bounds_hi[0], r)
             ys = np.arange(self.bounds_lo[1] + r / 2, self.bounds_hi[1], r)
             gx, gy = np.meshgrid(xs, ys, indexing="ij")
-            free = self.clearance_ok(np.stack([gx.ravel(), gy.ravel()], 1), radius).reshape(gx.shape)
+            # a little extra margin, so diagonal steps past box corners keep the full radius
+            free = self.clearance_ok(np.stack([gx.ravel(), gy.ravel()], 1), radius + 0.02).reshape(gx.shape)
             nx, ny = free.shape
             idx = np.arange(nx * ny).reshape(nx, ny)
             rows, cols, w = [], [], []
@@ -107,10 +108,17 @@ class Apartment:
             self._grids[radius] = (free, graph)
         return self._grids[radius]
 
-    def _cell(self, xy: np.ndarray) -> tuple[int, int]:
-        i = int(np.floor((xy[0] - self.bounds_lo[0]) / self.resolution))
-        j = int(np.floor((xy[1] - self.bounds_lo[1]) / self.resolution))
-        return i, j
+    def _cell(self, xy: np.ndarray, radius: float) -> tuple[int, int]:
+        """The nearest free grid cell that ``xy`` reaches in a straight, clear line."""
+        free, _ = self._grid(radius)
+        cells = np.argwhere(free)
+        r = self.resolution
+        centres = np.asarray(self.bounds_lo[:2]) + (cells + 0.5) * r
+        order = np.argsort(np.linalg.norm(centres - xy, axis=1))[:25]
+        for k in order:
+            if self.segment_free(xy, centres[k], radius):
+                return int(cells[k, 0]), int(cells[k, 1])
+        return int(cells[order[0], 0]), int(cells[order[0], 1])
 
     def _centre(self, i: int, j: int) -> np.ndarray:
         r = self.resolution
@@ -133,8 +141,8 @@ class Apartment:
             return np.stack([start, goal])
         free, graph = self._grid(radius)
         ny = free.shape[1]
-        si, sj = self._cell(start)
-        gi, gj = self._cell(goal)
+        si, sj = self._cell(start, radius)
+        gi, gj = self._cell(goal, radius)
         _, pred = dijkstra(graph, indices=si * ny + sj, return_predecessors=True)
         node, cells = gi * ny + gj, []
         while node >= 0:
@@ -163,38 +171,38 @@ class Apartment:
 
 
 def default_apartment() -> Apartment:
-    """A 9 x 7 m apartment: living room with sofa, dining table and four chairs (x < 6),
+    """A 9 x 7 m apartment: living room with a sofa (west), dining table and four chairs (east) (x < 6),
     and a bedroom/kitchen behind a partition wall with a door at y in [3.6, 4.8]."""
     wall = (0.85, 0.83, 0.78)
     wood = (0.55, 0.36, 0.2)
     boxes = [
         Box("partition-south", (6.0, 0.0, 0.0), (6.12, 3.6, 2.6), wall, "wall"),
         Box("partition-north", (6.0, 4.8, 0.0), (6.12, 7.0, 2.6), wall, "wall"),
-        # sofa facing north (towards a TV on the north wall), its back to the robot's usual view
-        Box("sofa-seat", (1.0, 3.6, 0.0), (3.2, 4.5, 0.45), (0.25, 0.35, 0.55)),
-        Box("sofa-back", (1.0, 3.6, 0.45), (3.2, 3.85, 0.9), (0.22, 0.31, 0.5)),
-        Box("sofa-arm-w", (1.0, 3.85, 0.45), (1.2, 4.5, 0.65), (0.22, 0.31, 0.5)),
-        Box("sofa-arm-e", (3.0, 3.85, 0.45), (3.2, 4.5, 0.65), (0.22, 0.31, 0.5)),
-        Box("tv-stand", (1.4, 6.55, 0.0), (2.8, 7.0, 0.5), (0.15, 0.15, 0.17)),
-        Box("tv", (1.5, 6.85, 0.5), (2.7, 6.95, 1.2), (0.05, 0.05, 0.06)),
+        # sofa along the west side facing east; people walking behind it are hidden from the knees down
+        Box("sofa-seat", (1.0, 3.0, 0.0), (1.9, 5.2, 0.45), (0.25, 0.35, 0.55)),
+        Box("sofa-back", (1.0, 3.0, 0.45), (1.25, 5.2, 0.9), (0.22, 0.31, 0.5)),
+        Box("sofa-arm-s", (1.25, 3.0, 0.45), (1.9, 3.2, 0.65), (0.22, 0.31, 0.5)),
+        Box("sofa-arm-n", (1.25, 5.0, 0.45), (1.9, 5.2, 0.65), (0.22, 0.31, 0.5)),
+        Box("tv-stand", (2.4, 6.55, 0.0), (3.8, 7.0, 0.5), (0.15, 0.15, 0.17)),
+        Box("tv", (2.5, 6.85, 0.5), (3.7, 6.95, 1.2), (0.05, 0.05, 0.06)),
         Box("bookshelf", (0.0, 0.8, 0.0), (0.4, 2.2, 1.8), wood),
-        Box("table-top", (3.8, 4.6, 0.72), (5.0, 5.6, 0.77), wood),
+        Box("table-top", (4.0, 4.9, 0.72), (5.2, 5.9, 0.77), wood),
         *[Box(f"table-leg{i}", (x, y, 0.0), (x + 0.06, y + 0.06, 0.72), wood)
-          for i, (x, y) in enumerate(((3.82, 4.62), (4.92, 4.62), (3.82, 5.52), (4.92, 5.52)))],
+          for i, (x, y) in enumerate(((4.02, 4.92), (5.12, 4.92), (4.02, 5.82), (5.12, 5.82)))],
         Box("counter", (8.3, 0.5, 0.0), (9.0, 3.0, 0.9), (0.7, 0.7, 0.72)),
         Box("bed", (7.0, 5.1, 0.0), (9.0, 7.0, 0.5), (0.75, 0.6, 0.6)),
     ]
     seats: dict[str, Seat] = {}
     chair_colour = (0.45, 0.28, 0.15)
-    for name, x, y, yaw in (("chair-w", 3.45, 5.1, 0.0), ("chair-e", 5.35, 5.1, np.pi),
-                            ("chair-s", 4.4, 4.25, np.pi / 2), ("chair-n", 4.4, 5.95, -np.pi / 2)):
+    for name, x, y, yaw in (("chair-w", 3.65, 5.4, 0.0), ("chair-e", 5.55, 5.4, np.pi),
+                            ("chair-s", 4.6, 4.55, np.pi / 2), ("chair-n", 4.6, 6.25, -np.pi / 2)):
         parts, seat = _chair(name, x, y, yaw, chair_colour)
         boxes += parts
         seats[name] = seat
-    seats["sofa-left"] = Seat("sofa-left", 1.7, 4.15, 0.45, np.pi / 2)
-    seats["sofa-right"] = Seat("sofa-right", 2.5, 4.15, 0.45, np.pi / 2)
+    seats["sofa-left"] = Seat("sofa-left", 1.5, 4.6, 0.45, 0.0)
+    seats["sofa-right"] = Seat("sofa-right", 1.5, 3.6, 0.45, 0.0)
     places = {
-        "door": (6.06, 4.2), "bedroom": (7.6, 3.8), "kitchen": (7.5, 1.5), "tv": (3.6, 6.2),
-        "window": (0.8, 5.2), "hall": (4.4, 2.2), "shelf": (1.0, 1.5), "centre": (3.0, 2.6),
+        "door": (6.06, 4.2), "bedroom": (7.6, 3.8), "kitchen": (7.5, 1.5), "tv": (3.1, 6.2),
+        "window": (0.6, 6.2), "hall": (4.4, 2.2), "shelf": (1.0, 1.5), "centre": (2.8, 3.8),
     }
     return Apartment((0.0, 0.0, 0.0), (9.0, 7.0, 2.6), boxes, seats, places)

@@ -91,10 +91,11 @@ class Walker:
     def _blocked(self, p: np.ndarray) -> bool:
         return any(np.hypot(p[0] - x, p[1] - y) < r + WALK_RADIUS for x, y, r in self.avoid)
 
-    def _walk_to(self, goal: np.ndarray) -> None:
+    def _walk_to(self, goal: np.ndarray, path: np.ndarray | None = None) -> None:
         if np.linalg.norm(goal - self._pos) < 0.05:
             return
-        path = self.apartment.plan(self._pos, goal, WALK_RADIUS)
+        if path is None:
+            path = self.apartment.plan(self._pos, goal, WALK_RADIUS)
         cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
         speed = self.speed * float(self.rng.uniform(0.85, 1.15))
         seg = _Segment(self._t, self._t + cum[-1] / speed, path, cum, self._yaw, "walking", 0.45, self._dist)
@@ -111,13 +112,18 @@ class Walker:
             raise KeyError(f"unknown place {target!r}")
         return np.asarray(target, dtype=np.float64)
 
-    def _random_goal(self) -> np.ndarray:
+    def _random_goal(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """A reachable random goal in a roaming region and the path to it (None: stay)."""
         region = self.roam_regions[int(self.rng.integers(len(self.roam_regions)))]
         for _ in range(200):
             p = self.apartment.random_free_point(self.rng, region, WALK_RADIUS + 0.05)
-            if not self._blocked(p) and np.linalg.norm(p - self._pos) > 1.0:
-                return p
-        return self._pos.copy()
+            if self._blocked(p) or np.linalg.norm(p - self._pos) <= 1.0:
+                continue
+            try:
+                return p, self.apartment.plan(self._pos, p, WALK_RADIUS)
+            except ValueError:  # in a pocket the walker cannot reach
+                continue
+        return self._pos.copy(), None
 
     def _next(self) -> None:
         """Append the segments of the next action (or of one roaming leg)."""
@@ -131,7 +137,7 @@ class Walker:
                 self._queue.pop(0)
                 self._roam_until = None
                 return
-            self._walk_to(self._random_goal())
+            self._walk_to(*self._random_goal())
             self._stand(float(self.rng.uniform(0.5, 3.0)))
             return
         self._queue.pop(0)
@@ -146,7 +152,7 @@ class Walker:
             self._dress.append((self._t, int(act.target)))  # type: ignore[call-overload]
         elif act.kind == "sit":
             seat = self.apartment.seats[str(act.target)]
-            self._walk_to(self._approach(seat.x, seat.y, seat.yaw))
+            self._approach(seat.x, seat.y, seat.yaw)
             self._yaw = seat.yaw
             self._stand(0.6)
             stand_pos = self._pos.copy()
@@ -157,13 +163,19 @@ class Walker:
         else:
             raise ValueError(f"unknown action {act.kind!r}")
 
-    def _approach(self, x: float, y: float, yaw: float) -> np.ndarray:
-        """A free standing point next to a seat: in front, else beside, else behind it."""
+    def _approach(self, x: float, y: float, yaw: float) -> None:
+        """Walk to a free, reachable standing point next to a seat: in front, else beside, else behind it."""
         for turn in (0.0, np.pi / 2, -np.pi / 2, np.pi):
-            p = np.array([x + 0.65 * np.cos(yaw + turn), y + 0.65 * np.sin(yaw + turn)])
-            if self.apartment.clearance_ok(p, WALK_RADIUS)[0]:
-                return p
-        raise ValueError(f"no free point next to the seat at ({x:.2f}, {y:.2f})")
+            p = np.array([x + 0.75 * np.cos(yaw + turn), y + 0.75 * np.sin(yaw + turn)])
+            if not self.apartment.clearance_ok(p, WALK_RADIUS)[0]:
+                continue
+            try:
+                path = self.apartment.plan(self._pos, p, WALK_RADIUS)
+            except ValueError:
+                continue
+            self._walk_to(p, path)
+            return
+        raise ValueError(f"no reachable free point next to the seat at ({x:.2f}, {y:.2f})")
 
     def _extend(self, t: float) -> None:
         guard = 0

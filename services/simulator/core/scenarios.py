@@ -57,8 +57,8 @@ def _robot(trajectory: Callable[[float], tuple[float, float, float]], head: Head
     return Robot(trajectory, head, odo)
 
 
-_STILL_POSE = (3.0, 0.9, np.pi / 2)
-_STARTS = [(1.0, 5.2), (4.2, 3.0), (7.2, 2.5)]
+_STILL_POSE = (3.0, 0.6, np.pi / 2)
+_STARTS = [(0.6, 5.6), (4.2, 3.0), (7.2, 2.5)]
 
 
 def _still(rng: np.random.Generator, apt: Apartment, alike: bool, head: HeadMotion | None = None) -> World:
@@ -83,14 +83,14 @@ def _moving_base(rng: np.random.Generator, apt: Apartment, alike: bool) -> World
 
 
 def _chairs(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
-    pose = (2.4, 1.4, float(np.arctan2(5.1 - 1.4, 4.4 - 2.4)))
+    pose = (2.6, 1.0, float(np.arctan2(4.8 - 1.0, 3.4 - 2.6)))
     plans = [
         [Action("sit", "chair-w", 8.0), Action("goto", "hall"), Action("sit", "chair-e", 9.0), Action("roam")],
         [Action("sit", "chair-s", 6.0), Action("goto", "window"), Action("sit", "chair-n", 8.0), Action("roam")],
         [Action("goto", "centre"), Action("sit", "sofa-right", 6.0), Action("wait", seconds=3.0),
          Action("sit", "chair-w", 10.0), Action("roam")],
     ]
-    starts = [(3.0, 6.2), (5.2, 3.2), (1.0, 2.6)]
+    starts = [(3.0, 6.2), (5.2, 3.2), (0.6, 2.6)]
     walkers = _walkers(rng, apt, plans, starts, alike, avoid=[(pose[0], pose[1], 0.5)], regions=[LIVING])
     return World(apt, walkers, [1, 2, 3], _robot(static_trajectory(*pose), HeadMotion(tilt0=0.15), rng), False, 52.2)
 
@@ -98,7 +98,7 @@ def _chairs(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
 def _following(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
     tour = [Action("goto", p) for p in ("hall", "tv", "window", "centre", "door", "bedroom", "kitchen", "door", "shelf")]
     plans = [[Action("wait", seconds=2.0), *tour, Action("roam")], [Action("roam")], [Action("roam")]]
-    starts = [(3.0, 2.6), (1.0, 5.2), (5.0, 6.2)]
+    starts = [(3.0, 2.6), (0.6, 5.6), (2.8, 5.6)]
     walkers = _walkers(rng, apt, plans, starts, alike)
     target = walkers[0]
     follow = follow_trajectory(lambda t: _xy(target, t), (3.0, 0.9, np.pi / 2))
@@ -112,12 +112,12 @@ def _xy(walker: Walker, t: float) -> np.ndarray:
 
 def _clothes_in_view(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
     plans = [
-        [Action("goto", (2.6, 2.8)), Action("turn", -np.pi / 2), Action("wait", seconds=3.0), Action("dress", 1),
-         Action("wait", seconds=3.0), Action("roam", seconds=20.0), Action("goto", (3.6, 2.6)), Action("wait", seconds=2.0),
+        [Action("goto", (2.8, 3.8)), Action("turn", -np.pi / 2), Action("wait", seconds=3.0), Action("dress", 1),
+         Action("wait", seconds=3.0), Action("roam", seconds=20.0), Action("goto", (2.9, 4.4)), Action("wait", seconds=2.0),
          Action("dress", 0), Action("wait", seconds=2.0), Action("roam")],
         [Action("roam")],
     ]
-    walkers = _walkers(rng, apt, plans, [(1.2, 5.0), (5.3, 6.3)], alike, per_person=2,
+    walkers = _walkers(rng, apt, plans, [(0.6, 5.6), (2.7, 5.0)], alike, per_person=2,
                        avoid=[(_STILL_POSE[0], _STILL_POSE[1], 0.5)], regions=[LIVING])
     return World(apt, walkers, [1, 2], _robot(static_trajectory(*_STILL_POSE), HeadMotion(), rng), False, 68.0)
 
@@ -129,7 +129,7 @@ def _clothes_out_of_view(rng: np.random.Generator, apt: Apartment, alike: bool) 
         [Action("roam", seconds=25.0), Action("goto", "kitchen"), Action("wait", seconds=4.0), Action("dress", 1),
          Action("goto", "tv"), Action("roam")],
     ]
-    walkers = _walkers(rng, apt, plans, [(1.2, 5.0), (5.3, 6.3)], alike, per_person=2,
+    walkers = _walkers(rng, apt, plans, [(0.6, 5.6), (2.7, 5.0)], alike, per_person=2,
                        avoid=[(_STILL_POSE[0], _STILL_POSE[1], 0.5)], regions=[LIVING])
     return World(apt, walkers, [1, 2], _robot(static_trajectory(*_STILL_POSE), HeadMotion(), rng), False, 56.7)
 

@@ -81,13 +81,18 @@ def loop_trajectory(apartment: Apartment, waypoints: list[tuple[float, float]], 
 
 
 def follow_trajectory(target: Callable[[float], np.ndarray], start: tuple[float, float, float],
-                      gap: float = 1.4, max_speed: float = 0.8, dt: float = 0.05) -> BaseTrajectory:
+                      gap: float = 2.2, max_speed: float = 1.0, dt: float = 0.05) -> BaseTrajectory:
     """Follow the trail of ``target(t) -> (2,)`` (which starts with the segment from ``start`` to the
-    target), staying ``gap`` metres behind along the trail, at most ``max_speed``, facing the target.
+    target), ``gap`` metres behind along the trail and never closer than ``gap`` in a straight line,
+    at most ``max_speed``, facing the target when near it and the trail ahead otherwise.
     The trail is collision-free because the target walked it."""
     trail = [np.asarray(start[:2], float), np.asarray(target(0.0), float)]
     cum = [0.0, float(np.linalg.norm(trail[1] - trail[0]))]
     s_robot = [0.0]  # arclength reached at t = k * dt
+
+    def at(s: float) -> np.ndarray:
+        c, tr = np.asarray(cum), np.asarray(trail)
+        return np.array([np.interp(s, c, tr[:, 0]), np.interp(s, c, tr[:, 1])])
 
     def grow(t: float) -> None:
         while (len(s_robot) - 1) * dt < t + dt:
@@ -95,14 +100,19 @@ def follow_trajectory(target: Callable[[float], np.ndarray], start: tuple[float,
             p = np.asarray(target(k * dt), float)
             cum.append(cum[-1] + float(np.linalg.norm(p - trail[-1])))
             trail.append(p)
-            s_robot.append(max(s_robot[-1], min(cum[-1] - gap, s_robot[-1] + max_speed * dt)))
+            s_next = max(s_robot[-1], min(cum[-1] - gap, s_robot[-1] + max_speed * dt))
+            if np.linalg.norm(at(s_next) - p) < gap:  # the target turned back: wait for it to move away
+                s_next = s_robot[-1]
+            s_robot.append(s_next)
 
     def pose(t: float) -> tuple[float, float, float]:
         grow(t)
         s = float(np.interp(t, np.arange(len(s_robot)) * dt, s_robot))
-        c, tr = np.asarray(cum), np.asarray(trail)
-        p = np.array([np.interp(s, c, tr[:, 0]), np.interp(s, c, tr[:, 1])])
-        goal = np.asarray(target(t), float) - p
+        p = at(s)
+        # face the trail 1 m ahead (through doors, not through walls) unless the target is close
+        target_now = np.asarray(target(t), float)
+        ahead = target_now if np.linalg.norm(target_now - p) < gap + 0.3 else at(min(s + 1.0, cum[-1]))
+        goal = ahead - p
         yaw = float(np.arctan2(goal[1], goal[0])) if np.linalg.norm(goal) > 0.1 else start[2]
         return float(p[0]), float(p[1]), yaw
 

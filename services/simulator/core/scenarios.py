@@ -96,11 +96,12 @@ def _chairs(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
 
 
 def _following(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
-    tour = [Action("goto", p) for p in ("hall", "tv", "window", "centre", "door", "bedroom", "kitchen", "door", "shelf")]
+    tour = [Action("goto", p) for p in ("hall", "door", "bedroom", "kitchen", "door", "centre", "tv", "window", "shelf")]
     plans = [[Action("wait", seconds=2.0), *tour, Action("roam")], [Action("roam")], [Action("roam")]]
     starts = [(3.0, 2.6), (0.6, 5.6), (2.8, 5.6)]
     walkers = _walkers(rng, apt, plans, starts, alike)
     target = walkers[0]
+    target.speed = 0.65  # a person being followed walks calmly
     follow = follow_trajectory(lambda t: _xy(target, t), (3.0, 0.9, np.pi / 2))
     return World(apt, walkers, [1, 2, 3], _robot(follow, HeadMotion(tilt0=0.1), rng), False, 39.0)
 

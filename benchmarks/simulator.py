@@ -62,7 +62,7 @@ def _measure(scenario: str, width: int, height: int, frames: int) -> tuple[np.nd
 
 def _hog() -> cv2.HOGDescriptor:
     hog = cv2.HOGDescriptor()
-    hog.setSVMDetector(cv2.HOGDescriptor_getDefaultPeopleDetector())
+    hog.setSVMDetector(cv2.HOGDescriptor.getDefaultPeopleDetector())
     return hog
 
 
@@ -72,14 +72,25 @@ def _detect(hog: cv2.HOGDescriptor, rgb: np.ndarray) -> np.ndarray:
 
 
 def _hit(rects: np.ndarray, u: float, v: float) -> bool:
-    return bool(np.any((rects[:, 0] <= u) & (u <= rects[:, 0] + rects[:, 2]) & (rects[:, 1] <= v) & (v <= rects[:, 1] + rects[:, 3])))
+    return bool(
+        np.any(
+            (rects[:, 0] <= u)
+            & (u <= rects[:, 0] + rects[:, 2])
+            & (rects[:, 1] <= v)
+            & (v <= rects[:, 1] + rects[:, 3])
+        )
+    )
 
 
 def hog_controlled() -> dict[float, float]:
     """Hit rate per distance for one person in the open (camera 1.23 m high, tilted 0.12 rad down)."""
     hog, intr = _hog(), Intrinsics.default(640, 480)
     renderer = Renderer(default_apartment(), intr, seed=0)
-    cam = planar_pose(0.6, 2.0, 0.0) @ make_pose(rot_y(0.12), (0.05, 0, 1.15)) @ make_pose(OPTICAL_FROM_BODY, (0.06, 0, 0.08))
+    cam = (
+        planar_pose(0.6, 2.0, 0.0)
+        @ make_pose(rot_y(0.12), (0.05, 0, 1.15))
+        @ make_pose(OPTICAL_FROM_BODY, (0.06, 0, 0.08))
+    )
     rates = {}
     for dist in (2.5, 3.0, 4.0, 5.0):
         hits = []
@@ -119,16 +130,23 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=60)
     parser.add_argument("--no-hog", action="store_true", help="skip the HOG hit rates")
     args = parser.parse_args()
-    print(f"machine: {platform.processor() or platform.machine()}, {platform.python_implementation()} "
-          f"{platform.python_version()}, numpy {np.__version__}")
-    print("| scenario | resolution | render+GT median ms | p95 ms | frames/s | published frame median ms | p95 ms | frames/s |")
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {platform.python_implementation()} "
+        f"{platform.python_version()}, numpy {np.__version__}"
+    )
+    print(
+        "| scenario | resolution | render+GT median ms | p95 ms | frames/s "
+        "| published frame median ms | p95 ms | frames/s |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for scenario in ("still", "moving-base"):
         for width, height in ((320, 240), (640, 480)):
             core, full = _measure(scenario, width, height, args.frames)
-            print(f"| {scenario} | {width}x{height} | {np.median(core):.1f} | {np.percentile(core, 95):.1f} | "
-                  f"{1e3 / np.median(core):.0f} | {np.median(full):.1f} | {np.percentile(full, 95):.1f} | "
-                  f"{1e3 / np.median(full):.0f} |")
+            print(
+                f"| {scenario} | {width}x{height} | {np.median(core):.1f} | {np.percentile(core, 95):.1f} | "
+                f"{1e3 / np.median(core):.0f} | {np.median(full):.1f} | {np.percentile(full, 95):.1f} | "
+                f"{1e3 / np.median(full):.0f} |"
+            )
     if args.no_hog:
         return
     print("\nHOG (OpenCV default people detector), one person in the open, 640x480:")

@@ -58,9 +58,16 @@ def test_wall_depth_is_the_plane_distance_with_quadratic_noise() -> None:
 def test_sphere_depth_and_silhouette_follow_the_pinhole_model() -> None:
     intr = Intrinsics.default(640, 480)
     r, dist = 0.3, 3.0
-    e = Ellipsoids(centres=np.array([[4.0 + dist, 3.5, 1.3]]), inv=np.eye(3)[None] / r, radius=np.array([r]),
-                   colour=np.array([[0.8, 0.1, 0.1]]), stripe=np.zeros((1, 3)), stripe_period=np.zeros(1),
-                   owner=np.zeros(1, np.int32), tips=np.array([[0, 0, r]]))
+    e = Ellipsoids(
+        centres=np.array([[4.0 + dist, 3.5, 1.3]]),
+        inv=np.eye(3)[None] / r,
+        radius=np.array([r]),
+        colour=np.array([[0.8, 0.1, 0.1]]),
+        stripe=np.zeros((1, 3)),
+        stripe_period=np.zeros(1),
+        owner=np.zeros(1, np.int32),
+        tips=np.array([[0, 0, r]]),
+    )
     out = Renderer(_empty_apartment(), intr, seed=0, depth_noise=False).render(_camera(4.0, 3.5, 0.0, z=1.3), e)
     cy, cx = 240, 320  # pixel centre (319.5, 239.5) is between these
     assert out.depth_true[cy, cx] == pytest.approx(dist - r, abs=2e-3)
@@ -126,16 +133,19 @@ def test_people_leave_the_view_and_come_back() -> None:
     counted = np.array([[p.counted for p in sim.frame(k).people] for k in range(0, 110)])
     first = counted[:, 0]
     gone = np.flatnonzero(~first)
-    assert first.any() and gone.size > 0 and first[gone[0]:].any()
+    assert first.any() and gone.size > 0 and first[gone[0] :].any()
 
 
 def _still_world(positions: list[tuple[float, float]], plans: list[list[Action]] | None = None) -> World:
     apt = default_apartment()
     rng = np.random.default_rng(0)
     plans = plans or [[Action("wait", seconds=100.0)] for _ in positions]
-    walkers = [Walker(apt, p, -np.pi / 2, 1.75, [OUTFITS[i]], plan, rng) for i, (p, plan) in enumerate(zip(positions, plans))]
-    robot = Robot(static_trajectory(3.0, 0.9, np.pi / 2), HeadMotion(tilt0=0.12),
-                  Odometry(static_trajectory(3.0, 0.9, np.pi / 2)))
+    walkers = [
+        Walker(apt, p, -np.pi / 2, 1.75, [OUTFITS[i]], plan, rng) for i, (p, plan) in enumerate(zip(positions, plans))
+    ]
+    robot = Robot(
+        static_trajectory(3.0, 0.9, np.pi / 2), HeadMotion(tilt0=0.12), Odometry(static_trajectory(3.0, 0.9, np.pi / 2))
+    )
     return World(apt, walkers, list(range(1, len(positions) + 1)), robot, False, 100.0)
 
 
@@ -167,16 +177,21 @@ def test_hog_finds_standing_people_at_two_to_five_metres() -> None:
     """Measured: 100 % of frontal, back and oblique views at 3-5 m; side views are harder for HOG."""
     cv2 = pytest.importorskip("cv2")
     hog = cv2.HOGDescriptor()
-    hog.setSVMDetector(cv2.HOGDescriptor_getDefaultPeopleDetector())
+    hog.setSVMDetector(cv2.HOGDescriptor.getDefaultPeopleDetector())
     intr = Intrinsics.default(640, 480)
     renderer = Renderer(default_apartment(), intr, seed=0)
-    cam = planar_pose(0.6, 2.0, 0.0) @ make_pose(rot_y(0.12), (0.05, 0, 1.15)) @ make_pose(OPTICAL_FROM_BODY, (0.06, 0, 0.08))
+    cam = (
+        planar_pose(0.6, 2.0, 0.0)
+        @ make_pose(rot_y(0.12), (0.05, 0, 1.15))
+        @ make_pose(OPTICAL_FROM_BODY, (0.06, 0, 0.08))
+    )
     hits, cases = 0, 0
     for dist, facing, outfit in ((3.0, np.pi, 0), (4.0, 0.0, 3), (5.0, np.pi - 0.8, 4), (3.5, np.pi, 1)):
         pose = PersonPose(0.6 + dist, 2.0, facing)
         out = renderer.render(cam, body_ellipsoids(1.75, pose, OUTFITS[outfit], 0))
-        rects, _ = hog.detectMultiScale(cv2.cvtColor(out.rgb, cv2.COLOR_RGB2BGR), winStride=(8, 8), padding=(8, 8),
-                                        scale=1.05)
+        rects, _ = hog.detectMultiScale(
+            cv2.cvtColor(out.rgb, cv2.COLOR_RGB2BGR), winStride=(8, 8), padding=(8, 8), scale=1.05
+        )
         cases += 1
         hits += any(x <= intr.cx <= x + w and y <= intr.cy <= y + h for x, y, w, h in rects)
     assert hits >= 3, f"HOG found {hits} of {cases} standing people"

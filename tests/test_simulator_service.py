@@ -71,7 +71,12 @@ def test_published_messages_share_the_frame_header_and_compose_to_the_camera_pos
         chain = {(i.parent_frame, i.child_frame): _pose(i) for i in tf.transforms} | static_tfs
         # the head moves in this scenario: its joint is a dynamic transform
         assert ("base_link", "head_link") in {(i.parent_frame, i.child_frame) for i in tf.transforms}
-        cam = chain[("map", "odom")] @ chain[("odom", "base_link")] @ chain[("base_link", "head_link")] @ chain[("head_link", "camera")]
+        cam = (
+            chain[("map", "odom")]
+            @ chain[("odom", "base_link")]
+            @ chain[("base_link", "head_link")]
+            @ chain[("head_link", "camera")]
+        )
         truth = service.stream.simulation.frame(seq).map_camera
         np.testing.assert_allclose(cam, truth, atol=1e-6)
         assert {p.id for p in gt.people} == {1, 2, 3}
@@ -84,9 +89,13 @@ def test_a_static_head_is_a_static_transform(memory_bus: MemoryBus) -> None:
     dynamic = t.subscribe(KEYS.tf(), TransformBatch, RELIABLE)
     SimulatorService(memory_bus.transport(), KEYS, _config(scenario="still")).step()
     assert {(i.parent_frame, i.child_frame) for i in static.recv(timeout=5.0).msg.transforms} == {
-        ("base_link", "head_link"), ("head_link", "camera")}
+        ("base_link", "head_link"),
+        ("head_link", "camera"),
+    }
     assert {(i.parent_frame, i.child_frame) for i in dynamic.recv(timeout=5.0).msg.transforms} == {
-        ("map", "odom"), ("odom", "base_link")}
+        ("map", "odom"),
+        ("odom", "base_link"),
+    }
 
 
 def test_run_ends_after_the_duration(memory_bus: MemoryBus) -> None:
@@ -142,8 +151,12 @@ def test_every_scenario_runs(name: str) -> None:
 
 def test_clothes_change_keeps_the_id() -> None:
     stream = SimulatedStream(_config(scenario="changing-clothes-in-view", duration_s=30.0, fps=2.0), KEYS)
-    outfits = {(p.id, p.outfit, p.clothing) for seq in range(0, 60, 2)
-               for p in SimulatedStream.groundtruth_of(stream.messages(seq)[1]).people if p.id == 1}
+    outfits = {
+        (p.id, p.outfit, p.clothing)
+        for seq in range(0, 60, 2)
+        for p in SimulatedStream.groundtruth_of(stream.messages(seq)[1]).people
+        if p.id == 1
+    }
     assert {o for _, o, _ in outfits} == {0, 1} and len({c for _, _, c in outfits}) == 2
 
 
@@ -170,8 +183,27 @@ def test_output_writes_an_mcap_that_describes_itself(tmp_path: Path, capsys: pyt
     from mcap.reader import make_reader
 
     out, gt = tmp_path / "run.mcap", tmp_path / "gt.csv"
-    code = cli_main(["simulate", "--scenario", "chairs", "--duration", "1", "--fps", "5", "--width", "64", "--height", "48",
-                     "--start-ns", str(START), "--output", str(out), "--gt-csv", str(gt)])
+    code = cli_main(
+        [
+            "simulate",
+            "--scenario",
+            "chairs",
+            "--duration",
+            "1",
+            "--fps",
+            "5",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--start-ns",
+            str(START),
+            "--output",
+            str(out),
+            "--gt-csv",
+            str(gt),
+        ]
+    )
     assert code == 0 and "wrote" in capsys.readouterr().out
     counts: dict[str, int] = {}
     with out.open("rb") as f:
@@ -190,7 +222,9 @@ def test_list_snapshot_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture[
     listing = capsys.readouterr().out
     assert all(name in listing for name in SCENARIOS)
     png = tmp_path / "snap.png"
-    assert cli_main(["simulate", "--scenario", "still", "--width", "160", "--height", "120", "--snapshot", str(png)]) == 0
+    assert (
+        cli_main(["simulate", "--scenario", "still", "--width", "160", "--height", "120", "--snapshot", str(png)]) == 0
+    )
     import cv2
 
     assert cv2.imread(str(png)).shape == (120, 320, 3)

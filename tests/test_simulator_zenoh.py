@@ -17,15 +17,39 @@ pytestmark = pytest.mark.zenoh
 KEYS = Keys(robot="simproc")
 
 
-def test_simulate_process_publishes_frames_and_groundtruth(router: RouterProcess,
-                                                           zenoh_client: Callable[[], ZenohTransport]) -> None:
+def test_simulate_process_publishes_frames_and_groundtruth(
+    router: RouterProcess, zenoh_client: Callable[[], ZenohTransport]
+) -> None:
     t = zenoh_client()
     frames = t.subscribe(KEYS.frames("head"), RGBDFrame, FRAMES)
     gt = t.subscribe(KEYS.groundtruth(), PeopleGroundTruth, RELIABLE)
     proc = subprocess.Popen(
-        [sys.executable, "-m", "services", "simulate", "--scenario", "still", "--duration", "0", "--fps", "10",
-         "--width", "96", "--height", "72", "--robot", "simproc", "--mode", "client", "--connect", router.endpoint],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        [
+            sys.executable,
+            "-m",
+            "services",
+            "simulate",
+            "--scenario",
+            "still",
+            "--duration",
+            "0",
+            "--fps",
+            "10",
+            "--width",
+            "96",
+            "--height",
+            "72",
+            "--robot",
+            "simproc",
+            "--mode",
+            "client",
+            "--connect",
+            router.endpoint,
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         got_frame = frames.recv(timeout=60.0)
         got_gt = gt.recv(timeout=60.0)

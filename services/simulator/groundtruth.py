@@ -19,8 +19,11 @@ GT_COLUMNS = ("frame", "id", "x", "y", "z")
 
 def groundtruth_rows(msg: PeopleGroundTruth) -> list[tuple[int, int, float, float, float]]:
     """(frame, id, x, y, z) of the counted people of one message."""
-    return [(msg.header.seq, p.id, float(p.position[0]), float(p.position[1]), float(p.position[2]))
-            for p in msg.people if p.counted]
+    return [
+        (msg.header.seq, p.id, float(p.position[0]), float(p.position[1]), float(p.position[2]))
+        for p in msg.people
+        if p.counted
+    ]
 
 
 class GroundTruthCsv:

@@ -37,24 +37,45 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--list", action="store_true", help="list the scenarios and exit")
     parser.add_argument("--scenario", default=None, help="scenario name (default still; see --list)")
     parser.add_argument("--seed", type=int, default=None, help="random seed (default 0): same seed, same run")
-    parser.add_argument("--duration", type=float, default=None, metavar="S",
-                        help="simulated seconds (default: the scenario's length; 0 = until Ctrl-C)")
+    parser.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="simulated seconds (default: the scenario's length; 0 = until Ctrl-C)",
+    )
     parser.add_argument("--fps", type=float, default=None, help="frames per simulated second (default 15)")
     parser.add_argument("--width", type=int, default=None, help="image width (default 640)")
     parser.add_argument("--height", type=int, default=None, help="image height (default 480)")
     parser.add_argument("--camera", default=None, help="camera name in keys and headers (default head)")
     speed = parser.add_mutually_exclusive_group()
     speed.add_argument("--rate", type=float, default=None, help="speed relative to real time (default 1)")
-    speed.add_argument("--max", dest="max_speed", action="store_true", default=None,
-                       help="publish each frame once the detector has answered the previous one")
+    speed.add_argument(
+        "--max",
+        dest="max_speed",
+        action="store_true",
+        default=None,
+        help="publish each frame once the detector has answered the previous one",
+    )
     parser.add_argument("--alike", action="store_true", default=None, help="dress the first two people alike")
-    parser.add_argument("--min-visible", type=float, default=None, metavar="F",
-                        help="ground-truth rule: share of the body that must be seen (default 0.25)")
-    parser.add_argument("--no-depth-noise", dest="depth_noise", action="store_false", default=None,
-                        help="exact depth (for debugging)")
+    parser.add_argument(
+        "--min-visible",
+        type=float,
+        default=None,
+        metavar="F",
+        help="ground-truth rule: share of the body that must be seen (default 0.25)",
+    )
+    parser.add_argument(
+        "--no-depth-noise", dest="depth_noise", action="store_false", default=None, help="exact depth (for debugging)"
+    )
     parser.add_argument("--start-ns", type=int, default=None, help="stamp of frame 0 (default: now)")
-    parser.add_argument("--settings", dest="config_file", default=None, metavar="FILE",
-                        help="YAML/JSON file with a 'simulator' section (--config is the Zenoh config)")
+    parser.add_argument(
+        "--settings",
+        dest="config_file",
+        default=None,
+        metavar="FILE",
+        help="YAML/JSON file with a 'simulator' section (--config is the Zenoh config)",
+    )
     out = parser.add_argument_group("files instead of (or besides) publishing")
     out.add_argument("--output", type=Path, default=None, help="write an MCAP recording instead of publishing")
     out.add_argument("--gt-csv", type=Path, default=None, help="write the ground truth as frame,id,x,y,z")
@@ -65,12 +86,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _config(args: argparse.Namespace) -> SimulatorConfig:
-    overrides = {name: getattr(args, name) for name in ("scenario", "seed", "fps", "width", "height", "camera", "rate",
-                                                        "max_speed", "alike", "min_visible", "depth_noise", "start_ns")}
+    overrides = {
+        name: getattr(args, name)
+        for name in (
+            "scenario",
+            "seed",
+            "fps",
+            "width",
+            "height",
+            "camera",
+            "rate",
+            "max_speed",
+            "alike",
+            "min_visible",
+            "depth_noise",
+            "start_ns",
+        )
+    }
     overrides["duration_s"] = args.duration
     try:
-        return load_config(SimulatorConfig, args.config_file, env_prefix="PERCEPTION_SIMULATOR", overrides=overrides,
-                           section="simulator")
+        return load_config(
+            SimulatorConfig,
+            args.config_file,
+            env_prefix="PERCEPTION_SIMULATOR",
+            overrides=overrides,
+            section="simulator",
+        )
     except ConfigError as exc:
         raise CliError(f"{exc} (see perception simulate --help and --list)") from exc
 
@@ -140,8 +181,14 @@ def _publish(config: SimulatorConfig, args: argparse.Namespace, gt: GroundTruthC
         service = SimulatorService(transport, keys, config, counters, gt_csv=gt)
         with Shutdown() as shutdown, ServiceRuntime("simulator", transport, keys, counters=counters) as runtime:
             runtime.watch(*service.publishers.values())
-            log.info("simulating %s at %gx%g, %g fps, %s", config.scenario, config.width, config.height, config.fps,
-                     "max speed" if config.max_speed else f"rate {config.rate:g}")
+            log.info(
+                "simulating %s at %gx%g, %g fps, %s",
+                config.scenario,
+                config.width,
+                config.height,
+                config.fps,
+                "max speed" if config.max_speed else f"rate {config.rate:g}",
+            )
             service.run(shutdown)
         service.close()
     finally:

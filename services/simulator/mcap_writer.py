@@ -38,16 +38,20 @@ class McapSink:
                 data = json.dumps(type(msg).model_json_schema()).encode()
                 self._schemas[name] = self._writer.register_schema(name=name, encoding="jsonschema", data=data)
             self._channels[key] = self._writer.register_channel(
-                topic=key, message_encoding="msgpack", schema_id=self._schemas[name],
-                metadata={"schema_name": name, "schema_version": str(msg.SCHEMA_VERSION)})
+                topic=key,
+                message_encoding="msgpack",
+                schema_id=self._schemas[name],
+                metadata={"schema_name": name, "schema_version": str(msg.SCHEMA_VERSION)},
+            )
         return self._channels[key]
 
     def write(self, key: str, msg: Message) -> None:
         """Append ``msg`` on channel ``key`` at its header stamp."""
         channel = self._channel(key, msg)
         stamp = msg.header.stamp_ns
-        self._writer.add_message(channel, log_time=stamp, data=encode(msg), publish_time=stamp,
-                                 sequence=msg.header.seq % 2**32)
+        self._writer.add_message(
+            channel, log_time=stamp, data=encode(msg), publish_time=stamp, sequence=msg.header.seq % 2**32
+        )
         self.counts[key] = self.counts.get(key, 0) + 1
 
     def close(self) -> None:

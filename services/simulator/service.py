@@ -23,8 +23,14 @@ class SimulatorService:
     """Publishes frame after frame of a scenario, in real time (``rate``) or, with
     ``max_speed``, each frame as soon as the detector has answered the previous one."""
 
-    def __init__(self, transport: Transport, keys: Keys, config: SimulatorConfig, counters: Counters | None = None,
-                 gt_csv: GroundTruthCsv | None = None) -> None:
+    def __init__(
+        self,
+        transport: Transport,
+        keys: Keys,
+        config: SimulatorConfig,
+        counters: Counters | None = None,
+        gt_csv: GroundTruthCsv | None = None,
+    ) -> None:
         self.transport = transport
         self.keys = keys
         self.config = config
@@ -38,8 +44,9 @@ class SimulatorService:
             keys.tf_static(): transport.publisher(keys.tf_static(), TransformBatch, RELIABLE),
             keys.groundtruth(): transport.publisher(keys.groundtruth(), PeopleGroundTruth, RELIABLE),
         }
-        self._detections = (transport.subscribe(keys.detections(config.camera), Detections, RELIABLE)
-                            if config.max_speed else None)
+        self._detections = (
+            transport.subscribe(keys.detections(config.camera), Detections, RELIABLE) if config.max_speed else None
+        )
 
     @property
     def done(self) -> bool:

@@ -24,8 +24,9 @@ class SimulatedStream:
         self.keys = keys
         self.world = build_world(config.scenario, config.seed, config.alike)
         self.intrinsics = Intrinsics.default(config.width, config.height)
-        self.simulation = Simulation(self.world, self.intrinsics, config.fps, config.seed, config.min_visible,
-                                     config.depth_noise)
+        self.simulation = Simulation(
+            self.world, self.intrinsics, config.fps, config.seed, config.min_visible, config.depth_noise
+        )
         self.start_ns = time.time_ns() if config.start_ns is None else config.start_ns
         duration = SCENARIOS[config.scenario].duration_s if config.duration_s is None else config.duration_s
         #: Number of frames to produce; None = until stopped.

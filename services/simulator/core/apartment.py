@@ -50,9 +50,15 @@ def _chair(name: str, x: float, y: float, yaw: float, colour: tuple[float, float
     bx, by = x + dx * (s - 0.03), y + dy * (s - 0.03)
     hx, hy = (0.03, s) if abs(dx) > 0.5 else (s, 0.03)
     back = Box(f"{name}-back", (bx - hx, by - hy, h), (bx + hx, by + hy, 0.95), colour)
-    legs = [Box(f"{name}-leg{i}", (x + sx * s - 0.03, y + sy * s - 0.03, 0.0),
-                (x + sx * s + 0.03, y + sy * s + 0.03, h - 0.05), (0.2, 0.2, 0.2))
-            for i, (sx, sy) in enumerate(((-0.85, -0.85), (0.85, -0.85), (-0.85, 0.85), (0.85, 0.85)))]
+    legs = [
+        Box(
+            f"{name}-leg{i}",
+            (x + sx * s - 0.03, y + sy * s - 0.03, 0.0),
+            (x + sx * s + 0.03, y + sy * s + 0.03, h - 0.05),
+            (0.2, 0.2, 0.2),
+        )
+        for i, (sx, sy) in enumerate(((-0.85, -0.85), (0.85, -0.85), (-0.85, 0.85), (0.85, 0.85)))
+    ]
     return [seat, back, *legs], Seat(name, x, y, h, yaw)
 
 
@@ -71,8 +77,9 @@ class Apartment:
     # ------------------------------------------------------------------ occupancy
     def footprints(self, min_height: float = 0.05) -> np.ndarray:
         """(N, 4) x0, y0, x1, y1 of every solid reaching below 2 m (walkers must avoid them)."""
-        return np.array([[b.lo[0], b.lo[1], b.hi[0], b.hi[1]] for b in self.boxes
-                         if b.hi[2] > min_height and b.lo[2] < 2.0])
+        return np.array(
+            [[b.lo[0], b.lo[1], b.hi[0], b.hi[1]] for b in self.boxes if b.hi[2] > min_height and b.lo[2] < 2.0]
+        )
 
     def clearance_ok(self, xy: np.ndarray, radius: float) -> np.ndarray:
         """(N,) bool: points (N, 2) at least ``radius`` from every footprint and inside the walls."""
@@ -103,8 +110,10 @@ class Apartment:
                 cols.append(idx[bx, by][ok])
                 w.append(np.full(int(ok.sum()), r * np.hypot(ox, oy)))
             rr, cc, ww = np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
-            graph = csr_matrix((np.concatenate([ww, ww]), (np.concatenate([rr, cc]), np.concatenate([cc, rr]))),
-                               shape=(nx * ny, nx * ny))
+            graph = csr_matrix(
+                (np.concatenate([ww, ww]), (np.concatenate([rr, cc]), np.concatenate([cc, rr]))),
+                shape=(nx * ny, nx * ny),
+            )
             self._grids[radius] = (free, graph)
         return self._grids[radius]
 
@@ -160,8 +169,9 @@ class Apartment:
             i = j
         return np.stack(out)
 
-    def random_free_point(self, rng: np.random.Generator, region: tuple[float, float, float, float],
-                          radius: float) -> np.ndarray:
+    def random_free_point(
+        self, rng: np.random.Generator, region: tuple[float, float, float, float], radius: float
+    ) -> np.ndarray:
         """A uniformly drawn point of ``region`` (x0, y0, x1, y1) that is ``radius`` clear."""
         for _ in range(1000):
             p = rng.uniform(region[:2], region[2:])
@@ -187,22 +197,34 @@ def default_apartment() -> Apartment:
         Box("tv", (2.5, 6.85, 0.5), (3.7, 6.95, 1.2), (0.05, 0.05, 0.06)),
         Box("bookshelf", (0.0, 0.8, 0.0), (0.4, 2.2, 1.8), wood),
         Box("table-top", (4.0, 4.9, 0.72), (5.2, 5.9, 0.77), wood),
-        *[Box(f"table-leg{i}", (x, y, 0.0), (x + 0.06, y + 0.06, 0.72), wood)
-          for i, (x, y) in enumerate(((4.02, 4.92), (5.12, 4.92), (4.02, 5.82), (5.12, 5.82)))],
+        *[
+            Box(f"table-leg{i}", (x, y, 0.0), (x + 0.06, y + 0.06, 0.72), wood)
+            for i, (x, y) in enumerate(((4.02, 4.92), (5.12, 4.92), (4.02, 5.82), (5.12, 5.82)))
+        ],
         Box("counter", (8.3, 0.5, 0.0), (9.0, 3.0, 0.9), (0.7, 0.7, 0.72)),
         Box("bed", (7.0, 5.1, 0.0), (9.0, 7.0, 0.5), (0.75, 0.6, 0.6)),
     ]
     seats: dict[str, Seat] = {}
     chair_colour = (0.45, 0.28, 0.15)
-    for name, x, y, yaw in (("chair-w", 3.65, 5.4, 0.0), ("chair-e", 5.55, 5.4, np.pi),
-                            ("chair-s", 4.6, 4.55, np.pi / 2), ("chair-n", 4.6, 6.25, -np.pi / 2)):
+    for name, x, y, yaw in (
+        ("chair-w", 3.65, 5.4, 0.0),
+        ("chair-e", 5.55, 5.4, np.pi),
+        ("chair-s", 4.6, 4.55, np.pi / 2),
+        ("chair-n", 4.6, 6.25, -np.pi / 2),
+    ):
         parts, seat = _chair(name, x, y, yaw, chair_colour)
         boxes += parts
         seats[name] = seat
     seats["sofa-left"] = Seat("sofa-left", 1.5, 4.6, 0.45, 0.0)
     seats["sofa-right"] = Seat("sofa-right", 1.5, 3.6, 0.45, 0.0)
     places = {
-        "door": (6.06, 4.2), "bedroom": (7.6, 3.8), "kitchen": (7.5, 1.5), "tv": (3.1, 6.2),
-        "window": (0.6, 6.2), "hall": (4.4, 2.2), "shelf": (1.0, 1.5), "centre": (2.8, 3.8),
+        "door": (6.06, 4.2),
+        "bedroom": (7.6, 3.8),
+        "kitchen": (7.5, 1.5),
+        "tv": (3.1, 6.2),
+        "window": (0.6, 6.2),
+        "hall": (4.4, 2.2),
+        "shelf": (1.0, 1.5),
+        "centre": (2.8, 3.8),
     }
     return Apartment((0.0, 0.0, 0.0), (9.0, 7.0, 2.6), boxes, seats, places)

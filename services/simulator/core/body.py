@@ -69,8 +69,12 @@ class Ellipsoids:
         if not items:
             z3 = np.zeros((0, 3))
             return Ellipsoids(z3, np.zeros((0, 3, 3)), np.zeros(0), z3, z3, np.zeros(0), np.zeros(0, np.int32), z3)
-        return Ellipsoids(*(np.concatenate([getattr(e, f) for e in items]) for f in
-                            ("centres", "inv", "radius", "colour", "stripe", "stripe_period", "owner", "tips")))
+        return Ellipsoids(
+            *(
+                np.concatenate([getattr(e, f) for e in items])
+                for f in ("centres", "inv", "radius", "colour", "stripe", "stripe_period", "owner", "tips")
+            )
+        )
 
     def sample_points(self, owner: int) -> np.ndarray:
         """(3 K, 3) points inside person ``owner``'s solids: each centre and 70 % towards both ends."""
@@ -79,7 +83,9 @@ class Ellipsoids:
         return np.concatenate([c, c + 0.7 * tip, c - 0.7 * tip])
 
 
-def _limb(joint: np.ndarray, direction_rot: np.ndarray, length: float, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _limb(
+    joint: np.ndarray, direction_rot: np.ndarray, length: float, radius: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Centre, rotation and radii of a limb hanging from ``joint`` along ``direction_rot @ (0, 0, -1)``."""
     centre = joint + direction_rot @ np.array([0.0, 0.0, -length / 2.0])
     return centre, direction_rot, np.array([radius, radius, length / 2.0 + radius * 0.3])
@@ -154,8 +160,14 @@ def body_ellipsoids(height: float, pose: PersonPose, clothing: Clothing, owner: 
     stripe = np.zeros((n, 3))
     period = np.zeros(n)
     tips = np.empty((n, 3))
-    slots = {"skin": clothing.skin, "hair": clothing.hair, "top": clothing.top, "bottom": clothing.bottom,
-             "shoes": clothing.shoes, "sleeve": clothing.top if clothing.long_sleeves else clothing.skin}
+    slots = {
+        "skin": clothing.skin,
+        "hair": clothing.hair,
+        "top": clothing.top,
+        "bottom": clothing.bottom,
+        "shoes": clothing.shoes,
+        "sleeve": clothing.top if clothing.long_sleeves else clothing.skin,
+    }
     for i, (name, c, r, radii, slot) in enumerate(parts):
         rot = yaw_rot @ r
         centres[i] = origin + yaw_rot @ c

@@ -85,8 +85,18 @@ class Walker:
         self._t = seg.t1
 
     def _stand(self, seconds: float, posture: str = "standing", seat_height: float = 0.45) -> None:
-        self._push(_Segment(self._t, self._t + seconds, self._pos[None, :].copy(), np.zeros(1), self._yaw,
-                            posture, seat_height, self._dist))
+        self._push(
+            _Segment(
+                self._t,
+                self._t + seconds,
+                self._pos[None, :].copy(),
+                np.zeros(1),
+                self._yaw,
+                posture,
+                seat_height,
+                self._dist,
+            )
+        )
 
     def _blocked(self, p: np.ndarray) -> bool:
         return any(np.hypot(p[0] - x, p[1] - y) < r + WALK_RADIUS for x, y, r in self.avoid)
@@ -195,8 +205,18 @@ class Walker:
         dress = self._dress[max(0, bisect.bisect_right([d[0] for d in self._dress], t) - 1)][1]
         if seg.posture != "walking":
             p = seg.path[0]
-            return PersonPose(float(p[0]), float(p[1]), seg.yaw, "sitting" if seg.posture == "sitting" else "standing",
-                              phase=2 * np.pi * seg.dist0 / _STRIDE, seat_height=seg.seat_height), dress, np.zeros(2)
+            return (
+                PersonPose(
+                    float(p[0]),
+                    float(p[1]),
+                    seg.yaw,
+                    "sitting" if seg.posture == "sitting" else "standing",
+                    phase=2 * np.pi * seg.dist0 / _STRIDE,
+                    seat_height=seg.seat_height,
+                ),
+                dress,
+                np.zeros(2),
+            )
         dur = seg.t1 - seg.t0
         s = float(np.clip((t - seg.t0) / dur, 0.0, 1.0)) * seg.cum[-1]
         k = int(np.clip(np.searchsorted(seg.cum, s, side="right") - 1, 0, len(seg.cum) - 2))
@@ -207,6 +227,12 @@ class Walker:
         velocity = direction * seg.cum[-1] / dur
         # ease the gait in and out over the first and last 0.3 m
         gait = float(np.clip(min(s, seg.cum[-1] - s) / 0.3, 0.0, 1.0))
-        pose = PersonPose(float(p[0]), float(p[1]), float(np.arctan2(direction[1], direction[0])), "standing",
-                          phase=2 * np.pi * (seg.dist0 + s) / _STRIDE, gait=max(gait, 0.4))
+        pose = PersonPose(
+            float(p[0]),
+            float(p[1]),
+            float(np.arctan2(direction[1], direction[0])),
+            "standing",
+            phase=2 * np.pi * (seg.dist0 + s) / _STRIDE,
+            gait=max(gait, 0.4),
+        )
         return pose, dress, velocity

@@ -71,8 +71,14 @@ class RenderResult:
 class Renderer:
     """Renders an :class:`Apartment` and people; deterministic given the noise ``seed``."""
 
-    def __init__(self, apartment: Apartment, intrinsics: Intrinsics, seed: int = 0,
-                 rgb_noise: float = 3.0, depth_noise: bool = True) -> None:
+    def __init__(
+        self,
+        apartment: Apartment,
+        intrinsics: Intrinsics,
+        seed: int = 0,
+        rgb_noise: float = 3.0,
+        depth_noise: bool = True,
+    ) -> None:
         self.apartment = apartment
         self.intr = intrinsics
         w, h = intrinsics.width, intrinsics.height
@@ -118,16 +124,24 @@ class Renderer:
         return u0, v0, u1, v1
 
     @staticmethod
-    def _shade(nx: np.ndarray, ny: np.ndarray, nz: np.ndarray, dx: np.ndarray, dy: np.ndarray, dz: np.ndarray,
-               inv_norm: np.ndarray) -> np.ndarray:
+    def _shade(
+        nx: np.ndarray,
+        ny: np.ndarray,
+        nz: np.ndarray,
+        dx: np.ndarray,
+        dy: np.ndarray,
+        dz: np.ndarray,
+        inv_norm: np.ndarray,
+    ) -> np.ndarray:
         """Light factor for unit normals (components, any shape) seen along ray directions d."""
         lam = np.maximum(nx * _LIGHT[0] + ny * _LIGHT[1] + nz * _LIGHT[2], 0.0)
         head = np.maximum(-(nx * dx + ny * dy + nz * dz) * inv_norm, 0.0)
         return _AMBIENT + _DIFFUSE * lam + _HEADLIGHT * head
 
     # -------------------------------------------------------------- passes
-    def _room(self, o: np.ndarray, d: list[np.ndarray], inv: list[np.ndarray], zbuf: np.ndarray,
-              col: np.ndarray) -> None:
+    def _room(
+        self, o: np.ndarray, d: list[np.ndarray], inv: list[np.ndarray], zbuf: np.ndarray, col: np.ndarray
+    ) -> None:
         lo, hi = self.apartment.bounds_lo, self.apartment.bounds_hi
         ts = [np.where(d[a] > 0, (hi[a] - o[a]) * inv[a], (lo[a] - o[a]) * inv[a]) for a in range(3)]
         for t_a in ts:
@@ -153,11 +167,30 @@ class Renderer:
         nz = np.where(on_z, -np.sign(d[2]), zero)
         col *= self._shade(nx, ny, nz, d[0], d[1], d[2], self._inv_norm)[..., None]
 
-    def _boxes(self, o: np.ndarray, r_cam: np.ndarray, d: list[np.ndarray], inv: list[np.ndarray],
-               zbuf: np.ndarray, col: np.ndarray) -> None:
+    def _boxes(
+        self,
+        o: np.ndarray,
+        r_cam: np.ndarray,
+        d: list[np.ndarray],
+        inv: list[np.ndarray],
+        zbuf: np.ndarray,
+        col: np.ndarray,
+    ) -> None:
         lo, hi = self._box_lo, self._box_hi
-        corners = np.stack([np.stack([np.where(m & 1, hi[:, 0], lo[:, 0]), np.where(m & 2, hi[:, 1], lo[:, 1]),
-                                      np.where(m & 4, hi[:, 2], lo[:, 2])], -1) for m in range(8)], 1)
+        corners = np.stack(
+            [
+                np.stack(
+                    [
+                        np.where(m & 1, hi[:, 0], lo[:, 0]),
+                        np.where(m & 2, hi[:, 1], lo[:, 1]),
+                        np.where(m & 4, hi[:, 2], lo[:, 2]),
+                    ],
+                    -1,
+                )
+                for m in range(8)
+            ],
+            1,
+        )
         corners_cam = (corners - o) @ r_cam  # (N, 8, 3): R^T (p - o)
         for i in range(len(lo)):
             rect = self._rect(corners_cam[i])
@@ -180,12 +213,21 @@ class Renderer:
             th = t_in[hit]
             dh = [d[a][v0:v1, u0:u1][hit] for a in range(3)]
             normal = [np.where(tn[a][hit] >= th, -np.sign(dh[a]), 0.0) for a in range(3)]
-            shade = self._shade(*normal, *dh, self._inv_norm[v0:v1, u0:u1][hit])
+            inv_norm = self._inv_norm[v0:v1, u0:u1][hit]
+            shade = self._shade(normal[0], normal[1], normal[2], dh[0], dh[1], dh[2], inv_norm)
             zsub[hit] = th
             col[v0:v1, u0:u1][hit] = self._box_colour[i] * shade[:, None]
 
-    def _ellipsoids(self, o: np.ndarray, r_cam: np.ndarray, d: list[np.ndarray], e: Ellipsoids,
-                    zbuf: np.ndarray, col: np.ndarray, owner: np.ndarray) -> None:
+    def _ellipsoids(
+        self,
+        o: np.ndarray,
+        r_cam: np.ndarray,
+        d: list[np.ndarray],
+        e: Ellipsoids,
+        zbuf: np.ndarray,
+        col: np.ndarray,
+        owner: np.ndarray,
+    ) -> None:
         for i in range(len(e.centres)):
             corners_cam = (e.centres[i] + _CUBE * e.radius[i] - o) @ r_cam
             rect = self._rect(corners_cam)
@@ -259,9 +301,9 @@ class Renderer:
         oy, ox = (int(x) for x in self._rng.integers(0, self._pad, size=2))
         depth = zbuf
         if self._depth_bank is not None:
-            depth = zbuf + depth_sigma(zbuf) * self._depth_bank[oy:oy + h, ox:ox + w]
+            depth = zbuf + depth_sigma(zbuf) * self._depth_bank[oy : oy + h, ox : ox + w]
         valid = (zbuf <= DEPTH_MAX_M) & (depth > 0)
         depth_mm = np.where(valid, np.rint(depth * 1000.0), 0.0).astype(np.uint16)
-        noisy = col * 255.0 + self._rgb_bank[oy:oy + h, ox:ox + w]
+        noisy = col * 255.0 + self._rgb_bank[oy : oy + h, ox : ox + w]
         rgb = np.clip(noisy, 0.0, 255.0).astype(np.uint8)
         return RenderResult(rgb=rgb, depth_mm=depth_mm, depth_true=zbuf, owner=owner)

@@ -15,7 +15,15 @@ import numpy as np
 from services.simulator.core.apartment import Apartment
 from services.simulator.core.geometry import OPTICAL_FROM_BODY, make_pose, planar_pose, pose_inverse, rot_y, rot_z
 
-__all__ = ["HeadMotion", "Odometry", "ROBOT_RADIUS", "Robot", "follow_trajectory", "loop_trajectory", "static_trajectory"]
+__all__ = [
+    "HeadMotion",
+    "Odometry",
+    "ROBOT_RADIUS",
+    "Robot",
+    "follow_trajectory",
+    "loop_trajectory",
+    "static_trajectory",
+]
 
 ROBOT_RADIUS = 0.35
 HEAD_OFFSET = np.array([0.05, 0.0, 1.15])  # base_link -> head_link (pan/tilt joint)
@@ -48,8 +56,9 @@ def static_trajectory(x: float, y: float, yaw: float) -> BaseTrajectory:
     return lambda t: (x, y, yaw)
 
 
-def loop_trajectory(apartment: Apartment, waypoints: list[tuple[float, float]], speed: float = 0.35,
-                    turn_rate: float = 0.6) -> BaseTrajectory:
+def loop_trajectory(
+    apartment: Apartment, waypoints: list[tuple[float, float]], speed: float = 0.35, turn_rate: float = 0.6
+) -> BaseTrajectory:
     """Drive a closed loop through ``waypoints`` (planned around furniture), turning in place at corners."""
     pts = [np.asarray(waypoints[0], float)]
     for a, b in zip(waypoints, waypoints[1:] + waypoints[:1]):
@@ -80,8 +89,13 @@ def loop_trajectory(apartment: Apartment, waypoints: list[tuple[float, float]], 
     return pose
 
 
-def follow_trajectory(target: Callable[[float], np.ndarray], start: tuple[float, float, float],
-                      gap: float = 2.2, max_speed: float = 1.0, dt: float = 0.05) -> BaseTrajectory:
+def follow_trajectory(
+    target: Callable[[float], np.ndarray],
+    start: tuple[float, float, float],
+    gap: float = 2.2,
+    max_speed: float = 1.0,
+    dt: float = 0.05,
+) -> BaseTrajectory:
     """Follow the trail of ``target(t) -> (2,)`` (which starts with the segment from ``start`` to the
     target), ``gap`` metres behind along the trail and never closer than ``gap`` in a straight line,
     at most ``max_speed``, facing the target when near it and the trail ahead otherwise.

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from services.simulator.core.body import Clothing, Ellipsoids, body_ellipsoids, torso_centre
-from services.simulator.core.render import NEAR_M, Intrinsics, RenderResult, Renderer
+from services.simulator.core.render import NEAR_M, Intrinsics, Renderer, RenderResult
 from services.simulator.core.scenarios import World
 
 __all__ = ["FrameData", "PersonTruth", "Simulation", "visible_fraction"]
@@ -55,8 +55,9 @@ class FrameData:
     people: list[PersonTruth]
 
 
-def visible_fraction(points: np.ndarray, owner: int, map_camera: np.ndarray, intr: Intrinsics,
-                     owner_image: np.ndarray) -> tuple[float, float]:
+def visible_fraction(
+    points: np.ndarray, owner: int, map_camera: np.ndarray, intr: Intrinsics, owner_image: np.ndarray
+) -> tuple[float, float]:
     """(visible, in-view) fractions of ``points`` (K, 3): in view = in front of the camera and
     inside the image; visible = also on a pixel whose nearest surface is person ``owner``."""
     cam = (points - map_camera[:3, 3]) @ map_camera[:3, :3]
@@ -75,23 +76,42 @@ def visible_fraction(points: np.ndarray, owner: int, map_camera: np.ndarray, int
 class Simulation:
     """Frames of a :class:`World` at ``fps``; frame ``seq`` is at t = seq / fps."""
 
-    def __init__(self, world: World, intrinsics: Intrinsics, fps: float = 15.0, seed: int = 0,
-                 min_visible: float = MIN_VISIBLE, depth_noise: bool = True) -> None:
+    def __init__(
+        self,
+        world: World,
+        intrinsics: Intrinsics,
+        fps: float = 15.0,
+        seed: int = 0,
+        min_visible: float = MIN_VISIBLE,
+        depth_noise: bool = True,
+    ) -> None:
         self.world = world
         self.intr = intrinsics
         self.fps = fps
         self.min_visible = min_visible
         self.renderer = Renderer(world.apartment, intrinsics, seed=seed, depth_noise=depth_noise)
 
-    def people_solids(self, t: float) -> tuple[Ellipsoids, list[tuple[int, np.ndarray, np.ndarray, str, float, Clothing, int]]]:
-        """All people's solids at ``t`` and per person (id, centre (3,), velocity (3,), posture, height, clothing, outfit)."""
+    def people_solids(
+        self, t: float
+    ) -> tuple[Ellipsoids, list[tuple[int, np.ndarray, np.ndarray, str, float, Clothing, int]]]:
+        """All people's solids at ``t``, and per person: (id, torso centre (3,), velocity (3,),
+        posture, height, clothing, outfit index)."""
         solids, info = [], []
         for k, (walker, pid) in enumerate(zip(self.world.walkers, self.world.ids)):
             pose, outfit, vel = walker.state(t)
             clothing = walker.wardrobe[outfit]
             solids.append(body_ellipsoids(walker.height, pose, clothing, k))
-            info.append((pid, torso_centre(walker.height, pose), np.array([vel[0], vel[1], 0.0]), pose.posture,
-                         walker.height, clothing, outfit))
+            info.append(
+                (
+                    pid,
+                    torso_centre(walker.height, pose),
+                    np.array([vel[0], vel[1], 0.0]),
+                    pose.posture,
+                    walker.height,
+                    clothing,
+                    outfit,
+                )
+            )
         return Ellipsoids.concat(solids), info
 
     def frame(self, seq: int) -> FrameData:
@@ -108,7 +128,18 @@ class Simulation:
         people = []
         for k, (pid, centre, vel, posture, height, clothing, outfit) in enumerate(info):
             vis, in_view = visible_fraction(solids.sample_points(k), k, map_cam, self.intr, result.owner)
-            people.append(PersonTruth(pid, centre, vel, vis, in_view, vis >= self.min_visible, posture, height,
-                                      clothing, outfit))
-        return FrameData(seq, t, result, map_base, map_base @ np.linalg.inv(odom_base), odom_base, base_head, head_cam,
-                         map_cam, people)
+            people.append(
+                PersonTruth(pid, centre, vel, vis, in_view, vis >= self.min_visible, posture, height, clothing, outfit)
+            )
+        return FrameData(
+            seq,
+            t,
+            result,
+            map_base,
+            map_base @ np.linalg.inv(odom_base),
+            odom_base,
+            base_head,
+            head_cam,
+            map_cam,
+            people,
+        )

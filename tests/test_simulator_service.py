@@ -134,6 +134,15 @@ def test_max_speed_waits_for_the_detector_so_it_sees_every_frame(memory_bus: Mem
     assert "detector_timeouts" not in service.counters.extra
 
 
+def test_max_speed_stops_waiting_for_an_absent_detector(memory_bus: MemoryBus) -> None:
+    frames = memory_bus.transport().subscribe(KEYS.frames("head"), RGBDFrame, FRAMES)  # a listener, no detector
+    service = SimulatorService(memory_bus.transport(), KEYS, _config(max_speed=True, max_wait_s=0.05, duration_s=1.0))
+    with Shutdown() as shutdown:
+        service.run(shutdown)
+    assert service.seq == 10 and frames.stats.received == 10
+    assert service.counters.extra["detector_timeouts"] == SimulatorService.GIVE_UP
+
+
 @pytest.mark.parametrize("name", list(SCENARIOS))
 def test_every_scenario_runs(name: str) -> None:
     stream = SimulatedStream(_config(scenario=name, duration_s=2.0, fps=5.0, width=96, height=72), KEYS)

@@ -23,6 +23,9 @@ class SimulatorService:
     """Publishes frame after frame of a scenario, in real time (``rate``) or, with
     ``max_speed``, each frame as soon as the detector has answered the previous one."""
 
+    #: --max: timeouts in a row after which the detector is taken as absent.
+    GIVE_UP = 3
+
     def __init__(
         self,
         transport: Transport,
@@ -38,6 +41,7 @@ class SimulatorService:
         self.stream = SimulatedStream(config, keys)
         self.gt_csv = gt_csv
         self.seq = 0
+        self._timeouts_in_row = 0
         self.publishers: dict[str, Publisher[Any]] = {
             keys.frames(config.camera): transport.publisher(keys.frames(config.camera), RGBDFrame, FRAMES),
             keys.tf(): transport.publisher(keys.tf(), TransformBatch, RELIABLE),
@@ -67,18 +71,30 @@ class SimulatorService:
         return pairs
 
     def _wait_for_detector(self, seq: int, shutdown: Shutdown) -> None:
-        """--max: wait until the detector has published the detections of frame ``seq``."""
+        """--max: wait until the detector has published the detections of frame ``seq``.
+
+        After ``GIVE_UP`` timeouts in a row the detector is taken as absent and frames go out
+        unpaced, until it answers again.
+        """
         assert self._detections is not None
         if not self.publishers[self.keys.frames(self.config.camera)].has_subscribers():
             return
+        if self._timeouts_in_row >= self.GIVE_UP:
+            if self._detections.try_recv() is None:
+                return
+            self._timeouts_in_row = 0
         deadline = time.monotonic() + self.config.max_wait_s
         while not shutdown.is_set():
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 self.counters.count("detector_timeouts")
+                self._timeouts_in_row += 1
+                if self._timeouts_in_row == self.GIVE_UP:
+                    log.warning("no detections for %d frames: publishing unpaced until the detector answers", self.GIVE_UP)
                 return
             got = self._detections.recv(timeout=min(remaining, 0.1))
             if got is not None and got.msg.header.seq >= seq:
+                self._timeouts_in_row = 0
                 return
 
     def run(self, shutdown: Shutdown) -> None:

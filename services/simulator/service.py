@@ -90,7 +90,7 @@ class SimulatorService:
                 self.counters.count("detector_timeouts")
                 self._timeouts_in_row += 1
                 if self._timeouts_in_row == self.GIVE_UP:
-                    log.warning("no detections for %d frames: publishing unpaced until the detector answers", self.GIVE_UP)
+                    log.warning("no detections for %d frames: unpaced until the detector answers", self.GIVE_UP)
                 return
             got = self._detections.recv(timeout=min(remaining, 0.1))
             if got is not None and got.msg.header.seq >= seq:

@@ -195,3 +195,22 @@ def test_hog_finds_standing_people_at_two_to_five_metres() -> None:
         cases += 1
         hits += any(x <= intr.cx <= x + w and y <= intr.cy <= y + h for x, y, w, h in rects)
     assert hits >= 3, f"HOG found {hits} of {cases} standing people"
+
+
+def test_back_projected_depth_lands_on_the_floor_and_on_the_peoples_heights() -> None:
+    """What a depth-cluster detector relies on: a flat floor at z = 0 and people of their true height."""
+    intr = Intrinsics.default(320, 240)
+    world = _still_world([(2.6, 3.2), (3.6, 4.0)])
+    fd = Simulation(world, intr, seed=0, depth_noise=False).frame(0)
+    v, u = np.mgrid[0 : intr.height, 0 : intr.width]
+    z = fd.render.depth_mm.astype(np.float64) / 1000.0
+    cam = np.stack([(u - intr.cx) / intr.fx * z, (v - intr.cy) / intr.fy * z, z], -1)
+    pts = cam @ fd.map_camera[:3, :3].T + fd.map_camera[:3, 3]  # (H, W, 3) in the map
+    valid = z > 0
+    # the bottom of the image, between the sofa (left) and the table (right), is floor
+    floor = valid & (fd.render.owner < 0) & (v > intr.height * 0.85) & (abs(u - intr.cx) < intr.width / 6)
+    assert floor.sum() > 1000
+    np.testing.assert_allclose(pts[floor][:, 2], 0.0, atol=0.002)
+    for k, walker in enumerate(world.walkers):
+        top = pts[valid & (fd.render.owner == k)][:, 2].max()
+        assert top == pytest.approx(walker.height, abs=0.03)

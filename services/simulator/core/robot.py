@@ -33,7 +33,11 @@ BaseTrajectory = Callable[[float], tuple[float, float, float]]  # t -> (x, y, ya
 
 @dataclass(frozen=True)
 class HeadMotion:
-    """Pan and tilt (rad) as sinusoids: ``pan0 + pan_amp sin(2 pi t / pan_period)``, same for tilt."""
+    """Pan and tilt (rad) as sinusoids: ``pan0 + pan_amp sin(2 pi t / pan_period)``, same for tilt.
+
+    With ``look_at`` (x, y in the map) the pan instead keeps the camera turned towards that
+    point, within ``pan_limit`` of straight ahead.
+    """
 
     pan0: float = 0.0
     tilt0: float = 0.12
@@ -41,10 +45,12 @@ class HeadMotion:
     pan_period: float = 14.0
     tilt_amp: float = 0.0
     tilt_period: float = 9.0
+    look_at: tuple[float, float] | None = None
+    pan_limit: float = 1.4
 
     @property
     def moves(self) -> bool:
-        return self.pan_amp != 0.0 or self.tilt_amp != 0.0
+        return self.pan_amp != 0.0 or self.tilt_amp != 0.0 or self.look_at is not None
 
     def angles(self, t: float) -> tuple[float, float]:
         pan = self.pan0 + self.pan_amp * np.sin(2 * np.pi * t / self.pan_period)
@@ -190,6 +196,10 @@ class Robot:
     def head_joint(self, t: float) -> np.ndarray:
         """(4, 4) T_base_head: the pan/tilt joint."""
         pan, tilt = self.head.angles(t)
+        if self.head.look_at is not None:
+            x, y, yaw = self.trajectory(t)
+            bearing = np.arctan2(self.head.look_at[1] - y, self.head.look_at[0] - x) - yaw
+            pan = float(np.clip(np.angle(np.exp(1j * bearing)), -self.head.pan_limit, self.head.pan_limit))
         return make_pose(rot_z(pan) @ rot_y(tilt), HEAD_OFFSET)
 
     @staticmethod

@@ -111,8 +111,9 @@ def _moving_head(rng: np.random.Generator, apt: Apartment, alike: bool) -> World
 def _moving_base(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
     loop = loop_trajectory(apt, [(1.2, 1.3), (5.3, 1.3), (5.4, 3.3), (3.6, 3.0)])
     plans = [[Action("roam")], [Action("goto", "tv"), Action("roam")], [Action("goto", "door"), Action("roam")]]
-    walkers = _walkers(rng, apt, plans, _STARTS, alike)
-    return World(apt, walkers, [1, 2, 3], _robot(loop, HeadMotion(tilt0=0.15), rng), False, 60.0)
+    walkers = _walkers(rng, apt, plans, _STARTS, alike, regions=[LIVING, LIVING, LIVING, BEDROOM])
+    head = HeadMotion(tilt0=0.15, look_at=(3.0, 4.6))  # the head keeps looking into the living room
+    return World(apt, walkers, [1, 2, 3], _robot(loop, head, rng), head.moves, 60.0)
 
 
 def _chairs(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
@@ -220,7 +221,7 @@ SCENARIOS: dict[str, Scenario] = {
         Scenario("moving-head", "static base, the head pans and tilts; three people walk around", 42.1, _moving_head),
         Scenario(
             "moving-base",
-            "the robot drives a loop through the living room; furniture occludes people",
+            "the robot drives a loop, its head looking into the room; furniture occludes people",
             60.0,
             _moving_base,
         ),

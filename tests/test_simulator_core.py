@@ -136,6 +136,15 @@ def test_people_leave_the_view_and_come_back() -> None:
     assert first.any() and gone.size > 0 and first[gone[0] :].any()
 
 
+def test_people_cross_and_one_hides_the_other_in_still() -> None:
+    sim = Simulation(build_world("still", seed=0), SMALL, fps=30, seed=0)
+    frames = [sim.frame(k) for k in range(0, 180, 2)]
+    xs = np.array([[p.position[0] for p in fd.people[:2]] for fd in frames])
+    assert xs[0, 0] < xs[0, 1] and xs[-1, 0] > xs[-1, 1]  # they swapped sides
+    hidden = [fd.people[1] for fd in frames if fd.people[1].in_view_fraction > 0.9 and not fd.people[1].counted]
+    assert hidden, "person 2 is never hidden behind person 1"
+
+
 def _still_world(positions: list[tuple[float, float]], plans: list[list[Action]] | None = None) -> World:
     apt = default_apartment()
     rng = np.random.default_rng(0)

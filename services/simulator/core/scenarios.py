@@ -94,8 +94,15 @@ _STARTS = [(0.6, 5.6), (4.2, 3.0), (7.2, 2.5)]
 
 def _still(rng: np.random.Generator, apt: Apartment, alike: bool, head: HeadMotion | None = None) -> World:
     avoid = [(_STILL_POSE[0], _STILL_POSE[1], 0.5)]
-    plans = [[Action("roam")], [Action("wait", seconds=1.0), Action("roam")], [Action("goto", "door"), Action("roam")]]
-    walkers = _walkers(rng, apt, plans, _STARTS, alike, avoid=avoid)
+    # people 1 and 2 first cross in front of the camera, 1 m apart in depth: person 1 stops and
+    # person 2 passes behind them, hidden for a moment; then everybody roams
+    plans = [
+        [Action("goto", (3.7, 2.8)), Action("turn", -np.pi / 2), Action("wait", seconds=4.0), Action("roam")],
+        [Action("wait", seconds=2.0), Action("goto", (2.3, 3.9)), Action("wait", seconds=1.0), Action("roam")],
+        [Action("goto", "door"), Action("roam")],
+    ]
+    starts = [(2.3, 2.8), (5.3, 3.9), (7.2, 2.5)]
+    walkers = _walkers(rng, apt, plans, starts, alike, avoid=avoid)
     head = head or HeadMotion()
     return World(apt, walkers, [1, 2, 3], _robot(static_trajectory(*_STILL_POSE), head, rng), head.moves, 39.5)
 

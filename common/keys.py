@@ -75,6 +75,7 @@ STREAMS: tuple[Stream, ...] = (
     Stream("tracks", "tracks", "Tracks", "tracker", "navigation, HRI, recorder", RELIABLE),
     Stream("tf", "tf", "TransformBatch", "localization, odometry, replay", "localizer", RELIABLE),
     Stream("tf_static", "tf_static", "TransformBatch", "robot description, replay", "localizer", RELIABLE),
+    Stream("groundtruth", "groundtruth", "PeopleGroundTruth", "simulator, replay", "perception demo, evaluation, recorder", RELIABLE),
     Stream("status", "status/{service}/{instance}", "ServiceStatus", "every service (1 Hz, and on query)", "perception status, monitors", STATUS),
     Stream("alive", "alive/{service}/{instance}", "liveliness token", "every service", "perception status, launcher", None, "liveliness"),
     Stream("track_query", "query/track", "query `?id=K` → TrackState", "tracker (queryable)", "any client", None, "query"),
@@ -123,6 +124,10 @@ class Keys:
 
     def tf_static(self) -> str:
         return self._join("tf_static")
+
+    def groundtruth(self) -> str:
+        """True people positions (map frame) from a simulator or motion capture."""
+        return self._join("groundtruth")
 
     def status(self, service: str = "*", instance: str = "*") -> str:
         return self._join("status", service, instance)

@@ -18,6 +18,8 @@ from common.schemas import (
     LocalizedDetections,
     Message,
     ModelCard,
+    PeopleGroundTruth,
+    PersonGroundTruth,
     RGBDFrame,
     ServiceStatus,
     TrackState,
@@ -158,5 +160,20 @@ def example_messages(stamp_ns: int = 1_700_000_000_000_000_000, n_people: int = 
             dropped=1,
             invalid=0,
             extra={"tracks_confirmed": 3.0},
+        ),
+        PeopleGroundTruth(
+            header=map_header,
+            people=[
+                PersonGroundTruth(
+                    id=i + 1,
+                    position=np.array([2.0 + i, 0.5 * i, 1.2]),
+                    velocity=np.array([0.5, 0.0, 0.0]),
+                    visible_fraction=1.0 - 0.4 * i,
+                    counted=i < 2,
+                    height_m=1.75,
+                    clothing="red sweater, blue jeans",
+                )
+                for i in range(n_people)
+            ],
         ),
     ]

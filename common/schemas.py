@@ -38,6 +38,8 @@ __all__ = [
     "LocalizedDetections",
     "Message",
     "ModelCard",
+    "PeopleGroundTruth",
+    "PersonGroundTruth",
     "RGBDFrame",
     "ServiceStatus",
     "TrackState",
@@ -470,3 +472,45 @@ class ServiceStatus(Message):
     dropped: int = Field(default=0, ge=0)
     invalid: int = Field(default=0, ge=0)
     extra: dict[str, float] = Field(default_factory=dict, description="service-specific counters and gauges")
+
+
+# ---------------------------------------------------------------------- ground truth
+
+
+class PersonGroundTruth(_Model):
+    """Where one person really is, from a simulator or a motion-capture system (map frame)."""
+
+    id: int = Field(ge=0, description="the person's identity; it stays the same when clothes change")
+    position: NDArray(np.float64, (3,))  # type: ignore[valid-type]
+    velocity: NDArray(np.float64, (3,)) = Field(default_factory=lambda: np.zeros(3))  # type: ignore[valid-type]
+    visible_fraction: float = Field(default=1.0, ge=0.0, le=1.0, description="share of the body the camera sees")
+    in_view_fraction: float = Field(default=1.0, ge=0.0, le=1.0, description="share of the body inside the image")
+    counted: bool = Field(default=True, description="a ground-truth object of this frame (visible enough to be tracked)")
+    posture: Literal["standing", "sitting"] = "standing"
+    height_m: float = Field(default=0.0, ge=0.0)
+    clothing: str = Field(default="", description="what the person wears, in words")
+    outfit: int = Field(default=0, ge=0, description="index of the outfit worn; changes when the person changes clothes")
+
+    @model_validator(mode="after")
+    def _check(self) -> PersonGroundTruth:
+        _finite(self.position, "position")
+        _finite(self.velocity, "velocity")
+        return self
+
+
+@message("perception.PeopleGroundTruth", 1)
+class PeopleGroundTruth(Message):
+    """Every person's true position at one camera frame.
+
+    ``header`` has the frame's stamp, seq and source (camera); ``header.frame_id`` is the
+    frame of the positions (``map``). ``position`` is the torso centre. ``counted`` marks the
+    people that are ground-truth objects for that camera (``visible_fraction >= min_visible``);
+    the others are out of view or hidden and listed for debugging.
+    """
+
+    people: list[PersonGroundTruth] = Field(default_factory=list)
+    min_visible: float = Field(default=0.25, ge=0.0, le=1.0)
+
+    def counted(self) -> list[PersonGroundTruth]:
+        """The people that count as ground-truth objects in this frame."""
+        return [p for p in self.people if p.counted]

@@ -17,6 +17,8 @@ from common.schemas import (
     LocalizedDetection,
     LocalizedDetections,
     ModelCard,
+    PeopleGroundTruth,
+    PersonGroundTruth,
     RGBDFrame,
     ServiceStatus,
     TrackState,
@@ -159,6 +161,19 @@ status_msgs = st.builds(
     invalid=st.integers(0, 2**40), extra=st.dictionaries(st.text(max_size=8), finite, max_size=4),
 )
 
+groundtruth_msgs = st.builds(
+    PeopleGroundTruth,
+    header=headers,
+    people=st.lists(
+        st.builds(PersonGroundTruth, id=st.integers(0, 10**6), position=vec(3), velocity=vec(3),
+                  visible_fraction=st.floats(0, 1), in_view_fraction=st.floats(0, 1), counted=st.booleans(),
+                  posture=st.sampled_from(["standing", "sitting"]), height_m=st.floats(0, 3),
+                  clothing=st.text(max_size=12), outfit=st.integers(0, 10)),
+        max_size=4,
+    ),
+    min_visible=st.floats(0, 1),
+)
+
 #: One strategy per registered message type, by schema name.
 MESSAGE_STRATEGIES = {
     "perception.Image": images(),
@@ -170,4 +185,5 @@ MESSAGE_STRATEGIES = {
     "perception.Embeddings": embeddings_msgs(),
     "perception.Tracks": tracks_msgs,
     "perception.ServiceStatus": status_msgs,
+    "perception.PeopleGroundTruth": groundtruth_msgs,
 }

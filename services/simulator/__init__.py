@@ -1,0 +1,1 @@
+"""A simulated robot: RGB-D camera driver, localization and people ground truth (``perception simulate``)."""

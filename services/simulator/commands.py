@@ -1,0 +1,3 @@
+COMMANDS = {
+    "simulate": ("services.simulator.main", "publish a simulated RGB-D camera, transforms and people ground truth"),
+}

@@ -8,13 +8,13 @@ from pathlib import Path
 
 from common.cli_util import CliError, add_key_arguments, keys_from_args
 from common.config import ConfigError, load_config
-from common.runtime import Counters, ServiceRuntime, Shutdown
+from common.runtime import Counters, ServiceRuntime, Shutdown, package_version
 from common.zenoh_config import add_zenoh_arguments, options_from_args
 from common.zenoh_transport import TransportError, open_transport
 from services.simulator.config import SimulatorConfig
 from services.simulator.core.scenarios import SCENARIOS
 from services.simulator.groundtruth import GroundTruthCsv
-from services.simulator.mcap_writer import McapSink
+from services.replay.recorder import McapRecorder
 from services.simulator.service import SimulatorService
 from services.simulator.snapshot import write_snapshot
 from services.simulator.source import SimulatedStream
@@ -131,13 +131,13 @@ def _record(config: SimulatorConfig, args: argparse.Namespace, gt: GroundTruthCs
     stream = SimulatedStream(config, keys)
     if stream.frame_count is None:
         raise CliError("--duration 0 (until Ctrl-C) cannot be written to a file; give a duration in seconds")
-    with McapSink(args.output) as sink, Shutdown() as shutdown:
+    with McapRecorder(args.output, key_exprs=[keys.all()], writer_version=package_version()) as sink, Shutdown() as shutdown:
         for seq in range(stream.frame_count):
             if shutdown.is_set():
                 break
             _, pairs = stream.messages(seq)
             for key, msg in pairs:
-                sink.write(key, msg)
+                sink.write(key, msg, log_time_ns=msg.header.stamp_ns)
             if gt is not None:
                 gt.add(SimulatedStream.groundtruth_of(pairs))
         counts = ", ".join(f"{k.rsplit('/', 1)[-1]}: {n}" for k, n in sink.counts.items())

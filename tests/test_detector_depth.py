@@ -64,6 +64,27 @@ def test_plane_converges_from_a_wrong_initial_guess() -> None:
     assert len(boxes) == 2
 
 
+def test_floor_is_reacquired_when_the_head_tilts_beyond_tracking() -> None:
+    """A pan-tilt head pitched 20 deg more than configured: one-frame refinement cannot
+    reach the floor, re-acquisition around the configured plane does."""
+    rgb, depth, K = scene([*PEOPLE, TABLE], 20.0)
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=0.0))
+    boxes, _ = det.detect(rgb, depth, K)
+    assert det.plane.angle_to(initial_plane(CAMERA_HEIGHT, 20.0)) < np.deg2rad(0.5)
+    assert len(boxes) == 2
+
+
+def test_a_person_beside_furniture_is_split_out_of_the_merged_cluster() -> None:
+    """A person touching a chair-high block and a table makes one cluster over 1.5 m wide."""
+    person = Block(0.0, 3.5, 0.5, 1.75, 0.3)
+    bench = Block(0.85, 3.5, 1.2, 0.9, 0.5)  # touches the person's side
+    rgb, depth, K = scene([person, bench], 0.0)
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=0.0))
+    boxes, _ = det.detect(rgb, depth, K)
+    assert len(boxes) == 1
+    assert iou_matrix(boxes, expected_box(person, K, 0.0)[None]).max() > 0.6
+
+
 def test_sitting_people_need_a_lower_height_range() -> None:
     rgb, depth, K = scene([PEOPLE[0], SITTING], 10.0)
     default = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=10.0))

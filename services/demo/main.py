@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import signal
 import subprocess
@@ -91,6 +92,10 @@ def _wait_alive(transport_keys: tuple[object, Keys], supervisor_thread: threadin
 
 
 def main(args: argparse.Namespace) -> int:
+    # The live view owns the terminal: the supervisor's and the session's info lines would
+    # scroll it away (the children's own output goes to the log file).
+    for name in ("services.launcher", "common.zenoh_transport"):
+        logging.getLogger(name).setLevel(logging.WARNING)
     if args.duration <= 0 or args.fps <= 0 or args.width < 64 or args.height < 48:
         raise CliError("--duration and --fps must be positive and the image at least 64x48")
     log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="perception-demo-"))

@@ -19,7 +19,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from services.detector.core.boxes import DetectorError, as_rgb, clip_boxes, empty_result
-from services.detector.core.ground import GroundParams, Plane, initial_plane, refine_plane
+from services.detector.core.ground import GroundParams, Plane, acquire_plane, initial_plane, refine_plane
 from services.detector.core.hog import HogDetector
 
 __all__ = ["DepthClusterDetector", "DepthParams", "backproject", "cluster_points", "voxel_grid"]
@@ -46,6 +46,11 @@ class DepthParams:
     max_height_m: float = 2.3
     max_width_m: float = 1.5
     max_bottom_m: float = 0.6
+    #: A cluster wider than ``max_width_m`` (a person merged with a chair, a table or
+    #: another person) is split by its parts above this height, one person per part.
+    split_height_m: float = 1.05
+    #: Radius on the ground plane around a split part's centre that belongs to that person.
+    person_radius_m: float = 0.4
     hog_confirm: bool = False
     hog_min_score: float = 0.5
 
@@ -135,23 +140,19 @@ class DepthClusterDetector:
         points = voxel_grid(backproject(depth, K, p.pixel_step, p.min_depth_m, p.max_depth_m), p.voxel_m)
         self.plane, self.plane_inliers = refine_plane(points, self.plane, p.ground, self._rng)
         if self.plane_inliers == 0:
-            log.debug("ground plane not refined this frame; keeping the previous estimate")
+            # Lost (or never found) the floor: search afresh around the configured plane.
+            self.plane, self.plane_inliers = acquire_plane(points, self.initial, p.ground, self._rng)
+            if self.plane_inliers == 0:
+                log.debug("no ground plane found this frame; keeping the previous estimate")
         height = self.plane.height(points)
         above = (height > p.floor_clearance_m) & (height < p.max_point_height_m)
         points, height = points[above], height[above]
         count, labels = cluster_points(points, p.cluster_tolerance_m)
         boxes, scores, heights = [], [], []
-        for label in range(count):
-            member = labels == label
-            if member.sum() < p.min_cluster_points:
-                continue
-            top, bottom = float(height[member].max()), float(height[member].min())
-            if not p.min_height_m <= top <= p.max_height_m or bottom > p.max_bottom_m:
-                continue
+        for member in self._people(points, height, count, labels):
+            top = float(height[member].max())
             cluster = points[member]
             feet = self.plane.project(cluster)
-            if np.ptp(feet, axis=0).max() > p.max_width_m:
-                continue
             box = self._project(np.vstack([cluster, feet.mean(axis=0, keepdims=True)]), K)
             if box is None:
                 continue
@@ -173,6 +174,45 @@ class DepthClusterDetector:
         order = np.argsort(-out_scores, kind="stable")
         self.heights = heights_arr[order]
         return out_boxes[order], out_scores[order].astype(np.float32)
+
+    def _is_person(self, member: np.ndarray, points: np.ndarray, height: np.ndarray) -> bool:
+        p = self.params
+        if member.sum() < p.min_cluster_points:
+            return False
+        top, bottom = float(height[member].max()), float(height[member].min())
+        if not p.min_height_m <= top <= p.max_height_m or bottom > p.max_bottom_m:
+            return False
+        return bool(np.ptp(self.plane.project(points[member]), axis=0).max() <= p.max_width_m)
+
+    def _people(self, points: np.ndarray, height: np.ndarray, count: int, labels: np.ndarray) -> list[np.ndarray]:
+        """Member masks (N,) bool of the person-like clusters, splitting over-wide ones."""
+        p = self.params
+        out = []
+        for label in range(count):
+            member = labels == label
+            if member.sum() < p.min_cluster_points:
+                continue
+            if self._is_person(member, points, height):
+                out.append(member)
+                continue
+            top, bottom = float(height[member].max()), float(height[member].min())
+            wide = np.ptp(self.plane.project(points[member]), axis=0).max() > p.max_width_m
+            if not (wide and p.min_height_m <= top <= p.max_height_m and bottom <= p.max_bottom_m):
+                continue
+            # Over-wide: split by the parts above furniture height (heads and shoulders).
+            upper = member & (height > p.split_height_m)
+            idx = np.flatnonzero(upper)
+            n_up, up_labels = cluster_points(points[idx], p.cluster_tolerance_m)
+            ground = self.plane.project(points)
+            for sub in range(n_up):
+                part = idx[up_labels == sub]
+                if len(part) < max(3, p.min_cluster_points // 3):
+                    continue
+                centre = ground[part].mean(axis=0)
+                near = member & (np.linalg.norm(ground - centre, axis=1) <= p.person_radius_m)
+                if self._is_person(near, points, height):
+                    out.append(near)
+        return out
 
     def _project(self, points: np.ndarray, K: np.ndarray) -> np.ndarray | None:
         """Image box (4,) of ``points`` (N, 3), padded by half a voxel; None if behind the camera."""

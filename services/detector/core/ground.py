@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["GroundParams", "Plane", "fit_plane_lsq", "initial_plane", "refine_plane"]
+__all__ = ["GroundParams", "Plane", "acquire_plane", "fit_plane_lsq", "initial_plane", "refine_plane"]
 
 
 @dataclass(frozen=True)
@@ -52,6 +52,11 @@ class GroundParams:
     max_step_deg: float = 10.0
     max_step_m: float = 0.3
     min_inliers: int = 30
+    #: Re-acquisition when tracking is lost: the widest tilt from the configured plane,
+    #: the camera heights allowed, and the RANSAC draws.
+    acquire_max_deg: float = 35.0
+    acquire_height_m: tuple[float, float] = (0.3, 3.0)
+    acquire_iterations: int = 200
 
 
 def fit_plane_lsq(points: np.ndarray, up_hint: np.ndarray) -> Plane | None:
@@ -105,3 +110,39 @@ def refine_plane(points: np.ndarray, previous: Plane, params: GroundParams,
     if plane.angle_to(previous) > np.deg2rad(params.max_step_deg) or abs(plane.offset - previous.offset) > params.max_step_m:
         return previous, 0
     return plane, int(plane_inliers.sum())
+
+
+def acquire_plane(points: np.ndarray, configured: Plane, params: GroundParams,
+                  rng: np.random.Generator) -> tuple[Plane, int]:
+    """Find the floor afresh among all ``points`` (N, 3); returns (plane, inlier count).
+
+    Used when :func:`refine_plane` has lost the floor, e.g. because a pan-tilt head
+    pitched further than one frame's step. RANSAC keeps the plane with the most points
+    within ``inlier_m`` whose normal is within ``acquire_max_deg`` of the configured one
+    and whose camera height lies in ``acquire_height_m``; it is refined by least squares.
+    Returns ``(configured, 0)`` when none qualifies.
+    """
+    if len(points) < params.min_inliers:
+        return configured, 0
+    idx = rng.integers(0, len(points), size=(params.acquire_iterations, 3))
+    a, b, c = points[idx[:, 0]], points[idx[:, 1]], points[idx[:, 2]]
+    normals = np.cross(b - a, c - a)
+    norms = np.linalg.norm(normals, axis=1)
+    ok = norms > 1e-9
+    normals[ok] /= norms[ok, None]
+    normals *= np.where(normals @ configured.normal >= 0, 1.0, -1.0)[:, None]
+    offsets = -np.einsum("ij,ij->i", normals, a)
+    lo, hi = params.acquire_height_m
+    ok &= (normals @ configured.normal >= np.cos(np.deg2rad(params.acquire_max_deg))) & (offsets >= lo) & (offsets <= hi)
+    if not ok.any():
+        return configured, 0
+    normals, offsets = normals[ok], offsets[ok]
+    counts = (np.abs(points @ normals.T + offsets[None, :]) < params.inlier_m).sum(axis=0)
+    best = int(np.argmax(counts))
+    if counts[best] < params.min_inliers:
+        return configured, 0
+    support = points[np.abs(points @ normals[best] + offsets[best]) < params.inlier_m]
+    plane = fit_plane_lsq(support, configured.normal)
+    if plane is None or not lo <= plane.offset <= hi:
+        return configured, 0
+    return plane, int((np.abs(plane.height(points)) < params.inlier_m).sum())

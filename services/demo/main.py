@@ -25,6 +25,7 @@ from common.cli_util import CliError
 from common.keys import Keys
 from common.router_process import free_port
 from common.runtime import Shutdown
+from common.schemas import ServiceStatus
 from common.zenoh_config import ZenohOptions
 from common.zenoh_transport import TransportError, open_transport
 from services.demo.monitor import Monitor
@@ -41,6 +42,16 @@ latency per stage; at the end the tracks are scored against the simulator's grou
 and still prints the table. Nothing is left running afterwards."""
 
 SERVICES = ("detector", "localizer", "embedder", "tracker")
+_CLK_TCK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+def _cpu_seconds(pid: int) -> float | None:
+    """User + system CPU time of a process (Linux /proc), or None."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / _CLK_TCK
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -134,6 +145,8 @@ def main(args: argparse.Namespace) -> int:
                 env={**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "error")},
             )
             started = time.monotonic()
+            pids = {m.name: m.pid for _, m in transport.query(keys.status(), timeout=2.0) if isinstance(m, ServiceStatus)}
+            cpu_start = {n: (pid, _cpu_seconds(pid)) for n, pid in pids.items() if n in SERVICES}
             tty = sys.stdout.isatty() and not args.no_view
             last_line = 0.0
             while not shutdown.is_set():
@@ -154,6 +167,11 @@ def main(args: argparse.Namespace) -> int:
                 shutdown.wait(0.5)
             monitor.poll()
             gt.poll()
+            wall = time.monotonic() - started
+            cpu = {}
+            for name, (pid, t0) in cpu_start.items():
+                t1 = _cpu_seconds(pid)
+                cpu[name] = round(100.0 * (t1 - t0) / wall, 1) if t0 is not None and t1 is not None else None
             if not args.no_view and not args.json:
                 print(monitor.render(f"final state after {time.monotonic() - started:.1f} s"))
         finally:
@@ -170,8 +188,10 @@ def main(args: argparse.Namespace) -> int:
             log_file.close()
     report, table = score(gt, monitor, args.scenario)
     if args.json:
-        print(json.dumps({"scenario": args.scenario, "log": str(log_dir / "processes.log"), **report}, indent=2))
+        print(json.dumps({"scenario": args.scenario, "log": str(log_dir / "processes.log"),
+                          "pipeline": monitor.summary(), "cpu_percent": cpu, **report}, indent=2))
     else:
         print(f"\nTable II for this run (ground truth from the simulator; logs in {log_dir}):\n")
         print(table)
+        print("\nCPU per service: " + ", ".join(f"{n} {v}%" for n, v in cpu.items() if v is not None))
     return 0

@@ -86,6 +86,19 @@ class Monitor:
         while (st := self._status.try_recv()) is not None:
             self.statuses[st.msg.name] = st.msg
 
+    def summary(self) -> dict[str, dict[str, float | None]]:
+        """Per stage: messages, mean rate over the run, latency p50/p95 (ms) from the frame stamp."""
+        out: dict[str, dict[str, float | None]] = {}
+        for name, s in self.stats.items():
+            span = (s.arrivals[-1] - s.arrivals[0]) if len(s.arrivals) > 1 else 0.0
+            out[name] = {
+                "messages": float(s.count),
+                "rate_hz": (len(s.arrivals) - 1) / span if span > 0 else None,
+                "latency_p50_ms": s.percentile(50),
+                "latency_p95_ms": s.percentile(95),
+            }
+        return out
+
     def render(self, title: str = "", elapsed_s: float | None = None) -> str:
         """The live view as text (no terminal control codes)."""
         now = time.time()

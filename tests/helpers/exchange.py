@@ -15,10 +15,12 @@ from common.codec import encode
 from common.keys import RELIABLE, Keys
 from common.runtime import ServiceRuntime, Shutdown
 from common.samples import example_messages
+from common.schemas import Header, ServiceStatus
 from common.zenoh_config import ZenohOptions
 from common.zenoh_transport import open_transport
 
 KEYS = Keys(robot="xproc")
+ACK = f"{KEYS.base}/exchange_ack"
 
 
 def main(argv: list[str]) -> int:
@@ -38,13 +40,22 @@ def main(argv: list[str]) -> int:
                 got.append(encode(r.msg))
             with open(argv[2], "wb") as f:
                 f.write(msgpack.packb(got, use_bin_type=True))
+            # Tell the publisher everything arrived: closing its session earlier could drop
+            # what Zenoh still had queued.
+            ack = t.publisher(ACK, ServiceStatus, RELIABLE)
+            ack.wait_for_subscribers(30.0)
+            ack.put(ServiceStatus(header=Header(stamp_ns=0), name="exchange", received=len(got)))
         elif role == "pub":
+            acks = t.subscribe(ACK, ServiceStatus, RELIABLE)
             for i, msg in enumerate(expected):
                 pub = t.publisher(f"{KEYS.base}/exchange/{i}", type(msg), RELIABLE)
                 if not pub.wait_for_subscribers(30.0):
                     print("no subscriber", file=sys.stderr)
                     return 1
                 pub.put(msg)
+            if acks.recv(60.0) is None:
+                print("the subscriber never confirmed", file=sys.stderr)
+                return 1
         elif role == "service":
             with ServiceRuntime(argv[2], t, KEYS, period_s=0.2):
                 print("READY", flush=True)

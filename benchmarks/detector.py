@@ -40,7 +40,6 @@ SHARED = Path(os.environ.get("PERCEPTION_SHARED_DATA", ROOT.parent / "shared" / 
 
 def yolo_v8_like_onnx(path: Path, seed: int = 0) -> Path:
     """Backbone of stride-2 3x3 convs (16..256 channels) and 1x1 heads at strides 8/16/32 -> (1, 84, 8400)."""
-    import onnx
     from onnx import TensorProto, helper, numpy_helper
 
     rng = np.random.default_rng(seed)

@@ -61,7 +61,7 @@ def codec_table(n: int) -> None:
     rows = [(f"{type(m).__name__}" + (f" ({m.encoding})" if hasattr(m, "encoding") else ""), m) for m in example_messages()]
     rows.append(("RGBDFrame 640x480 (rgb8 + 16UC1)", frame))
     print(f"\n## Codec (n={n} each; microseconds)\n")
-    print(f"| message | bytes | encode median | encode p99 | decode median | decode p99 |\n|---|---|---|---|---|---|")
+    print("| message | bytes | encode median | encode p99 | decode median | decode p99 |\n|---|---|---|---|---|---|")
     for name, msg in rows:
         em, ep, dm, dp, size = time_codec(msg, n if size_hint(msg) < 100_000 else max(50, n // 10))
         print(f"| {name} | {size:,} | {em:.1f} | {ep:.1f} | {dm:.1f} | {dp:.1f} |")

@@ -13,7 +13,6 @@ from common.keys import RELIABLE, Keys
 from common.router_process import RouterProcess
 from common.runtime import ServiceRuntime
 from common.samples import example_messages
-from common.schemas import Message
 from common.transport import Transport
 from common.zenoh_config import ZenohOptions, add_zenoh_arguments, options_from_args
 from common.zenoh_transport import TransportError, open_transport

@@ -6,14 +6,13 @@ import argparse
 import json
 import time
 
-from pydantic import ValidationError
 
-from common.cli_util import CliError, add_key_arguments, keys_from_args
+from common.cli_util import add_key_arguments, keys_from_args
 from common.keys import Keys
 from common.schemas import ServiceStatus
 from common.transport import Transport
-from common.zenoh_config import add_zenoh_arguments, options_from_args
-from common.zenoh_transport import TransportError, open_transport
+from common.zenoh_config import add_zenoh_arguments
+from common.zenoh_transport import open_transport_from_args
 
 HELP = "list the live services with their host and counters"
 DESCRIPTION = """\
@@ -62,10 +61,7 @@ def render(rows: list[tuple[str, str, ServiceStatus | None]]) -> str:
 
 def main(args: argparse.Namespace) -> int:
     keys = keys_from_args(args)
-    try:
-        transport = open_transport(options_from_args(args))
-    except (TransportError, ValidationError) as exc:
-        raise CliError(str(exc)) from exc
+    transport = open_transport_from_args(args)
     with transport:
         while True:
             rows = collect(transport, keys, args.timeout)

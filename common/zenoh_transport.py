@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import logging
 from typing import Any, Callable
 
@@ -13,7 +14,7 @@ from common.schemas import Message
 from common.transport import Closer, Inbox, Publisher, QueryHandler, Token, Transport, parse_parameters
 from common.zenoh_config import ZenohOptions, build_zenoh_config
 
-__all__ = ["TransportError", "ZenohTransport", "open_transport"]
+__all__ = ["TransportError", "ZenohTransport", "open_transport", "open_transport_from_args"]
 
 log = logging.getLogger(__name__)
 _ENCODING = "application/msgpack"
@@ -136,3 +137,14 @@ def open_transport(opts: ZenohOptions) -> ZenohTransport:
     """Open a Zenoh session per ``opts`` and wrap it; raises :class:`TransportError`."""
     log.info("opening Zenoh session: %s", opts.describe())
     return ZenohTransport(open_session(opts))
+
+
+def open_transport_from_args(args: argparse.Namespace) -> ZenohTransport:
+    """The transport of a command's Zenoh flags; a bad flag or no router is a :class:`CliError`."""
+    from common.cli_util import CliError
+    from common.zenoh_config import options_from_args
+
+    try:
+        return open_transport(options_from_args(args))
+    except (TransportError, ValueError) as exc:  # pydantic's ValidationError is a ValueError
+        raise CliError(str(exc)) from exc

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import argparse
 
-from pydantic import ValidationError
 
-from common.cli_util import CliError, add_key_arguments, keys_from_args
+from common.cli_util import add_key_arguments, keys_from_args
 from common.runtime import Counters, ServiceRuntime, Shutdown
-from common.zenoh_config import add_zenoh_arguments, options_from_args
-from common.zenoh_transport import TransportError, open_transport
+from common.zenoh_config import add_zenoh_arguments
+from common.zenoh_transport import open_transport_from_args
 from services.detector.cli_args import add_backend_arguments, detector_from_args, load_service_config
 from services.detector.service import DetectorService
 
@@ -37,10 +36,7 @@ def main(args: argparse.Namespace) -> int:
     config = load_service_config(args, extra)
     detector = detector_from_args(config)
     keys = keys_from_args(args)
-    try:
-        transport = open_transport(options_from_args(args))
-    except (TransportError, ValidationError) as exc:
-        raise CliError(f"cannot open the Zenoh session: {exc}") from exc
+    transport = open_transport_from_args(args)
     counters = Counters()
     with transport:
         service = DetectorService(transport, keys, config, counters, detector=detector)

@@ -7,7 +7,6 @@ directory first, then from the JSON file's directory.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -15,28 +14,15 @@ import cv2
 import numpy as np
 
 from common.cli_util import CliError
+from common.detections_file import read_detection_lines
 from services.embedder.core.backend import crop_boxes
 
 __all__ = ["crops_of_line", "read_lines"]
 
 
 def read_lines(path: str | Path) -> Iterator[tuple[int, dict[str, Any]]]:
-    """(line number, object) of every non-empty line; CliError on a missing file or bad line."""
-    p = Path(path)
-    if not p.is_file():
-        raise CliError(f"{p}: no such file (expected JSON lines from 'perception detect')")
-    with p.open() as fh:
-        for n, raw in enumerate(fh, 1):
-            if not raw.strip():
-                continue
-            try:
-                obj = json.loads(raw)
-            except json.JSONDecodeError as exc:
-                raise CliError(f"{p}:{n}: not valid JSON: {exc}") from exc
-            if not isinstance(obj, dict) or not isinstance(obj.get("image"), str) \
-                    or not isinstance(obj.get("detections", []), list):
-                raise CliError(f'{p}:{n}: expected {{"image": path, "detections": [...]}}')
-            yield n, obj
+    """(line number, object) of every non-empty line, each with an ``"image"``; CliError otherwise."""
+    return read_detection_lines(path, require_image=True)
 
 
 def _image(line: dict[str, Any], where: str, base: Path) -> np.ndarray:

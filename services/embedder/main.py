@@ -6,13 +6,12 @@ import argparse
 import logging
 from typing import Any
 
-from pydantic import ValidationError
 
 from common.cli_util import CliError, add_key_arguments, keys_from_args
 from common.config import ConfigError, load_config
 from common.runtime import Counters, ServiceRuntime, Shutdown
-from common.zenoh_config import add_zenoh_arguments, options_from_args
-from common.zenoh_transport import TransportError, open_transport
+from common.zenoh_config import add_zenoh_arguments
+from common.zenoh_transport import open_transport_from_args
 from services.embedder.config import EmbedderConfig, build_backend
 from services.embedder.core.backend import Backend, EmbedderError
 from services.embedder.service import EmbedderService
@@ -86,10 +85,7 @@ def main(args: argparse.Namespace) -> int:
     if card.thresholds is None:
         log.warning("model %s has no recommended tracker thresholds; run 'perception calibrate-embedder' "
                     "and set embedder.thresholds", card.name)
-    try:
-        transport = open_transport(options_from_args(args))
-    except (TransportError, ValidationError) as exc:
-        raise CliError(str(exc)) from exc
+    transport = open_transport_from_args(args)
     counters = Counters()
     with transport, Shutdown() as shutdown:
         service = EmbedderService(transport, keys, config, backend, counters)

@@ -6,13 +6,12 @@ import argparse
 import logging
 from pathlib import Path
 
-from pydantic import ValidationError
 
 from common.cli_util import CliError, add_key_arguments, keys_from_args
 from common.config import ConfigError, load_config, read_config_file
 from common.runtime import Counters, ServiceRuntime, Shutdown
-from common.zenoh_config import add_zenoh_arguments, options_from_args
-from common.zenoh_transport import TransportError, open_transport
+from common.zenoh_config import add_zenoh_arguments
+from common.zenoh_transport import open_transport_from_args
 from services.localizer.config import LocalizerConfig
 from services.localizer.service import LocalizerService
 
@@ -99,10 +98,7 @@ def build_config(args: argparse.Namespace) -> LocalizerConfig:
 def main(args: argparse.Namespace) -> int:
     config = build_config(args)
     keys = keys_from_args(args)
-    try:
-        transport = open_transport(options_from_args(args))
-    except (TransportError, ValidationError) as exc:
-        raise CliError(str(exc)) from exc
+    transport = open_transport_from_args(args)
     counters = Counters()
     with transport, Shutdown() as shutdown:
         # subscribe before the liveliness token appears, so 'alive' means 'listening'

@@ -5,13 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import numpy as np
 
 from common.cli_util import CliError
+from common.detections_file import read_detection_lines
 from common.geometry import PinholeCamera, TransformBuffer, TransformError
 from services.localizer.core import (
     DepthNoiseModel,
@@ -103,27 +103,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--output", "-o", type=Path, default=None, help="write here instead of stdout")
 
 
-def _lines(path: Path) -> Iterator[tuple[int, dict[str, Any]]]:
-    stream: TextIO = sys.stdin if str(path) == "-" else _open(path)
-    with stream:
-        for n, line in enumerate(stream, 1):
-            if not line.strip():
-                continue
-            try:
-                item = json.loads(line)
-            except json.JSONDecodeError as exc:
-                raise CliError(f"{path}:{n}: not JSON: {exc}") from exc
-            if not isinstance(item, dict) or not isinstance(item.get("detections", []), list):
-                raise CliError(f"{path}:{n}: expected an object with a 'detections' list")
-            yield n, item
-
-
-def _open(path: Path) -> TextIO:
-    if not path.is_file():
-        raise CliError(f"detections file {path} does not exist")
-    return path.open()
-
-
 def _boxes(item: dict[str, Any], where: str) -> tuple[np.ndarray, list[float]]:
     try:
         boxes = np.array([d["bbox_xyxy"] for d in item.get("detections", [])], dtype=np.float64).reshape(-1, 4)
@@ -203,7 +182,7 @@ def main(args: argparse.Namespace) -> int:
         raise CliError(f"{exc} (give it with --transform PARENT:CHILD:X,Y,Z:QX,QY,QZ,QW or --transforms FILE)") from exc
     out_stream = args.output.open("w") if args.output else sys.stdout
     try:
-        for n, item in _lines(args.detections):
+        for n, item in read_detection_lines(args.detections):
             where = f"{args.detections}:{n}"
             depth_path = _depth_for(args, item, where)
             depth = read_depth(depth_path)

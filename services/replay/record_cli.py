@@ -12,7 +12,7 @@ from common.cli_util import CliError, add_key_arguments, keys_from_args
 from common.keys import Delivery
 from common.runtime import Counters, ServiceRuntime, Shutdown, package_version
 from common.transport import Received, Subscription, Transport, wait_any
-from common.zenoh_config import add_zenoh_arguments, options_from_args
+from common.zenoh_config import add_zenoh_arguments
 from services.replay.recorder import McapRecorder
 
 log = logging.getLogger(__name__)
@@ -77,7 +77,7 @@ def record(transport: Transport, recorder: McapRecorder, exprs: list[str], runti
 
 
 def main(args: argparse.Namespace) -> int:
-    from common.zenoh_transport import TransportError, open_transport
+    from common.zenoh_transport import open_transport_from_args
 
     keys = keys_from_args(args)
     exprs = args.keys or [keys.all()]
@@ -85,10 +85,7 @@ def main(args: argparse.Namespace) -> int:
         raise CliError(f"{args.output} exists; pass --force to overwrite it")
     if not args.output.parent.is_dir():
         raise CliError(f"{args.output}: folder {args.output.parent} does not exist")
-    try:
-        transport = open_transport(options_from_args(args))
-    except (TransportError, ValueError) as exc:
-        raise CliError(str(exc)) from exc
+    transport = open_transport_from_args(args)
     try:
         recorder = McapRecorder(args.output, compression=args.compression, key_exprs=exprs,
                                 writer_version=package_version())

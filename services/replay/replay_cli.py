@@ -10,7 +10,7 @@ from pathlib import Path
 from common.cli_util import CliError, add_key_arguments, keys_from_args
 from common.config import ConfigError
 from common.runtime import ServiceRuntime, Shutdown
-from common.zenoh_config import add_zenoh_arguments, options_from_args
+from common.zenoh_config import add_zenoh_arguments
 from services.replay.bag_source import BagOptions
 from services.replay.config import load_topic_map
 from services.replay.core.mapping import parse_remap
@@ -101,7 +101,7 @@ def report(source: Source, stats: ReplayStats) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from common.zenoh_transport import TransportError, open_transport
+    from common.zenoh_transport import open_transport_from_args
 
     remap = []
     for rule in args.remap:
@@ -125,10 +125,7 @@ def main(args: argparse.Namespace) -> int:
         if not source.streams():
             reasons = "; ".join(f"{t}: {why}" for t, why in source.skipped.items()) or "no streams"
             raise CliError(f"{args.file}: nothing to replay ({reasons})")
-        try:
-            transport = open_transport(options_from_args(args))
-        except (TransportError, ValueError) as exc:
-            raise CliError(str(exc)) from exc
+        transport = open_transport_from_args(args)
         error: SourceError | None = None
         with Shutdown() as shutdown, transport, ServiceRuntime("replay", transport, keys_from_args(args)) as runtime:
             progress = Progress(source.duration_s(), sys.stderr, enabled=not args.no_progress)

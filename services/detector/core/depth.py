@@ -19,7 +19,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from services.detector.core.boxes import DetectorError, as_rgb, clip_boxes, empty_result
-from services.detector.core.ground import GroundParams, Plane, acquire_plane, initial_plane, refine_plane
+from services.detector.core.ground import GroundParams, acquire_plane, initial_plane, refine_plane
 from services.detector.core.hog import HogDetector
 
 __all__ = ["DepthClusterDetector", "DepthParams", "backproject", "cluster_points", "voxel_grid"]

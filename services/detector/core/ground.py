@@ -71,6 +71,23 @@ def fit_plane_lsq(points: np.ndarray, up_hint: np.ndarray) -> Plane | None:
     return Plane(normal, float(-normal @ centroid))
 
 
+def _sample_planes(points: np.ndarray, up: np.ndarray, count: int,
+                   rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Planes through ``count`` random point triples of ``points`` (N, 3), all at once.
+
+    Returns unit normals (K, 3) oriented like ``up`` and offsets (K,); degenerate triples
+    (collinear points) are left out.
+    """
+    idx = rng.integers(0, len(points), size=(count, 3))
+    a, b, c = points[idx[:, 0]], points[idx[:, 1]], points[idx[:, 2]]
+    normals = np.cross(b - a, c - a)
+    norms = np.linalg.norm(normals, axis=1)
+    ok = norms > 1e-9
+    normals, a = normals[ok] / norms[ok, None], a[ok]
+    normals *= np.where(normals @ up >= 0, 1.0, -1.0)[:, None]
+    return normals, -np.einsum("ij,ij->i", normals, a)
+
+
 def refine_plane(points: np.ndarray, previous: Plane, params: GroundParams,
                  rng: np.random.Generator) -> tuple[Plane, int]:
     """One update of the ground plane from ``points`` (N, 3); returns (plane, inlier count).
@@ -84,18 +101,11 @@ def refine_plane(points: np.ndarray, previous: Plane, params: GroundParams,
     cand = points[np.abs(previous.height(points)) < params.window_m]
     if len(cand) < params.min_inliers:
         return previous, 0
-    idx = rng.integers(0, len(cand), size=(params.iterations, 3))
-    a, b, c = cand[idx[:, 0]], cand[idx[:, 1]], cand[idx[:, 2]]
-    normals = np.cross(b - a, c - a)
-    norms = np.linalg.norm(normals, axis=1)
-    ok = norms > 1e-9
-    normals[ok] /= norms[ok, None]
-    normals *= np.where(normals @ previous.normal >= 0, 1.0, -1.0)[:, None]
-    ok &= normals @ previous.normal >= np.cos(np.deg2rad(params.max_step_deg))
-    if not ok.any():
+    normals, offsets = _sample_planes(cand, previous.normal, params.iterations, rng)
+    keep = normals @ previous.normal >= np.cos(np.deg2rad(params.max_step_deg))
+    if not keep.any():
         return previous, 0
-    normals, a = normals[ok], a[ok]
-    offsets = -np.einsum("ij,ij->i", normals, a)
+    normals, offsets = normals[keep], offsets[keep]
     inliers = np.abs(cand @ normals.T + offsets[None, :]) < params.inlier_m  # (M, K)
     best = int(np.argmax(inliers.sum(axis=0)))
     support = cand[inliers[:, best]]
@@ -124,19 +134,12 @@ def acquire_plane(points: np.ndarray, configured: Plane, params: GroundParams,
     """
     if len(points) < params.min_inliers:
         return configured, 0
-    idx = rng.integers(0, len(points), size=(params.acquire_iterations, 3))
-    a, b, c = points[idx[:, 0]], points[idx[:, 1]], points[idx[:, 2]]
-    normals = np.cross(b - a, c - a)
-    norms = np.linalg.norm(normals, axis=1)
-    ok = norms > 1e-9
-    normals[ok] /= norms[ok, None]
-    normals *= np.where(normals @ configured.normal >= 0, 1.0, -1.0)[:, None]
-    offsets = -np.einsum("ij,ij->i", normals, a)
+    normals, offsets = _sample_planes(points, configured.normal, params.acquire_iterations, rng)
     lo, hi = params.acquire_height_m
-    ok &= (normals @ configured.normal >= np.cos(np.deg2rad(params.acquire_max_deg))) & (offsets >= lo) & (offsets <= hi)
-    if not ok.any():
+    keep = (normals @ configured.normal >= np.cos(np.deg2rad(params.acquire_max_deg))) & (offsets >= lo) & (offsets <= hi)
+    if not keep.any():
         return configured, 0
-    normals, offsets = normals[ok], offsets[ok]
+    normals, offsets = normals[keep], offsets[keep]
     counts = (np.abs(points @ normals.T + offsets[None, :]) < params.inlier_m).sum(axis=0)
     best = int(np.argmax(counts))
     if counts[best] < params.min_inliers:

@@ -189,7 +189,9 @@ def test_a_truncated_recording_is_replayed_up_to_the_cut_then_fails(tmp_path: Pa
             rec.write(KEYS.frames("head"), rgbd_frame(64, 48, seq=i, stamp_ns=t0 + i * 1_000_000, seed=i), t0 + i * 1_000_000)
     path.write_bytes(path.read_bytes()[: path.stat().st_size * 2 // 3])
     sub = zenoh_client().subscribe(KEYS.frames("head"), None, FIFO)
-    cmd = _perception("replay", str(path), "--wait-subscribers", "30", "--no-progress", router=router)
+    # --max: publishers block rather than drop, so a loaded machine loses no frame of the
+    # 1 ms-spaced recording (at recorded speed, frames are dropped on congestion by design).
+    cmd = _perception("replay", str(path), "--max", "--wait-subscribers", "30", "--no-progress", router=router)
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
     assert f"perception: error: {path}: truncated after" in proc.stderr, proc.stderr

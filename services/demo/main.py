@@ -26,6 +26,7 @@ from common.keys import Keys
 from common.router_process import free_port
 from common.runtime import Shutdown
 from common.schemas import ServiceStatus
+from common.transport import Transport
 from common.zenoh_config import ZenohOptions
 from common.zenoh_transport import TransportError, open_transport
 from services.demo.monitor import Monitor
@@ -89,13 +90,13 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
     return specs
 
 
-def _wait_alive(transport_keys: tuple[object, Keys], supervisor_thread: threading.Thread, shutdown: Shutdown,
+def _wait_alive(transport: Transport, keys: Keys, supervisor_thread: threading.Thread, shutdown: Shutdown,
                 timeout: float) -> list[str]:
-    transport, keys = transport_keys
+    """The services alive once all four are (or whatever is alive at the timeout)."""
     deadline = time.monotonic() + timeout
     alive: list[str] = []
     while time.monotonic() < deadline and supervisor_thread.is_alive() and not shutdown.is_set():
-        alive = sorted({k.split("/alive/")[1].split("/")[0] for k in transport.alive(keys.alive(), timeout=0.5)})  # type: ignore[attr-defined]
+        alive = sorted({k.split("/alive/")[1].split("/")[0] for k in transport.alive(keys.alive(), timeout=0.5)})
         if all(s in alive for s in SERVICES):
             return alive
         shutdown.wait(0.2)
@@ -132,7 +133,7 @@ def main(args: argparse.Namespace) -> int:
         try:
             monitor = Monitor(transport, keys)
             gt = GroundTruthLog(transport, keys)
-            alive = _wait_alive((transport, keys), sup_thread, shutdown, 60.0)
+            alive = _wait_alive(transport, keys, sup_thread, shutdown, 60.0)
             if not all(s in alive for s in SERVICES):
                 if shutdown.is_set():
                     return 130

@@ -159,6 +159,22 @@ def _xy(walker: Walker, t: float) -> np.ndarray:
     return np.array([pose.x, pose.y])
 
 
+def _clothes_world(rng: np.random.Generator, apt: Apartment, alike: bool, plans: list[list[Action]],
+                   duration_s: float) -> World:
+    """Two people with a second outfit each, watched by a still robot in the living room."""
+    walkers = _walkers(
+        rng,
+        apt,
+        plans,
+        [(0.6, 5.6), (2.7, 5.0)],
+        alike,
+        per_person=2,
+        avoid=[(_STILL_POSE[0], _STILL_POSE[1], 0.5)],
+        regions=[LIVING],
+    )
+    return World(apt, walkers, [1, 2], _robot(static_trajectory(*_STILL_POSE), HeadMotion(), rng), False, duration_s)
+
+
 def _clothes_in_view(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
     plans = [
         [
@@ -176,17 +192,7 @@ def _clothes_in_view(rng: np.random.Generator, apt: Apartment, alike: bool) -> W
         ],
         [Action("roam")],
     ]
-    walkers = _walkers(
-        rng,
-        apt,
-        plans,
-        [(0.6, 5.6), (2.7, 5.0)],
-        alike,
-        per_person=2,
-        avoid=[(_STILL_POSE[0], _STILL_POSE[1], 0.5)],
-        regions=[LIVING],
-    )
-    return World(apt, walkers, [1, 2], _robot(static_trajectory(*_STILL_POSE), HeadMotion(), rng), False, 68.0)
+    return _clothes_world(rng, apt, alike, plans, 68.0)
 
 
 def _clothes_out_of_view(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
@@ -208,17 +214,7 @@ def _clothes_out_of_view(rng: np.random.Generator, apt: Apartment, alike: bool) 
             Action("roam"),
         ],
     ]
-    walkers = _walkers(
-        rng,
-        apt,
-        plans,
-        [(0.6, 5.6), (2.7, 5.0)],
-        alike,
-        per_person=2,
-        avoid=[(_STILL_POSE[0], _STILL_POSE[1], 0.5)],
-        regions=[LIVING],
-    )
-    return World(apt, walkers, [1, 2], _robot(static_trajectory(*_STILL_POSE), HeadMotion(), rng), False, 56.7)
+    return _clothes_world(rng, apt, alike, plans, 56.7)
 
 
 SCENARIOS: dict[str, Scenario] = {

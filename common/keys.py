@@ -11,9 +11,9 @@ policy. The README's key table is generated from it (``perception keys --markdow
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, NamedTuple
 
-__all__ = ["DEFAULT_PREFIX", "DEFAULT_ROBOT", "STREAMS", "Delivery", "Keys", "Stream", "validate_chunk"]
+__all__ = ["DEFAULT_PREFIX", "DEFAULT_ROBOT", "STREAMS", "AliveKey", "Delivery", "Keys", "Stream", "validate_chunk"]
 
 DEFAULT_PREFIX = "pp"
 DEFAULT_ROBOT = "robot"
@@ -82,6 +82,13 @@ STREAMS: tuple[Stream, ...] = (
 )
 
 
+class AliveKey(NamedTuple):
+    """The service and instance named by a liveliness key."""
+
+    service: str
+    instance: str
+
+
 @dataclass(frozen=True)
 class Keys:
     """Key expressions of one robot. Pass ``"*"`` as a camera or service to match all."""
@@ -134,6 +141,18 @@ class Keys:
 
     def alive(self, service: str = "*", instance: str = "*") -> str:
         return self._join("alive", service, instance)
+
+    def parse_alive(self, key: str) -> AliveKey:
+        """(service, instance) of a liveliness key ``{base}/alive/{service}/{instance}``.
+
+        Raises ValueError for any other key (another robot or prefix, another stream,
+        a missing or extra chunk, a wildcard).
+        """
+        head = self.base + "/alive/"
+        parts = key[len(head) :].split("/") if key.startswith(head) else []
+        if len(parts) != 2 or any(not p or p != p.strip() or any(c in _FORBIDDEN for c in p) for p in parts):
+            raise ValueError(f"{key!r} is not a liveliness key {head}SERVICE/INSTANCE")
+        return AliveKey(parts[0], parts[1])
 
     def track_query(self) -> str:
         return self._join("query", "track")

@@ -75,7 +75,7 @@ def main(args: argparse.Namespace) -> int:
             for name, size, ms, ok in results:
                 print(f"{name:<34} {size:>8} {ms:>9.2f} ms  {'ok' if ok else 'FAILED'}")
             live = sub_t.alive(keys.alive())
-            print(f"\nlive services: {', '.join(k.split('/alive/')[1] for k in live) or 'none'}")
+            print(f"\nlive services: {', '.join('/'.join(keys.parse_alive(k)) for k in live) or 'none'}")
     finally:
         if router is not None:
             router.stop()

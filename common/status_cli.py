@@ -37,7 +37,7 @@ def collect(transport: Transport, keys: Keys, timeout: float) -> list[tuple[str,
     }
     out = []
     for key in transport.alive(keys.alive(), timeout=timeout):
-        service, instance = key.rsplit("/", 2)[-2:]
+        service, instance = keys.parse_alive(key)
         out.append((service, instance, statuses.get((service, instance))))
     return out
 

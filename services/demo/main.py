@@ -96,7 +96,7 @@ def _wait_alive(transport: Transport, keys: Keys, supervisor_thread: threading.T
     deadline = time.monotonic() + timeout
     alive: list[str] = []
     while time.monotonic() < deadline and supervisor_thread.is_alive() and not shutdown.is_set():
-        alive = sorted({k.split("/alive/")[1].split("/")[0] for k in transport.alive(keys.alive(), timeout=0.5)})
+        alive = sorted({keys.parse_alive(k).service for k in transport.alive(keys.alive(), timeout=0.5)})
         if all(s in alive for s in SERVICES):
             return alive
         shutdown.wait(0.2)

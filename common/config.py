@@ -85,17 +85,20 @@ def load_config(model: type[C], path: str | Path | None = None, *, env_prefix: s
                 environ: Mapping[str, str] | None = None) -> C:
     """Build a validated ``model`` from defaults, file, environment and overrides.
 
-    ``section`` picks a sub-mapping of the file (e.g. ``tracker`` in a deploy file that
-    configures several services). ``overrides`` with value ``None`` are ignored, so
-    unset CLI flags can be passed straight through.
+    ``section`` names the part of the file for this service (e.g. ``tracker`` in a deploy
+    file that configures several services): when the file has a top-level ``section``
+    key, that mapping is used; otherwise the whole file holds this service's settings.
+    ``overrides`` with value ``None`` are ignored, so unset CLI flags can be passed
+    straight through.
     """
     data: dict[str, Any] = {}
     source = "defaults"
     if path is not None:
         data = read_config_file(path)
         source = str(path)
-        if section is not None:
-            data = data.get(section, {}) or {}
+        if section is not None and section in data:
+            data = data[section] or {}
+            source = f"{path}, section {section!r}"
             if not isinstance(data, dict):
                 raise ConfigError(f"section {section!r} of {path} must be a mapping")
     if env_prefix:

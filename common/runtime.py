@@ -112,20 +112,22 @@ class Counters:
 class ServiceRuntime:
     """Liveliness token, periodic :class:`ServiceStatus` and a status queryable.
 
-    Received/dropped/invalid sum the watched subscriptions' stats and the service's
-    :class:`Counters`; published sums the watched publishers.
+    Received/dropped/invalid sum the subscriptions' stats and the service's
+    :class:`Counters`; published sums the publishers. A node passes its ``io``
+    (:class:`common.node.NodeIO`), whose declared subscriptions and publishers are read
+    live; tools without a node add theirs with :meth:`watch`.
     """
 
     def __init__(self, name: str, transport: Transport, keys: Keys, *, period_s: float = 1.0,
-                 instance: str | None = None, counters: Counters | None = None) -> None:
+                 instance: str | None = None, counters: Counters | None = None, io: Any = None) -> None:
         self.name = name
         self.instance = instance or instance_id()
         self.transport = transport
         self.keys = keys
         self.period_s = period_s
         self.counters = counters if counters is not None else Counters()
-        self.subscriptions: list[Subscription[Any]] = []
-        self.publishers: list[Publisher[Any]] = []
+        self.subscriptions: list[Subscription[Any]] = io.subscriptions if io is not None else []
+        self.publishers: list[Publisher[Any]] = io.publishers if io is not None else []
         self._started = time.monotonic()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None

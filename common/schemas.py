@@ -80,6 +80,14 @@ class Header(_Model):
     seq: int = Field(default=0, ge=0, description="sequence number of the source frame")
     source: str = Field(default="", description="sensor stream the data derives from, e.g. 'head'")
 
+    @property
+    def join_key(self) -> tuple[int, str, int]:
+        """``(stamp_ns, source, seq)``: what every message derived from one source frame shares.
+
+        Streams are joined on it (:class:`common.join.Joiner`), and it sorts in sensor time.
+        """
+        return (self.stamp_ns, self.source, self.seq)
+
 
 class Message(_Model):
     """Base of every top-level message. ``SCHEMA_NAME`` and ``SCHEMA_VERSION`` travel with it."""

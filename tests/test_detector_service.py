@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -43,6 +44,13 @@ class FixedDetector:
         return boxes, np.array([0.9, 0.6], np.float32)
 
 
+def step(service: DetectorService, timeout: float) -> Detections | None:
+    """Wait up to ``timeout`` s for a frame, then poll once; the published message or None."""
+    service.io.wait(timeout)
+    out = service.poll(time.monotonic())
+    return out[0] if out else None
+
+
 def make(bus: MemoryBus, config: DetectorConfig | None = None, detector: object | None = None):  # type: ignore[no-untyped-def]
     config = config or DetectorConfig(camera="head")
     counters = Counters()
@@ -57,7 +65,7 @@ def test_detections_carry_the_frame_header(memory_bus: MemoryBus) -> None:
     service, counters, frames, out = make(memory_bus, detector=FixedDetector())
     frame = rgbd_frame(320, 240, seq=17, stamp_ns=1_700_000_000_123_456_789)
     frames.put(frame)
-    service.step(5.0)
+    step(service, 5.0)
     got = out.recv(5.0)
     assert got is not None
     msg = got.msg
@@ -72,7 +80,7 @@ def test_detections_carry_the_frame_header(memory_bus: MemoryBus) -> None:
 def test_real_hog_backend_end_to_end(memory_bus: MemoryBus) -> None:
     service, _, frames, out = make(memory_bus)
     frames.put(rgbd_frame(320, 240, seq=3))
-    assert service.step(5.0) is not None
+    assert step(service, 5.0) is not None
     got = out.recv(5.0)
     assert got is not None and got.msg.detector == "hog" and got.msg.header.seq == 3
 
@@ -80,13 +88,12 @@ def test_real_hog_backend_end_to_end(memory_bus: MemoryBus) -> None:
 def test_slow_model_only_sees_the_newest_frame(memory_bus: MemoryBus) -> None:
     detector = FixedDetector(block_first=True)
     service, counters, frames, out = make(memory_bus, detector=detector)
-    runtime = ServiceRuntime("detector", memory_bus.transport(), KEYS, counters=counters)
-    runtime.watch(service.frames, service.publisher)
+    runtime = ServiceRuntime("detector", memory_bus.transport(), KEYS, counters=counters, io=service.io)
     stop = threading.Event()
 
     def loop() -> None:
         while not stop.is_set():
-            service.step(0.2)
+            step(service, 0.2)
 
     worker = threading.Thread(target=loop, daemon=True)
     frames.put(rgbd_frame(160, 120, seq=1))
@@ -118,7 +125,7 @@ def test_depth_backend_counts_frames_without_depth(memory_bus: MemoryBus) -> Non
     rgb_only = RGBDFrame(header=header, rgb=Image.from_array(np.zeros((120, 160, 3), np.uint8), "rgb8", header),
                          camera_info=camera_info(160, 120))
     frames.put(rgb_only)
-    assert service.step(5.0) is None
+    assert step(service, 5.0) is None
     assert counters.extra["dropped_no_depth"] == 1
     assert out.try_recv() is None
 
@@ -135,7 +142,7 @@ def test_depth_backend_end_to_end(memory_bus: MemoryBus) -> None:
                       depth=Image.from_array(np.nan_to_num(depth * 1000).astype(np.uint16), "16UC1", header),
                       camera_info=info)
     frames.put(frame)
-    service.step(5.0)
+    step(service, 5.0)
     got = out.recv(5.0)
     assert got is not None and got.msg.detector == "depth" and len(got.msg.detections) == 1
 
@@ -146,10 +153,10 @@ def test_undecodable_image_is_counted_and_skipped(memory_bus: MemoryBus) -> None
     broken = RGBDFrame(header=header, camera_info=camera_info(64, 48),
                        rgb=Image(header=header, encoding="jpeg", dtype="uint8", shape=(48, 64, 3), data=b"not a jpeg"))
     frames.put(broken)
-    assert service.step(5.0) is None
+    assert step(service, 5.0) is None
     assert counters.extra["dropped_bad_image"] == 1
     frames.put(rgbd_frame(64, 48, seq=2))  # and it keeps going
-    assert service.step(5.0) is not None
+    assert step(service, 5.0) is not None
 
 
 def test_wrong_message_type_is_counted_invalid(memory_bus: MemoryBus) -> None:
@@ -157,7 +164,7 @@ def test_wrong_message_type_is_counted_invalid(memory_bus: MemoryBus) -> None:
     wrong = memory_bus.transport().publisher(KEYS.frames("head"), Image, FRAMES)
     header = Header(stamp_ns=1)
     wrong.put(Image.from_array(np.zeros((4, 4, 3), np.uint8), "rgb8", header))
-    assert service.step(0.5) is None
+    assert step(service, 0.5) is None
     assert service.frames.stats.invalid == 1
 
 
@@ -168,7 +175,7 @@ def test_detector_errors_are_counted(memory_bus: MemoryBus) -> None:
 
     service, counters, frames, _ = make(memory_bus, detector=Failing())
     frames.put(rgbd_frame(64, 48))
-    assert service.step(5.0) is None
+    assert step(service, 5.0) is None
     assert counters.extra["dropped_detector_error"] == 1
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -49,8 +51,8 @@ class Rig:
         bus = MemoryBus()
         self.camera = bus.transport()
         self.counters = Counters()
-        self.service = EmbedderService(bus.transport(), KEYS, config or EmbedderConfig(),
-                                       backend or ColourDescriptor(), self.counters)  # type: ignore[arg-type]
+        self.service = EmbedderService(bus.transport(), KEYS, config or EmbedderConfig(), self.counters,
+                                       backend=backend or ColourDescriptor())  # type: ignore[arg-type]
         self.frames = self.camera.publisher(KEYS.frames("head"), RGBDFrame, FRAMES)
         self.dets = self.camera.publisher(KEYS.detections("head"), Detections, RELIABLE)
         self.out = self.camera.subscribe(KEYS.embeddings("head"), Embeddings, RELIABLE)
@@ -68,7 +70,7 @@ def test_pairs_frame_and_detections_and_maps_indices() -> None:
     rig.frames.put(f)
     boxes = [BOX_RED, (50.0, 50.0, 50.0, 90.0), (300.0, 0.0, 400.0, 100.0), BOX_GREEN]
     rig.dets.put(detections(f, boxes, first_index=3))
-    assert rig.service.poll() == 1
+    assert len(rig.service.poll(time.monotonic())) == 1
     (msg,) = rig.received()
     assert msg.header == f.header
     assert msg.indices.tolist() == [3, 6]  # the empty box (4) and the one outside (5) are skipped
@@ -82,9 +84,9 @@ def test_detections_before_their_frame_wait_for_it() -> None:
     rig = Rig()
     f = frame(seq=1, stamp_ns=5_000_000_000)
     rig.dets.put(detections(f, [BOX_RED]))
-    assert rig.service.poll() == 0
+    assert len(rig.service.poll(time.monotonic())) == 0
     rig.frames.put(f)
-    assert rig.service.poll() == 1
+    assert len(rig.service.poll(time.monotonic())) == 1
     assert rig.received()[0].indices.tolist() == [0]
 
 
@@ -93,7 +95,7 @@ def test_empty_detections_publish_empty_embeddings() -> None:
     f = frame(seq=2, stamp_ns=10)
     rig.frames.put(f)
     rig.dets.put(detections(f, []))
-    rig.service.poll()
+    rig.service.poll(time.monotonic())
     (msg,) = rig.received()
     assert msg.indices.shape == (0,) and msg.vectors.shape[0] == 0
 
@@ -104,7 +106,7 @@ def test_boxes_in_another_resolution_are_rescaled() -> None:
     rig.frames.put(f)
     half = tuple(v / 2 for v in BOX_GREEN)
     rig.dets.put(detections(f, [half], size=(120, 80)))  # detector ran on a half-size image
-    rig.service.poll()
+    rig.service.poll(time.monotonic())
     (msg,) = rig.received()
     np.testing.assert_allclose(msg.vectors[0], ColourDescriptor().embed([scene(3)[20:148, 150:214]])[0], atol=1e-6)
     assert rig.counters.extra["rescaled_frames"] == 1
@@ -117,12 +119,12 @@ def test_undecodable_image_is_counted_not_fatal() -> None:
                                              data=b"not a jpeg"), camera_info=camera_info(240, 160, 10))
     rig.frames.put(bad)
     rig.dets.put(detections(bad, [BOX_RED]))
-    assert rig.service.poll() == 0
+    assert len(rig.service.poll(time.monotonic())) == 0
     assert rig.counters.invalid == 1
     good = frame(seq=5, stamp_ns=20)
     rig.frames.put(good)
     rig.dets.put(detections(good, [BOX_RED]))
-    assert rig.service.poll() == 1
+    assert len(rig.service.poll(time.monotonic())) == 1
 
 
 class SlowBackend:
@@ -151,11 +153,11 @@ def test_stale_work_is_dropped_not_queued() -> None:
     for f in bus_frames:
         rig.service.add_frame(f)
         rig.dets.put(detections(f, [BOX_RED]))
-    assert rig.service.poll() == 1
+    assert len(rig.service.poll(time.monotonic())) == 1
     assert backend.calls == 1  # frames 2 and 3 were 2.8 s behind the camera when their turn came
     assert rig.counters.extra["dropped_stale"] == 2 and rig.counters.dropped == 2
     rig.dets.put(detections(later, [BOX_GREEN]))
-    assert rig.service.poll() == 1
+    assert len(rig.service.poll(time.monotonic())) == 1
     assert [m.header.seq for m in rig.received()] == [1, 30]
 
 
@@ -166,7 +168,7 @@ def test_frame_buffer_is_bounded() -> None:
         rig.service.add_frame(f)
     rig.dets.put(detections(fs[0], [BOX_RED]))  # its frame fell out of the buffer
     rig.dets.put(detections(fs[3], [BOX_RED]))
-    assert rig.service.poll() == 1
+    assert len(rig.service.poll(time.monotonic())) == 1
     assert rig.received()[0].header.seq == 3
 
 
@@ -197,7 +199,8 @@ def test_run_loop_serves_until_shutdown() -> None:
         shutdown.set()
         worker.join(timeout=10.0)
     assert not worker.is_alive()
-    assert rig.service.frames_sub.closed
+    rig.service.close()
+    assert rig.service.frames_sub.closed and rig.service.pub.closed
 
 
 def test_duplicate_detection_indices_are_rejected() -> None:
@@ -207,7 +210,7 @@ def test_duplicate_detection_indices_are_rejected() -> None:
     dets = Detections(header=f.header.model_copy(), detections=[
         Detection(index=0, bbox_xyxy=BOX_RED, score=0.9), Detection(index=0, bbox_xyxy=BOX_GREEN, score=0.9)])
     rig.dets.put(dets)
-    assert rig.service.poll() == 0
+    assert len(rig.service.poll(time.monotonic())) == 0
     assert rig.counters.invalid == 1
 
 

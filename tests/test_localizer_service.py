@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -57,7 +58,7 @@ def test_localizes_in_the_map_frame(memory_bus: MemoryBus) -> None:
         rig.frames.put(scene.frame(seq, PEOPLE))
     rig.frames.put(f)
     rig.dets.put(scene.detections(f, PEOPLE, extra_boxes=((700.0, 10.0, 800.0, 100.0), (50.0, 60.0, 40.0, 70.0))))
-    [out] = rig.service.step()
+    [out] = rig.service.poll(time.monotonic())
     got = rig.out.recv(timeout=1.0)
     assert got is not None and got.msg == out
     assert out.header == Header(stamp_ns=f.header.stamp_ns, frame_id="map", seq=3, source="head")
@@ -80,7 +81,7 @@ def test_pairs_detections_with_their_own_frame(memory_bus: MemoryBus) -> None:
     rig.frames.put(f1)
     rig.frames.put(f2)  # the newer frame arrives before the detections of the older one
     rig.dets.put(scene.detections(f1, near))
-    [out] = rig.service.step()
+    [out] = rig.service.poll(time.monotonic())
     assert out.header.seq == 1
     assert out.detections[0].depth_m == pytest.approx(2.0, abs=1e-3)
 
@@ -90,9 +91,9 @@ def test_detections_before_their_frame_wait_for_it(memory_bus: MemoryBus) -> Non
     f = scene.frame(1, PEOPLE)
     rig.robot(f.header.stamp_ns)
     rig.dets.put(scene.detections(f, PEOPLE))
-    assert rig.service.step(now=100.0) == []
+    assert rig.service.poll(100.0) == []
     rig.frames.put(f)
-    assert len(rig.service.step(now=100.1)) == 1
+    assert len(rig.service.poll(100.1)) == 1
     assert rig.counters.dropped == 0
 
 
@@ -103,7 +104,7 @@ def test_lost_frame_is_dropped_and_counted(memory_bus: MemoryBus) -> None:
     rig.frames.put(f2)  # frame 1 never reached the localizer
     rig.dets.put(scene.detections(f1, PEOPLE))
     rig.dets.put(scene.detections(f2, PEOPLE))
-    [out] = rig.service.step(now=100.0)
+    [out] = rig.service.poll(100.0)
     assert out.header.seq == 2
     assert rig.counters.extra["dropped_no_depth_frame"] == 1
 
@@ -112,9 +113,9 @@ def test_frame_never_arrives_times_out(memory_bus: MemoryBus) -> None:
     rig = Rig(memory_bus, frame_wait_s=0.5)
     f = scene.frame(1, PEOPLE)
     rig.dets.put(scene.detections(f, PEOPLE))
-    assert rig.service.step(now=10.0) == []
-    assert rig.service.step(now=10.4) == [] and rig.counters.dropped == 0
-    assert rig.service.step(now=10.6) == []
+    assert rig.service.poll(10.0) == []
+    assert rig.service.poll(10.4) == [] and rig.counters.dropped == 0
+    assert rig.service.poll(10.6) == []
     assert rig.counters.extra["dropped_no_depth_frame"] == 1 and not rig.service.pending
 
 
@@ -129,9 +130,9 @@ def test_missing_transform_is_dropped_never_published_in_camera_frame(
         f = scene.frame(seq, PEOPLE)
         rig.frames.put(f)
         rig.dets.put(scene.detections(f, PEOPLE))
-    assert rig.service.step(now=50.0) == []  # waiting for the transform
+    assert rig.service.poll(50.0) == []  # waiting for the transform
     assert rig.counters.dropped == 0
-    assert rig.service.step(now=50.3) == []
+    assert rig.service.poll(50.3) == []
     assert rig.counters.extra["dropped_no_transform"] == 3
     assert rig.out.try_recv() is None
     warnings = [r.getMessage() for r in caplog.records if "no_transform" in r.getMessage()]
@@ -146,9 +147,9 @@ def test_transform_arriving_late_within_the_wait_is_used(memory_bus: MemoryBus) 
     rig.tf.put(scene.tf(f.header.stamp_ns - S // 10))  # localization lags behind the camera
     rig.frames.put(f)
     rig.dets.put(scene.detections(f, PEOPLE))
-    assert rig.service.step(now=7.0) == []
+    assert rig.service.poll(7.0) == []
     rig.tf.put(scene.tf(f.header.stamp_ns + S // 20))
-    [out] = rig.service.step(now=7.2)
+    [out] = rig.service.poll(7.2)
     assert np.linalg.norm(out.detections[0].position - scene.map_position(PEOPLE[0], f.header.stamp_ns)) < 0.01
     assert rig.counters.dropped == 0
 
@@ -160,7 +161,7 @@ def test_transform_older_than_history_is_dropped_at_once(memory_bus: MemoryBus) 
     rig.tf.put(scene.tf(f.header.stamp_ns + 5 * S))
     rig.frames.put(f)
     rig.dets.put(scene.detections(f, PEOPLE))
-    assert rig.service.step(now=1.0) == []
+    assert rig.service.poll(1.0) == []
     assert rig.counters.extra["dropped_no_transform"] == 1 and not rig.service.pending
 
 
@@ -177,7 +178,7 @@ def test_unusable_frames_are_counted(memory_bus: MemoryBus, make_frame: object, 
     rig.robot(f.header.stamp_ns)
     rig.frames.put(f)
     rig.dets.put(scene.detections(f, PEOPLE))
-    assert rig.service.step() == []
+    assert rig.service.poll(time.monotonic()) == []
     assert rig.counters.extra[f"dropped_{reason}"] == 1
 
 
@@ -188,14 +189,14 @@ def test_size_mismatch_and_all_invalid_depth(memory_bus: MemoryBus) -> None:
     bad = scene.detections(f, PEOPLE).model_copy(update={"image_width": 320, "image_height": 240})
     rig.frames.put(f)
     rig.dets.put(bad)
-    assert rig.service.step() == []
+    assert rig.service.poll(time.monotonic()) == []
     assert rig.counters.extra["dropped_size_mismatch"] == 1
     # a frame whose depth is all zero: published, with every box rejected and counted
     f2 = scene.frame(2, [])
     f2 = f2.model_copy(update={"depth": f2.depth.model_copy(update={"data": bytes(640 * 480 * 2)})})
     rig.frames.put(f2)
     rig.dets.put(scene.detections(f2, PEOPLE))
-    [out] = rig.service.step()
+    [out] = rig.service.poll(time.monotonic())
     assert out.detections == [] and out.rejected == {"too_few_valid_pixels": 2}
 
 
@@ -205,7 +206,7 @@ def test_metre_depth_frames(memory_bus: MemoryBus) -> None:
     rig.robot(f.header.stamp_ns)
     rig.frames.put(f)
     rig.dets.put(scene.detections(f, PEOPLE))
-    [out] = rig.service.step()
+    [out] = rig.service.poll(time.monotonic())
     assert np.linalg.norm(out.detections[1].position - scene.map_position(PEOPLE[1], f.header.stamp_ns)) < 0.01
 
 
@@ -221,7 +222,7 @@ def test_static_transforms_from_config_and_camera_target(memory_bus: MemoryBus) 
     f = scene.frame(1, PEOPLE)
     rig.frames.put(f)
     rig.dets.put(scene.detections(f, PEOPLE))
-    [out] = rig.service.step()
+    [out] = rig.service.poll(time.monotonic())
     assert out.header.frame_id == "base_link"
     assert np.allclose(out.detections[0].position, scene.BASE_CAMERA.apply(np.array(PEOPLE[0].center)), atol=0.01)
     rig2 = Rig(
@@ -229,7 +230,7 @@ def test_static_transforms_from_config_and_camera_target(memory_bus: MemoryBus) 
     )  # asking for the camera frame gives camera-frame positions, labelled so
     rig2.frames.put(f)
     rig2.dets.put(scene.detections(f, PEOPLE))
-    [cam] = rig2.service.step()
+    [cam] = rig2.service.poll(time.monotonic())
     assert cam.header.frame_id == "camera" and np.allclose(cam.detections[0].position, PEOPLE[0].center, atol=0.01)
 
 
@@ -245,7 +246,7 @@ def test_bad_transform_batches_are_counted(memory_bus: MemoryBus) -> None:
     )
     later = scene.tf(T0 + S).transforms
     rig.tf.put(TransformBatch(header=Header(stamp_ns=T0), transforms=[later[0], cycle, later[1]]))
-    rig.service.step()
+    rig.service.poll(time.monotonic())
     assert rig.counters.extra["transforms_rejected"] == 1
     assert rig.service.buffer.latest_common_stamp("map", "camera") == T0 + S  # the good edges were kept
 
@@ -254,8 +255,8 @@ def test_pending_is_bounded(memory_bus: MemoryBus) -> None:
     rig = Rig(memory_bus, max_pending=2, frame_wait_s=5.0)
     for seq in (1, 2, 3):
         rig.dets.put(scene.detections(scene.frame(seq, []), []))
-    rig.service.step(now=0.0)
-    assert len(rig.service.pending) == 2 and rig.counters.extra["dropped_pending_overflow"] == 1
+    rig.service.poll(0.0)
+    assert rig.service.pending == 2 and rig.counters.extra["dropped_pending_overflow"] == 1
 
 
 def test_run_loop_publishes_until_shutdown(memory_bus: MemoryBus) -> None:

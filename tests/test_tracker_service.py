@@ -64,6 +64,10 @@ class Rig:
             self.emb_pub.put(Embeddings(header=header, model=card, indices=np.arange(len(people), dtype=np.int32),
                                         vectors=vec.astype(np.float32)))
 
+    def poll(self) -> int:
+        """One poll at the rig's clock; the number of Tracks messages published."""
+        return len(self.service.poll(self.clock()))
+
     def outputs(self) -> list[Tracks]:
         out = []
         while (got := self.tracks_sub.try_recv()) is not None:
@@ -79,7 +83,7 @@ def test_joined_frames_publish_confirmed_tracks(tmp_path: Path, memory_bus: Memo
     rig = Rig(memory_bus, config(tmp_path))
     for k in range(5):
         rig.send(k, [(0, (2.0, 0.0, 1.0)), (1, (4.0, 1.0, 1.0))])
-        assert rig.service.poll() == 1
+        assert rig.poll() == 1
     out = rig.outputs()
     assert len(out) == 5 and all(m.appearance_available for m in out)
     assert [len(m.tracks) for m in out] == [0, 0, 2, 2, 2]
@@ -93,19 +97,19 @@ def test_missing_embeddings_fall_back_to_position_only(tmp_path: Path, memory_bu
     rig = Rig(memory_bus, config(tmp_path))
     for k in range(3):
         rig.send(k, [(0, (2.0, 0.0, 1.0))])
-        rig.service.poll()
+        rig.poll()
     rig.send(3, [(0, (2.0, 0.0, 1.0))], embeddings=False)
-    assert rig.service.poll() == 0  # waiting for the embeddings
+    assert rig.poll() == 0  # waiting for the embeddings
     rig.clock.now += 0.05
-    assert rig.service.poll() == 0
+    assert rig.poll() == 0
     rig.clock.now += 0.06  # past the 100 ms join window
-    assert rig.service.poll() == 1
+    assert rig.poll() == 1
     last = rig.outputs()[-1]
     assert not last.appearance_available and not last.tracks[0].appearance_available
     assert [t.id for t in last.tracks] == [1]
     assert rig.service.counters.extra["position_only_timeout"] == 1
     rig.send(3, [(0, (2.0, 0.0, 1.0))], loc=False)  # the embeddings show up after all
-    rig.service.poll()
+    rig.poll()
     assert rig.service.counters.extra["dropped_late_embeddings"] == 1
 
 
@@ -113,9 +117,9 @@ def test_frames_behind_a_waiting_frame_are_held_in_order(tmp_path: Path, memory_
     rig = Rig(memory_bus, config(tmp_path))
     rig.send(0, [(0, (2.0, 0.0, 1.0))], embeddings=False)  # the embedder is slow on frame 0
     rig.send(1, [(0, (2.0, 0.0, 1.0))])
-    assert rig.service.poll() == 0  # frame 1 is complete but waits behind frame 0
+    assert rig.poll() == 0  # frame 1 is complete but waits behind frame 0
     rig.send(0, [(0, (2.0, 0.0, 1.0))], loc=False)
-    assert rig.service.poll() == 2
+    assert rig.poll() == 2
     assert [m.header.seq for m in rig.outputs()] == [0, 1]
     assert "rewinds" not in rig.service.counters.extra
 
@@ -123,23 +127,23 @@ def test_frames_behind_a_waiting_frame_are_held_in_order(tmp_path: Path, memory_
 def test_empty_frames_need_no_embeddings(tmp_path: Path, memory_bus: MemoryBus) -> None:
     rig = Rig(memory_bus, config(tmp_path))
     rig.send(0, [], embeddings=False)
-    assert rig.service.poll() == 1
+    assert rig.poll() == 1
 
 
 def test_out_of_order_frames_are_reordered_and_stale_ones_dropped(tmp_path: Path, memory_bus: MemoryBus) -> None:
     rig = Rig(memory_bus, config(tmp_path))
     for k in [0, 1, 2, 4, 5, 3, 6]:  # frame 3 arrives two frames late
         rig.send(k, [(0, (2.0 + 0.01 * k, 0.0, 1.0))])
-        rig.service.poll()
+        rig.poll()
     assert rig.service.counters.extra["rewinds"] == 1
     tracks = rig.outputs()
     assert tracks[-1].header.seq == 6 and tracks[-1].tracks[0].hits == 7
     for k in range(7, 40):
         if k != 10:  # frame 10 is lost on the way ...
             rig.send(k, [(0, (2.0, 0.0, 1.0))])
-        rig.service.poll()
+        rig.poll()
     rig.send(10, [(0, (2.0, 0.0, 1.0))])  # ... and arrives 1 s late: beyond the 500 ms window
-    rig.service.poll()
+    rig.poll()
     assert rig.service.buffer.dropped_old == 1 and rig.service.counters.extra["dropped_too_old"] == 1
     assert rig.service.counters.dropped == 1
     assert rig.outputs()[-1].header.seq == 39
@@ -149,7 +153,7 @@ def test_query_answers_last_known_state(tmp_path: Path, memory_bus: MemoryBus) -
     rig = Rig(memory_bus, config(tmp_path))
     for k in range(4):
         rig.send(k, [(0, (2.0, 1.0, 1.0))])
-        rig.service.poll()
+        rig.poll()
     asker = memory_bus.transport()
     replies = asker.query(KEYS.track_query() + "?id=1")
     assert len(replies) == 1
@@ -167,7 +171,7 @@ def test_model_card_thresholds_are_a_fallback(tmp_path: Path, memory_bus: Memory
     rig = Rig(memory_bus, config(tmp_path))
     card = ModelCard(name="osnet", dim=DIM, thresholds=AppearanceThresholds(t_lower=0.25, t_upper=0.6, t_recover=0.35))
     rig.send(0, [(0, (2.0, 0.0, 1.0))], model=card)
-    rig.service.poll()
+    rig.poll()
     assert "using the model card" in caplog.text
     assert rig.outputs()[-1].appearance_available and rig.service.model == "osnet"
 
@@ -177,7 +181,7 @@ def test_model_without_thresholds_runs_position_only(tmp_path: Path, memory_bus:
     card = ModelCard(name="unknown-net", dim=DIM)
     for k in range(2):
         rig.send(k, [(0, (2.0, 0.0, 1.0))], model=card)
-        rig.service.poll()
+        rig.poll()
     assert not rig.outputs()[-1].appearance_available
     assert rig.service.counters.extra["no_thresholds"] == 2
 
@@ -185,7 +189,7 @@ def test_model_without_thresholds_runs_position_only(tmp_path: Path, memory_bus:
 def test_other_models_are_refused(tmp_path: Path, memory_bus: MemoryBus) -> None:
     rig = Rig(memory_bus, config(tmp_path, embedding_model="colour"))
     rig.send(0, [(0, (2.0, 0.0, 1.0))], model=ModelCard(name="trinet", dim=DIM))
-    assert rig.service.poll() == 1  # processed at once, position-only
+    assert rig.poll() == 1  # processed at once, position-only
     assert rig.service.counters.extra["dropped_wrong_model"] == 1
     assert not rig.outputs()[-1].appearance_available
 
@@ -196,10 +200,10 @@ def test_identities_survive_a_restart(tmp_path: Path) -> None:
     rig = Rig(bus, cfg)
     for k in range(6):
         rig.send(k, [(0, (2.0, 0.0, 1.0)), (1, (5.0, 0.0, 1.0))])
-        rig.service.poll()
+        rig.poll()
     for k in range(6, 12):  # person 0 leaves: its track is deleted and archived -> saved at once
         rig.send(k, [(1, (5.0, 0.0, 1.0))])
-        rig.service.poll()
+        rig.poll()
     assert rig.service.counters.extra["memory_saves"] >= 1
     rig.service.close()  # shutdown also saves live tracks' galleries (person 1)
     rig.service.transport.close()
@@ -208,7 +212,7 @@ def test_identities_survive_a_restart(tmp_path: Path) -> None:
     rig2 = Rig(bus2, cfg)  # a new process: loads the file
     for k in range(100, 104):  # both come back, in swapped places
         rig2.send(k, [(1, (2.0, 0.0, 1.0)), (0, (5.0, 0.0, 1.0))])
-        rig2.service.poll()
+        rig2.poll()
     last = rig2.outputs()[-1]
     by_x = {round(float(t.position[0])): t.id for t in last.tracks}
     assert by_x == {2: 2, 5: 1}
@@ -219,15 +223,15 @@ def test_periodic_save_covers_a_crash(tmp_path: Path, memory_bus: MemoryBus) -> 
     rig = Rig(memory_bus, config(tmp_path, memory_save_period_s=1.0))
     for k in range(3):
         rig.send(k, [(0, (2.0, 0.0, 1.0))])
-        rig.service.poll()
+        rig.poll()
     assert not (tmp_path / "memory.npz").exists()
     rig.clock.now += 1.5
     rig.send(3, [(0, (2.0, 0.0, 1.0))])
-    rig.service.poll()
+    rig.poll()
     assert (tmp_path / "memory.npz").exists()  # no close(): as after SIGKILL
     rig2 = Rig(MemoryBus(), config(tmp_path))
     rig2.send(50, [(0, (2.0, 0.0, 1.0))])
-    rig2.service.poll()
+    rig2.poll()
     assert rig2.service.counters.extra["ids_recovered"] == 1
 
 
@@ -235,7 +239,7 @@ def test_memory_of_another_model_is_refused(tmp_path: Path, memory_bus: MemoryBu
     rig = Rig(memory_bus, config(tmp_path))
     for k in range(3):
         rig.send(k, [(0, (2.0, 0.0, 1.0))])
-        rig.service.poll()
+        rig.poll()
     rig.service.close()
     with pytest.raises(ValueError, match="embedding model 'colour'"):
         TrackerService(MemoryBus().transport(), KEYS, config(tmp_path, embedding_model="trinet"))
@@ -245,7 +249,7 @@ def test_inputs_in_another_frame_are_dropped(tmp_path: Path, memory_bus: MemoryB
     rig = Rig(memory_bus, config(tmp_path))
     header = Header(stamp_ns=T0, frame_id="odom", seq=0, source="head")
     rig.loc_pub.put(LocalizedDetections(header=header))
-    assert rig.service.poll() == 0
+    assert rig.poll() == 0
     assert rig.service.counters.extra["dropped_wrong_frame"] == 1
 
 
@@ -253,11 +257,11 @@ def test_all_cameras_with_wildcard(tmp_path: Path, memory_bus: MemoryBus) -> Non
     service = TrackerService(memory_bus.transport(), KEYS, config(tmp_path, camera="*"))
     pub = memory_bus.transport().publisher(KEYS.localized("left"), LocalizedDetections, RELIABLE)
     pub.put(LocalizedDetections(header=Header(stamp_ns=T0, frame_id="map", seq=0, source="left")))
-    assert service.poll() == 1
+    assert len(service.poll(0.0)) == 1
 
 
 def test_tracker_command_rejects_bad_config_before_connecting(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from services.cli import main
+    from perception.cli import main
 
     bad = tmp_path / "tracker.yaml"
     bad.write_text("tracker:\n  join_wait_s: -1\n")
@@ -277,10 +281,10 @@ def test_unreadable_memory_file_stops_the_start(tmp_path: Path) -> None:
 def test_false_positives_are_forgotten_by_the_query(tmp_path: Path, memory_bus: MemoryBus) -> None:
     rig = Rig(memory_bus, config(tmp_path))
     rig.send(0, [(0, (2.0, 0.0, 1.0)), (2, (6.0, 6.0, 1.0))])  # person 2 only once: a false positive
-    rig.service.poll()
+    rig.poll()
     for k in range(1, 8):
         rig.send(k, [(0, (2.0, 0.0, 1.0))])
-        rig.service.poll()
+        rig.poll()
     asker = memory_bus.transport()
     assert asker.query(KEYS.track_query() + "?id=2")[0][1].tracks == []  # type: ignore[union-attr]
     assert [t.id for t in asker.query(KEYS.track_query())[0][1].tracks] == [1]  # type: ignore[union-attr]

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from common.cli_util import CliError
-from services.detector.cli_args import add_backend_arguments, detector_from_args, load_service_config
+from services.detector.flags import add_backend_arguments, detector_from_args, load_service_config
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
 
@@ -32,6 +32,8 @@ except depth, which needs depth images."""
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("images", nargs="+", metavar="IMAGE", help="image files")
     parser.add_argument("--output", "-o", default=None, metavar="FILE", help="JSON-lines file to write (default stdout)")
+    parser.add_argument("--service-config", type=Path, default=None, metavar="FILE",
+                        help="YAML/JSON settings; its 'detector' section if it has one, else the whole file")
     add_backend_arguments(parser)
 
 

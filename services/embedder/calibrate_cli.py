@@ -11,7 +11,7 @@ import numpy as np
 from common.cli_util import CliError
 from services.embedder.core.calibration import PERCENTILES, calibrate
 from services.embedder.jsonl import crops_of_line, read_lines
-from services.embedder.main import add_backend_arguments, backend_from_config, config_from_args
+from services.embedder.flags import add_backend_arguments, backend_from_config, config_from_args
 
 DESCRIPTION = """\
 Measure a descriptor model on labelled crops and suggest its tracker thresholds.

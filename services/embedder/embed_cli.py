@@ -11,7 +11,7 @@ from typing import Any, TextIO
 
 from services.embedder.core.backend import Card
 from services.embedder.jsonl import crops_of_line, read_lines
-from services.embedder.main import add_backend_arguments, backend_from_config, config_from_args
+from services.embedder.flags import add_backend_arguments, backend_from_config, config_from_args
 
 DESCRIPTION = """\
 Read the JSON lines written by 'perception detect'

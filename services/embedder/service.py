@@ -1,8 +1,8 @@
 """The embedder service: pair frames with their detections, crop, describe, publish.
 
 Frames arrive latest-only, detections reliably and a little later (the detector works on
-the same frame first). Recent frames are kept in a small buffer keyed by
-``(source, stamp_ns, seq)``; each Detections message is paired with its frame, every
+the same frame first). A :class:`common.join.Joiner` keeps the last ``frame_buffer``
+frames and pairs each Detections message with its frame on ``Header.join_key``; every
 box is cropped (clamped to the image; empty boxes are skipped and counted) and the
 backend describes all crops of the frame in one call. Work whose frame is more than
 ``max_lag_s`` older than the newest frame is dropped and counted instead of being
@@ -12,23 +12,26 @@ processed late, so a slow model never builds a queue.
 from __future__ import annotations
 
 import logging
+import math
 import time
-from collections import OrderedDict
 
 import numpy as np
 
+from common.join import Dropped, Joiner
 from common.keys import FRAMES, RELIABLE, Keys
-from common.runtime import Counters, Shutdown
-from common.schemas import AppearanceThresholds, Detections, Embeddings, Header, ModelCard, RGBDFrame
-from common.transport import Transport, wait_any
-from services.embedder.config import EmbedderConfig
+from common.node import Node
+from common.runtime import Counters
+from common.schemas import AppearanceThresholds, Detections, Embeddings, ModelCard, RGBDFrame
+from common.transport import Transport
+from services.embedder.config import EmbedderConfig, build_backend
 from services.embedder.core.backend import Backend, Card, EmbedderError, crop_boxes
 
 __all__ = ["EmbedderService", "model_card"]
 
 log = logging.getLogger(__name__)
 
-FrameKey = tuple[str, int, int]
+#: What the embedder calls each of the joiner's drop reasons (``dropped_<name>``).
+_DROP_NAMES = {"stale": "stale", "overflow": "unpaired", "duplicate": "duplicate", "late": "duplicate"}
 
 
 def model_card(card: Card) -> ModelCard:
@@ -41,71 +44,64 @@ def model_card(card: Card) -> ModelCard:
                      normalized=card.normalized, thresholds=thresholds)
 
 
-def _key(header: Header) -> FrameKey:
-    return (header.source, header.stamp_ns, header.seq)
-
-
-class EmbedderService:
+class EmbedderService(Node):
     """Subscribes ``frames/{camera}`` and ``detections/{camera}``, publishes ``embeddings/{camera}``."""
 
-    def __init__(self, transport: Transport, keys: Keys, config: EmbedderConfig, backend: Backend,
-                 counters: Counters | None = None) -> None:
-        self.transport = transport
+    name = "embedder"
+
+    def __init__(self, transport: Transport, keys: Keys, config: EmbedderConfig, counters: Counters | None = None,
+                 backend: Backend | None = None) -> None:
+        super().__init__(transport, keys, counters)
         self.config = config
-        self.backend = backend
-        self.counters = counters if counters is not None else Counters()
+        self.backend = backend if backend is not None else build_backend(config)
         self.card = model_card(backend.card)
         cam = config.camera
-        self.frames_sub = transport.subscribe(keys.frames(cam), RGBDFrame, FRAMES)
-        self.dets_sub = transport.subscribe(keys.detections(cam), Detections, RELIABLE)
-        self.pub = transport.publisher(keys.embeddings(cam), Embeddings, RELIABLE)
-        self._frames: OrderedDict[FrameKey, RGBDFrame] = OrderedDict()
-        self._waiting: OrderedDict[FrameKey, Detections] = OrderedDict()
-        self._newest_ns = 0
-        self._lag_ns = int(config.max_lag_s * 1e9)
+        self.frames_sub = self.io.subscribe(keys.frames(cam), RGBDFrame, FRAMES)
+        self.dets_sub = self.io.subscribe(keys.detections(cam), Detections, RELIABLE)
+        self.pub = self.io.publisher(keys.embeddings(cam), Embeddings, RELIABLE)
+        # no wall-clock timeout: work waits for its frame until it is max_lag_s behind the camera
+        self.join: Joiner[Detections] = Joiner(
+            ("detections", "frame"), wait_s=math.inf, buffer=config.frame_buffer,
+            max_waiting=4 * config.frame_buffer, max_lag_s=config.max_lag_s)
+
+    def describe(self) -> str:
+        c = self.card
+        return f"{c.name} ({c.dim}-D {c.metric}) on {self.dets_sub.key}"
 
     # ------------------------------------------------------------------ inputs
 
-    def add_frame(self, frame: RGBDFrame) -> None:
+    def add_frame(self, frame: RGBDFrame, now: float | None = None) -> None:
         """Remember a frame (the oldest falls out of the buffer)."""
-        key = _key(frame.header)
-        self._frames[key] = frame
-        self._frames.move_to_end(key)
-        while len(self._frames) > self.config.frame_buffer:
-            self._frames.popitem(last=False)
-        self._newest_ns = max(self._newest_ns, frame.header.stamp_ns)
+        now = time.monotonic() if now is None else now
+        self._count(self.join.add("frame", frame.header.join_key, frame, now))
 
-    def _stale(self, header: Header) -> bool:
-        return header.stamp_ns + self._lag_ns < self._newest_ns
+    def _count(self, dropped: list[Dropped]) -> None:
+        for d in dropped:
+            if "detections" in d.slots:
+                self.counters.drop(_DROP_NAMES.get(d.reason, d.reason))
+            else:
+                self.counters.count(f"frames_{d.reason}")
 
-    def _drain_frames(self) -> None:
+    def _drain_frames(self, now: float) -> None:
         while (got := self.frames_sub.try_recv()) is not None:
-            self.add_frame(got.msg)
+            self.add_frame(got.msg, now)
 
-    def poll(self) -> int:
-        """Handle everything that has arrived; returns the number of Embeddings published."""
-        self._drain_frames()
+    def poll(self, now: float) -> list[Embeddings]:
+        """Handle everything that has arrived; returns the Embeddings published."""
+        self._drain_frames(now)
         while (got := self.dets_sub.try_recv()) is not None:
-            self._waiting[_key(got.msg.header)] = got.msg
-        published = 0
-        for key in list(self._waiting):
-            self._drain_frames()  # time passed in the model: see what is newest now
-            dets = self._waiting[key]
-            if self._stale(dets.header):
-                del self._waiting[key]
-                self.counters.drop("stale")
-                continue
-            frame = self._frames.get(key)
-            if frame is None:
-                continue  # its frame may still be on the way; it goes stale otherwise
-            del self._waiting[key]
-            out = self.process(frame, dets)
+            self._count(self.join.add("detections", got.msg.header.join_key, got.msg, now))
+        published = []
+        while True:
+            self._drain_frames(now)  # time passed in the model: see what is newest now
+            joined, dropped = self.join.poll(now, limit=1)
+            self._count(dropped)
+            if not joined:
+                break
+            out = self.process(joined[0].items["frame"], joined[0].anchor)
             if out is not None:
                 self.pub.put(out)
-                published += 1
-        while len(self._waiting) > 4 * self.config.frame_buffer:
-            self._waiting.popitem(last=False)
-            self.counters.drop("unpaired")
+                published.append(out)
         return published
 
     # ------------------------------------------------------------------ work
@@ -146,17 +142,3 @@ class EmbedderService:
         self.counters.count("descriptors", len(kept))
         return Embeddings(header=frame.header.model_copy(), model=self.card, indices=indices,
                           vectors=vectors.astype(np.float32, copy=False).reshape(len(kept), self.card.dim))
-
-    def run(self, shutdown: Shutdown) -> None:
-        """Serve until ``shutdown`` is set, then close the subscriptions."""
-        try:
-            while not shutdown.is_set():
-                wait_any([self.frames_sub, self.dets_sub], self.transport.notify, 0.2)
-                self.poll()
-        finally:
-            self.close()
-
-    def close(self) -> None:
-        self.frames_sub.close()
-        self.dets_sub.close()
-        self.pub.close()

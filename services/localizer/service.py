@@ -3,28 +3,28 @@
 Inputs (``keys`` of one robot, one camera):
 
 * ``frames/{camera}`` RGBDFrame. Subscribed with a small FIFO instead of the usual
-  latest-only ring, and kept in a :class:`FrameRing` of the last ``frame_buffer`` depth
-  frames: the Detections of a frame arrive after the detector has worked on it, by
-  which time newer frames have come in, so a latest-only subscription would almost
-  never still hold the matching frame. Only the depth image and camera info are kept.
-* ``detections/{camera}`` Detections, paired with their frame on (source, stamp, seq).
+  latest-only ring: the Detections of a frame arrive after the detector has worked on
+  it, by which time newer frames have come in, so a latest-only subscription would
+  almost never still hold the matching frame. Only the depth image and camera info are
+  kept, the last ``frame_buffer`` of them.
+* ``detections/{camera}`` Detections, joined with their frame on ``Header.join_key`` by
+  a :class:`common.join.Joiner`.
 * ``tf`` and ``tf_static`` TransformBatch, into a :class:`TransformBuffer`.
 
-Detections wait (in arrival order) up to ``frame_wait_s`` for a frame not yet seen and
-up to ``transform_wait_s`` for the transform at their stamp, both counted from their
-arrival; then they are dropped and
-counted (``dropped_no_depth_frame``, ``dropped_no_transform``), and the missing edge is
-logged at most once per second. Positions are only ever published in ``target_frame``.
+Detections wait (in stamp order) up to ``frame_wait_s`` for a frame not yet seen (a
+frame of the same source that is already past their stamp will not come: dropped at
+once), then up to ``transform_wait_s`` for the transform at their stamp, both counted
+from their arrival; then they are dropped and counted (``dropped_no_depth_frame``,
+``dropped_no_transform``), and the missing edge is logged at most once per second.
+Positions are only ever published in ``target_frame``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import logging
-import time
 from collections import deque
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -37,8 +37,11 @@ from common.geometry import (
     TransformBuffer,
 )
 from common.geometry_messages import add_transform, camera_from_info
+from common.join import Dropped, Joined, Joiner
 from common.keys import FRAMES, RELIABLE, Keys
-from common.runtime import Counters, Shutdown
+from common.node import Node
+from common.ratelog import RateLimitedLog
+from common.runtime import Counters
 from common.schemas import (
     Detections,
     Header,
@@ -48,10 +51,9 @@ from common.schemas import (
     RGBDFrame,
     TransformBatch,
 )
-from common.transport import Subscription, Transport, wait_any
+from common.transport import Transport
 from services.localizer.config import LocalizerConfig
 from services.localizer.core import localize
-from services.localizer.pairing import FrameKey, FrameRing
 
 __all__ = ["LocalizerService"]
 
@@ -65,40 +67,21 @@ class _DepthFrame:
     camera_frame: str
 
 
-@dataclass
-class _Pending:
-    msg: Detections
-    arrived: float
+#: What the localizer calls each of the joiner's drop reasons (``dropped_<name>``).
+_DROP_NAMES = {"timeout": "no_depth_frame", "lost": "no_depth_frame", "overflow": "pending_overflow",
+               "duplicate": "duplicate", "late": "duplicate"}
 
 
-class _RateLimited:
-    """Logs one warning per reason per ``period_s``, saying how many were not logged."""
-
-    def __init__(self, period_s: float = 1.0) -> None:
-        self.period_s = period_s
-        self._last: dict[str, float] = {}
-        self._skipped: dict[str, int] = {}
-
-    def warning(self, reason: str, fmt: str, *args: object) -> None:
-        now = time.monotonic()
-        if now - self._last.get(reason, -1e18) < self.period_s:
-            self._skipped[reason] = self._skipped.get(reason, 0) + 1
-            return
-        skipped = self._skipped.pop(reason, 0)
-        self._last[reason] = now
-        log.warning(fmt + (f" ({skipped} more since the last report)" if skipped else ""), *args)
-
-
-class LocalizerService:
+class LocalizerService(Node):
     """The localizer on a transport it is handed (Zenoh or in-memory)."""
+
+    name = "localizer"
 
     def __init__(
         self, transport: Transport, keys: Keys, config: LocalizerConfig, counters: Counters | None = None
     ) -> None:
-        self.transport = transport
-        self.keys = keys
+        super().__init__(transport, keys, counters)
         self.config = config
-        self.counters = counters if counters is not None else Counters()
         self.params = config.params()
         self.buffer = TransformBuffer(history_s=config.tf_history_s, tolerance_s=config.tf_tolerance_s)
         for st in config.static_transforms:
@@ -109,21 +92,26 @@ class LocalizerService:
                 RigidTransform.from_quat(np.array(st.translation), np.array(st.rotation_xyzw)),
                 static=True,
             )
-        self.frames_ring: FrameRing[_DepthFrame] = FrameRing(config.frame_buffer)
-        self.pending: deque[_Pending] = deque()
-        self._log = _RateLimited()
+        self.join: Joiner[Detections] = Joiner(
+            ("detections", "frame"), wait_s=config.frame_wait_s, buffer=config.frame_buffer,
+            max_waiting=config.max_pending, on_timeout="drop", in_order=("frame",), ordered=True)
+        self.waiting_tf: deque[Joined[Detections]] = deque()  # joined, waiting for their transform
+        self._log = RateLimitedLog(log)
+        # the tf subscriptions first, so a frame's transform is taken before its detections
+        self.sub_tf_static = self.io.subscribe(keys.tf_static(), TransformBatch, RELIABLE)
+        self.sub_tf = self.io.subscribe(keys.tf(), TransformBatch, RELIABLE)
         frame_fifo = dataclasses.replace(FRAMES, latest=False, queue=max(4, config.frame_buffer))
-        self.sub_frames = transport.subscribe(keys.frames(config.camera), RGBDFrame, frame_fifo)
-        self.sub_detections = transport.subscribe(keys.detections(config.camera), Detections, RELIABLE)
-        self.sub_tf = transport.subscribe(keys.tf(), TransformBatch, RELIABLE)
-        self.sub_tf_static = transport.subscribe(keys.tf_static(), TransformBatch, RELIABLE)
-        self.pub = transport.publisher(keys.localized(config.camera), LocalizedDetections, RELIABLE)
-        self.subscriptions: list[Subscription[Any]] = [
-            self.sub_tf_static,
-            self.sub_tf,
-            self.sub_frames,
-            self.sub_detections,
-        ]
+        self.sub_frames = self.io.subscribe(keys.frames(config.camera), RGBDFrame, frame_fifo)
+        self.sub_detections = self.io.subscribe(keys.detections(config.camera), Detections, RELIABLE)
+        self.pub = self.io.publisher(keys.localized(config.camera), LocalizedDetections, RELIABLE)
+
+    @property
+    def pending(self) -> int:
+        """Detections messages not yet localized or dropped."""
+        return self.join.waiting + len(self.waiting_tf)
+
+    def describe(self) -> str:
+        return f"localizing {self.sub_detections.key} into {self.config.target_frame!r}"
 
     # ------------------------------------------------------------------ inputs
 
@@ -137,41 +125,38 @@ class LocalizerService:
                         self.counters.count("transforms_rejected")
                         self._log.warning("tf_tree", "rejected transform from %s: %s", got.key, exc)
 
-    def _take_frames(self) -> None:
+    def _take_frames(self, now: float) -> None:
         while (got := self.sub_frames.try_recv()) is not None:
             f = got.msg
             camera_frame = f.camera_info.header.frame_id or f.header.frame_id or self.config.camera_frame
-            key: FrameKey = (f.header.source, f.header.stamp_ns, f.header.seq)
-            self.frames_ring.add(key, _DepthFrame(f.depth, camera_from_info(f.camera_info), camera_frame))
+            frame = _DepthFrame(f.depth, camera_from_info(f.camera_info), camera_frame)
+            self._dropped(self.join.add("frame", f.header.join_key, frame, now))
 
     def _take_detections(self, now: float) -> None:
         while (got := self.sub_detections.try_recv()) is not None:
-            if len(self.pending) >= self.config.max_pending:
-                old = self.pending.popleft()
-                self._drop("pending_overflow", "too many detections waiting; dropped seq %d", old.msg.header.seq)
-            self.pending.append(_Pending(got.msg, now))
+            self._dropped(self.join.add("detections", got.msg.header.join_key, got.msg, now))
 
     # ---------------------------------------------------------------- pairing
+
+    def _dropped(self, dropped: list[Dropped]) -> None:
+        for d in dropped:
+            if d.reason in ("timeout", "lost"):
+                self._drop("no_depth_frame", "no depth frame %s (lost, or evicted from the last %d)",
+                           d.key, self.config.frame_buffer)
+            elif "detections" in d.slots:
+                self._drop(_DROP_NAMES.get(d.reason, d.reason), "%s detections %s", d.reason, d.key)
+            else:
+                self.counters.count(f"frames_{d.reason}")
 
     def _drop(self, reason: str, fmt: str, *args: object) -> None:
         self.counters.drop(reason)
         self._log.warning(reason, "dropping detections (%s): " + fmt, reason, *args)
 
-    def _try(self, item: _Pending, now: float) -> tuple[bool, LocalizedDetections | None]:
-        """(done, message to publish). Not done means: wait for more input."""
-        h = item.msg.header
-        key: FrameKey = (h.source, h.stamp_ns, h.seq)
-        frame = self.frames_ring.get(key)
-        if frame is None:
-            if self.frames_ring.passed(key) or now - item.arrived >= self.config.frame_wait_s:
-                self._drop(
-                    "no_depth_frame",
-                    "no depth frame %s (lost, or evicted from the last %d)",
-                    key,
-                    self.config.frame_buffer,
-                )
-                return True, None
-            return False, None
+    def _try(self, item: Joined[Detections], now: float) -> tuple[bool, LocalizedDetections | None]:
+        """(done, message to publish). Not done means: wait for the transform."""
+        h = item.anchor.header
+        frame: _DepthFrame = item.items["frame"]
+        key = h.join_key
         if frame.depth is None:
             self._drop("frame_without_depth", "frame %s has no depth image", key)
             return True, None
@@ -186,7 +171,7 @@ class LocalizerService:
                 return False, None
             self._drop("no_transform", "missing transform %s: %s", exc.edge, exc)
             return True, None
-        return True, self._localize(item.msg, frame, tf)
+        return True, self._localize(item.anchor, frame, tf)
 
     def _localize(self, msg: Detections, frame: _DepthFrame, tf: RigidTransform) -> LocalizedDetections | None:
         assert frame.depth is not None
@@ -240,28 +225,26 @@ class LocalizerService:
 
     # ------------------------------------------------------------------- loop
 
-    def step(self, now: float | None = None) -> list[LocalizedDetections]:
+    def poll(self, now: float) -> list[LocalizedDetections]:
         """Take every waiting input, then localize the detections that can be; returns what was published."""
-        now = time.monotonic() if now is None else now
         self._take_transforms()
-        self._take_frames()
+        self._take_frames(now)
         self._take_detections(now)
+        joined, dropped = self.join.poll(now)
+        self._dropped(dropped)
+        self.waiting_tf.extend(joined)
         published = []
-        while self.pending:
-            done, out = self._try(self.pending[0], now)
+        while self.waiting_tf:
+            done, out = self._try(self.waiting_tf[0], now)
             if not done:
                 break
-            self.pending.popleft()
+            self.waiting_tf.popleft()
             if out is not None:
                 self.pub.put(out)
                 published.append(out)
-        self.counters.gauge("pending", len(self.pending))
+        self.counters.gauge("pending", self.pending)
         return published
 
-    def run(self, shutdown: Shutdown) -> None:
-        """Serve until ``shutdown`` is set."""
-        log.info("localizing %s into %r", self.keys.detections(self.config.camera), self.config.target_frame)
-        while not shutdown.is_set():
-            # while something waits, poll often enough to honour its deadline
-            wait_any(self.subscriptions, self.transport.notify, 0.02 if self.pending else 0.2)
-            self.step()
+    def deadline(self, now: float) -> float | None:
+        # while something waits, poll often enough to honour its deadline
+        return 0.02 if self.pending else None

@@ -1,8 +1,10 @@
 """TrackerService: LocalizedDetections + Embeddings in, Tracks out, over any Transport.
 
-* Inputs of one source frame are joined on ``(source, stamp_ns, seq)``. Localized
-  detections wait up to ``join_wait_s`` for their embeddings; then the frame runs
-  position-only. A frame without detections needs no embeddings and runs at once.
+* Inputs of one source frame are joined on ``Header.join_key`` by a
+  :class:`common.join.Joiner`. Localized detections wait up to ``join_wait_s`` for their
+  embeddings; then the frame runs position-only. A frame without detections needs no
+  embeddings and runs at once; embeddings of another model are rejected and do not
+  make their frame wait.
 * Joined frames go through a :class:`ReorderBuffer`: applied in sensor-time order,
   rewinding for late ones within ``reorder_window_s``, dropping (and counting) older ones.
 * After every update the Confirmed tracks are published. ``keys.track_query()`` answers
@@ -18,14 +20,17 @@ import logging
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from common.join import Dropped, Joiner
 from common.keys import RELIABLE, Keys
-from common.runtime import Counters, Shutdown
+from common.node import Node
+from common.ratelog import RateLimitedLog
+from common.runtime import Counters
 from common.schemas import Embeddings, Header, LocalizedDetections, ModelCard, TrackState, Tracks
-from common.transport import Subscription, Transport, wait_any
+from common.transport import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of, track_state, tracks_message
 from services.tracker.core import IdentityMemory, Tracker
@@ -37,12 +42,14 @@ __all__ = ["TrackerService", "load_memory"]
 log = logging.getLogger(__name__)
 
 
-@dataclass
-class _Pending:
-    loc: LocalizedDetections | None = None
-    emb: Embeddings | None = None
-    arrived: float = 0.0  # monotonic time the localized detections arrived
-    emb_rejected: bool = False
+#: What the tracker calls each of the joiner's drop reasons (``dropped_<name>``).
+_DROP_NAMES = {"orphan": "unpaired_embeddings", "late": "late_embeddings", "duplicate": "duplicate",
+               "overflow": "join_overflow"}
+
+
+def _complete(items: Mapping[str, Any]) -> bool:
+    """A frame is ready with its embeddings (or their known absence), or with no detections."""
+    return "embeddings" in items or not items["localized"].detections
 
 
 @dataclass
@@ -67,13 +74,15 @@ def load_memory(config: TrackerConfig) -> tuple[IdentityMemory, str | None]:
     return memory, model or None
 
 
-class TrackerService:
-    """The tracker on a transport. ``poll()`` does one round of work; ``run()`` loops."""
+class TrackerService(Node):
+    """The tracker on a transport: message translation and wiring around the core."""
+
+    name = "tracker"
 
     def __init__(self, transport: Transport, keys: Keys, config: TrackerConfig, counters: Counters | None = None,
                  clock: Callable[[], float] = time.monotonic) -> None:
-        self.transport, self.keys, self.config = transport, keys, config
-        self.counters = counters if counters is not None else Counters()
+        super().__init__(transport, keys, counters)
+        self.config = config
         self.clock = clock
         memory, stored_model = load_memory(config)
         self.model: str | None = config.embedding_model or stored_model
@@ -82,26 +91,30 @@ class TrackerService:
         self.tracker = Tracker(config.params(th), memory)
         self._have_thresholds = th is not None
         self._epoch_ns: int | None = None
-        self._pending: dict[InputKey, _Pending] = {}
-        self._done: dict[InputKey, int] = {}  # processed keys -> stamp, to spot late embeddings
+        self.join: Joiner[LocalizedDetections] = Joiner(
+            ("localized", "embeddings"), wait_s=config.join_wait_s, on_timeout="release",
+            orphan_s=config.join_wait_s + config.reorder_window_s, buffer=256, max_waiting=256, ordered=True,
+            complete=_complete)
         self._last_state: dict[int, TrackState] = {}
         self._ever_confirmed: set[int] = set()
         self._state_lock = threading.Lock()
         self._saved_version = memory.version
         self._last_save = clock()
         self._dirty = False
-        self._last_old_log = -1e9
+        self._log = RateLimitedLog(log)
         self.buffer: ReorderBuffer[_Frame, TrackerState, FrameResult] = ReorderBuffer(
             apply=self._update, snapshot=self.tracker.snapshot, restore=self.tracker.restore,
             window_ns=int(config.reorder_window_s * 1e9))
-        self.loc_sub = transport.subscribe(keys.localized(config.camera), LocalizedDetections, RELIABLE)
-        self.emb_sub = transport.subscribe(keys.embeddings(config.camera), Embeddings, RELIABLE)
-        self.publisher = transport.publisher(keys.tracks(), Tracks, RELIABLE)
-        transport.serve(keys.track_query(), self._answer_query)
+        self.loc_sub = self.io.subscribe(keys.localized(config.camera), LocalizedDetections, RELIABLE)
+        self.emb_sub = self.io.subscribe(keys.embeddings(config.camera), Embeddings, RELIABLE)
+        self.publisher = self.io.publisher(keys.tracks(), Tracks, RELIABLE)
+        self.io.serve(keys.track_query(), self._answer_query)
+
+    def describe(self) -> str:
+        return (f"tracking camera {self.config.camera!r} in frame {self.config.frame_id!r}, "
+                f"memory {self.config.memory_path or 'off'}")
 
     # ---------------------------------------------------------------- inputs
-    def _key(self, header: Header) -> InputKey:
-        return (header.stamp_ns, header.source, header.seq)
 
     def _accept_model(self, card: ModelCard) -> bool:
         """Lock onto one embedding model and resolve its thresholds."""
@@ -125,56 +138,31 @@ class TrackerService:
     def _drain(self, now: float) -> None:
         while (got := self.loc_sub.try_recv()) is not None:
             loc = got.msg
-            key = self._key(loc.header)
-            if key in self._done or (key in self._pending and self._pending[key].loc is not None):
-                self.counters.drop("duplicate")
-                continue
             if loc.header.frame_id and loc.header.frame_id != self.config.frame_id:
                 self.counters.drop("wrong_frame")
-                log.warning("dropping localized detections in frame %r; the tracker works in %r",
-                            loc.header.frame_id, self.config.frame_id)
+                self._log.warning("wrong_frame", "dropping localized detections in frame %r; the tracker works in %r",
+                                  loc.header.frame_id, self.config.frame_id)
                 continue
-            p = self._pending.setdefault(key, _Pending())
-            p.loc, p.arrived = loc, now
+            self._count(self.join.add("localized", loc.header.join_key, loc, now))
         while (got_emb := self.emb_sub.try_recv()) is not None:
             emb = got_emb.msg
-            key = self._key(emb.header)
-            if key in self._done:
-                self.counters.drop("late_embeddings")
-                continue
-            p = self._pending.setdefault(key, _Pending(arrived=now))
             if not self._accept_model(emb.model):
                 self.counters.drop("wrong_model")
-                p.emb_rejected = True
-                continue
-            p.emb = emb
+                emb = None  # known not to come: its frame need not wait
+            self._count(self.join.add("embeddings", got_emb.msg.header.join_key, emb, now))
+
+    def _count(self, dropped: list[Dropped]) -> None:
+        for d in dropped:
+            self.counters.drop(_DROP_NAMES.get(d.reason, d.reason))
 
     def _ready(self, now: float) -> list[tuple[InputKey, _Frame]]:
-        ready, expired = [], []
-        for key, p in self._pending.items():
-            if p.loc is None:
-                if now - p.arrived > self.config.join_wait_s + self.config.reorder_window_s:
-                    expired.append(key)
-                continue
-            if p.emb is not None or p.emb_rejected or not p.loc.detections:
-                ready.append(key)
-            elif now - p.arrived >= self.config.join_wait_s:
-                self.counters.count("position_only_timeout")
-                ready.append(key)
-        for key in expired:
-            del self._pending[key]
-            self.counters.drop("unpaired_embeddings")
-        # release in order: nothing behind a frame that still waits for its embeddings
-        ready_set = set(ready)
-        waiting = [k for k, p in self._pending.items() if p.loc is not None and k not in ready_set]
-        first_waiting = min(waiting, default=None)
+        joined, dropped = self.join.poll(now)
+        self._count(dropped)
         out = []
-        for key in sorted(ready):
-            if first_waiting is not None and key > first_waiting:
-                break
-            p = self._pending.pop(key)
-            assert p.loc is not None
-            out.append((key, _Frame(p.loc, p.emb)))
+        for j in joined:
+            if j.timed_out:
+                self.counters.count("position_only_timeout")
+            out.append((j.key, _Frame(j.anchor, j.get("embeddings"))))
         return out
 
     # ---------------------------------------------------------------- update
@@ -212,58 +200,47 @@ class TrackerService:
         """Whether an earlier track with this ID was ever Confirmed (its ID was recovered)."""
         return track_id in self._ever_confirmed
 
-    def _publish(self, frame: _Frame, result: FrameResult) -> None:
+    def _publish(self, frame: _Frame, result: FrameResult) -> Tracks:
         assert self._epoch_ns is not None
         h = frame.loc.header
         header = Header(stamp_ns=h.stamp_ns, frame_id=self.config.frame_id, seq=h.seq, source=h.source)
-        self.publisher.put(tracks_message(result, header, self.model or "", self._epoch_ns))
+        msg = tracks_message(result, header, self.model or "", self._epoch_ns)
+        self.publisher.put(msg)
         self.counters.gauge("tracks_confirmed", len(result.confirmed))
         self.counters.gauge("tracks_live", len(result.tracks))
         self.counters.gauge("ids_remembered", len(self.tracker.memory))
+        return msg
 
-    def poll(self, now: float | None = None) -> int:
-        """Take what has arrived, apply every frame that is ready, publish; returns updates done."""
-        now = self.clock() if now is None else now
+    def poll(self, now: float) -> list[Tracks]:
+        """Take what has arrived, apply every frame that is ready; returns the Tracks published."""
         self._drain(now)
-        done = 0
+        published = []
         for key, frame in self._ready(now):
-            self._done[key] = key[0]
             old, dup = self.buffer.dropped_old, self.buffer.dropped_duplicate
             try:
                 results = self.buffer.push(key, frame)
             except (ValueError, np.linalg.LinAlgError) as exc:
                 self.counters.count("update_errors")
-                log.error("frame %s could not be tracked: %s", key, exc)
+                self._log.error("update_error", "frame %s could not be tracked: %s", key, exc)
                 continue
             if self.buffer.dropped_old > old:
                 self.counters.drop("too_old")
-                if now - self._last_old_log >= 1.0:  # at most one line per second
-                    self._last_old_log = now
-                    log.warning("dropping frame %s: more than %.3f s older than the newest frame (%d so far)", key,
-                                self.config.reorder_window_s, self.buffer.dropped_old)
+                self._log.warning("too_old", "dropping frame %s: more than %.3f s older than the newest frame (%d so far)",
+                                  key, self.config.reorder_window_s, self.buffer.dropped_old)
             if self.buffer.dropped_duplicate > dup:
                 self.counters.drop("duplicate")
             if not results:
                 continue
-            done += len(results)
             if len(results) > 1:
                 self.counters.count("rewinds")
             newest = self.buffer.latest() or (key, frame)
-            self._publish(newest[1], results[-1])
-        self._forget_done()
+            published.append(self._publish(newest[1], results[-1]))
         self._persist(now)
-        return done
+        return published
 
-    def _forget_done(self) -> None:
-        if self.buffer.newest_ns is None or len(self._done) < 64:
-            return
-        horizon = self.buffer.newest_ns - 2 * int(self.config.reorder_window_s * 1e9) - int(self.config.join_wait_s * 1e9)
-        self._done = {k: s for k, s in self._done.items() if s >= horizon}
-
-    def next_timeout(self, now: float) -> float:
+    def deadline(self, now: float) -> float | None:
         """Seconds until the earliest pending frame stops waiting for its embeddings."""
-        waits = [p.arrived + self.config.join_wait_s - now for p in self._pending.values() if p.loc is not None]
-        return max(0.0, min(waits, default=0.2))
+        return self.join.next_deadline(now)
 
     # ------------------------------------------------------------- persistence
     def _persist(self, now: float, force: bool = False) -> None:
@@ -294,22 +271,15 @@ class TrackerService:
                 try:
                     state = self._last_state.get(int(params["id"]))
                 except ValueError:
-                    log.warning("track query with a non-integer id %r", params["id"])
+                    self._log.warning("bad_query", "track query with a non-integer id %r", params["id"])
                     state = None
                 states = [state] if state is not None else []
         return [Tracks(header=header, tracks=states, embedding_model=self.model or "")]
 
-    # -------------------------------------------------------------------- run
-    def run(self, shutdown: Shutdown) -> None:
-        """Work until ``shutdown`` is set, then write the ID memory one last time."""
-        subs: list[Subscription[Any]] = [self.loc_sub, self.emb_sub]
-        try:
-            while not shutdown.is_set():
-                wait_any(subs, self.transport.notify, min(0.2, self.next_timeout(self.clock())))
-                self.poll()
-        finally:
-            self.close()
-
+    # -------------------------------------------------------------------- end
     def close(self) -> None:
-        """Write the ID memory with the live tracks' galleries (call once at shutdown)."""
-        self._persist(self.clock(), force=True)
+        """Write the ID memory with the live tracks' galleries, then undeclare (call once at shutdown)."""
+        try:
+            self._persist(self.clock(), force=True)
+        finally:
+            super().close()

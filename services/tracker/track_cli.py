@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from common.cli_util import CliError
-from common.config import ConfigError, load_config, read_config_file
+from common.node import load_node_config
 from services.tracker.config import DEFAULT_EMBEDDING_MODEL, TrackerConfig
 from services.tracker.offline import FormatError, read_detections, track, write_tracks
 
@@ -38,17 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    section = None
-    if args.config is not None:
-        try:
-            section = "tracker" if "tracker" in read_config_file(args.config) else None
-        except ConfigError as exc:
-            raise CliError(str(exc)) from exc
-    try:
-        config = load_config(TrackerConfig, args.config, env_prefix="PERCEPTION_TRACKER",
-                             overrides={"time_step": args.time_step}, section=section)
-    except ConfigError as exc:
-        raise CliError(str(exc)) from exc
+    config = load_node_config(TrackerConfig, "tracker", args.config, {"time_step": args.time_step})
     if not args.detections.is_file():
         raise CliError(f"detections file {args.detections} does not exist")
     try:

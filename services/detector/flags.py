@@ -6,20 +6,18 @@ import argparse
 from typing import Any
 
 from common.cli_util import CliError
-from common.config import ConfigError, load_config
+from common.node import add_node_arguments, load_node_config
 from services.detector.config import BACKENDS, DetectorConfig, build_detector
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
 
-__all__ = ["add_backend_arguments", "detector_from_args", "load_service_config"]
-
-ENV_PREFIX = "PERCEPTION_DETECTOR"
+__all__ = ["add_arguments", "add_backend_arguments", "detector_from_args", "load_service_config", "node_overrides",
+           "overrides", "prepare"]
 
 
 def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
+    """The backend flags (``perception detector`` and ``perception detect``)."""
     g = parser.add_argument_group("detector")
-    g.add_argument("--service-config", dest="service_config", default=None, metavar="FILE",
-                   help="YAML/JSON config; its 'detector' section is read if present (env PERCEPTION_DETECTOR__FIELD overrides)")
     g.add_argument("--backend", choices=BACKENDS, default=None, help="detector backend (default hog)")
     g.add_argument("--model", default=None, metavar="ONNX", help="yolo-onnx: path of the .onnx model (yolo.model)")
     g.add_argument("--providers", default=None, metavar="P1,P2",
@@ -30,41 +28,39 @@ def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--conf", type=float, default=None, help="yolo-onnx/darknet: confidence threshold")
 
 
-def _prune(tree: dict[str, Any]) -> dict[str, Any]:
-    """``tree`` without None leaves and empty sub-mappings (unset flags override nothing)."""
-    out: dict[str, Any] = {}
-    for k, v in tree.items():
-        if isinstance(v, dict):
-            v = _prune(v)
-            if v:
-                out[k] = v
-        elif v is not None:
-            out[k] = v
-    return out
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Every flag of ``perception detector``."""
+    parser.add_argument("--camera", default=None, help="camera name in the keys (default 'head')")
+    parser.add_argument("--no-depth", action="store_true", help="the camera publishes no depth (refuses backend depth)")
+    add_backend_arguments(parser)
+    add_node_arguments(parser, "detector")
 
 
-def load_service_config(args: argparse.Namespace, extra: dict[str, Any] | None = None) -> DetectorConfig:
-    """Defaults -> --config file (section ``detector``) -> environment -> flags; CliError if invalid."""
+def node_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The node's settings from its flags."""
+    return overrides(args, {"camera": args.camera, "depth_available": False if args.no_depth else None})
+
+
+def prepare(config: DetectorConfig) -> dict[str, Any]:
+    """Build the detector before the transport opens, so a missing model stops the node at once."""
+    return {"detector": detector_from_args(config)}
+
+
+def overrides(args: argparse.Namespace, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The settings the flags set (None: not set, left to the file or the defaults)."""
     providers = [p.strip() for p in args.providers.split(",") if p.strip()] if args.providers else None
-    overrides = _prune({
+    return {
         **(extra or {}),
         "backend": args.backend,
         "hog": {"upsample": args.upsample},
         "yolo": {"model": args.model, "providers": providers, "conf_threshold": args.conf},
         "darknet": {"cfg": args.darknet_cfg, "weights": args.darknet_weights, "conf_threshold": args.conf},
-    })
-    section = None
-    if args.service_config is not None:
-        from common.config import read_config_file
+    }
 
-        try:
-            section = "detector" if "detector" in read_config_file(args.service_config) else None
-        except ConfigError as exc:
-            raise CliError(str(exc)) from exc
-    try:
-        return load_config(DetectorConfig, args.service_config, env_prefix=ENV_PREFIX, overrides=overrides, section=section)
-    except ConfigError as exc:
-        raise CliError(f"{exc}\n(fix it in {args.service_config or 'the flags'} or the PERCEPTION_DETECTOR__* environment)") from exc
+
+def load_service_config(args: argparse.Namespace, extra: dict[str, Any] | None = None) -> DetectorConfig:
+    """Defaults -> --service-config file (section ``detector``) -> environment -> flags; CliError if invalid."""
+    return load_node_config(DetectorConfig, "detector", args.service_config, overrides(args, extra))
 
 
 def detector_from_args(config: DetectorConfig) -> Detector:

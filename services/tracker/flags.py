@@ -1,0 +1,38 @@
+"""The flags of ``perception tracker`` and the settings they override."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from common.node import add_node_arguments
+from services.tracker.config import TrackerConfig
+
+__all__ = ["add_arguments", "adjust", "overrides"]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    g = parser.add_argument_group("tracker")
+    g.add_argument("--camera", default=None, help="camera whose streams to track, '*' for all (default head)")
+    g.add_argument("--embedding-model", default=None, metavar="NAME",
+                   help="only use descriptors of this model (default: the first model seen)")
+    g.add_argument("--time-step", choices=("time", "frame"), default=None,
+                   help="'time': dt from stamps (default); 'frame': dt = 1 per frame, as the thesis")
+    g.add_argument("--memory", type=Path, default=None, metavar="FILE", help="ID memory file")
+    g.add_argument("--no-memory", action="store_true", help="do not load or save an ID memory")
+    add_node_arguments(parser, "tracker")
+
+
+def overrides(args: argparse.Namespace) -> dict[str, Any]:
+    return {"camera": args.camera, "embedding_model": args.embedding_model, "time_step": args.time_step,
+            "memory_path": args.memory}
+
+
+def adjust(args: argparse.Namespace) -> Any:
+    """``--no-memory`` turns the memory off whatever the file or environment say."""
+
+    def apply(config: TrackerConfig) -> TrackerConfig:
+        return config.model_copy(update={"memory_path": None}) if args.no_memory else config
+
+    return apply

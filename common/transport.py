@@ -27,6 +27,7 @@ from typing import Any, Callable, Generic, Iterable, TypeVar
 
 from common.codec import DecodeError, decode, decode_any, encode
 from common.keys import Delivery
+from common.ratelog import RateLimitedLog
 from common.schemas import Message
 
 __all__ = ["Closer", "Inbox", "Publisher", "QueryHandler", "Received", "Subscription", "SubscriptionStats", "Transport", "wait_any"]
@@ -88,7 +89,7 @@ class Subscription(Generic[M]):
         self._cond = notify
         self._undeclare = undeclare
         self._max_bytes = max_bytes
-        self._last_error_log = 0.0
+        self._log = RateLimitedLog(log)
         self.last_error: DecodeError | None = None
         self.closed = False
 
@@ -109,10 +110,8 @@ class Subscription(Generic[M]):
             except DecodeError as exc:
                 self._inbox.stats.invalid += 1
                 self.last_error = exc
-                now = time.monotonic()
-                if now - self._last_error_log >= 1.0:
-                    self._last_error_log = now
-                    log.warning("dropping invalid payload on %s (%d so far): %s", key, self._inbox.stats.invalid, exc)
+                self._log.warning("invalid", "dropping invalid payload on %s (%d so far): %s", key,
+                                  self._inbox.stats.invalid, exc)
                 continue
             return Received(msg, key, recv_ns)  # type: ignore[arg-type]
         return None

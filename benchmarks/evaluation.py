@@ -18,11 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from services.cli import main as perception
-from services.evaluation.distances import euclidean_distances
-from services.evaluation.evaluate import evaluate_tables
-from services.evaluation.metrics import ClearMotAccumulator
-from services.evaluation.readers import TrackTable
+from perception.cli import main as perception
+from tools.evaluation.distances import euclidean_distances
+from tools.evaluation.evaluate import evaluate_tables
+from tools.evaluation.metrics import ClearMotAccumulator
+from tools.evaluation.readers import TrackTable
 
 
 def synthetic(people: int, frames: int, seed: int = 0) -> tuple[TrackTable, TrackTable]:

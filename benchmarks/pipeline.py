@@ -26,7 +26,7 @@ def main() -> int:
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--height", type=int, default=240)
     args = ap.parse_args()
-    cmd = [sys.executable, "-m", "services", "-q", "demo", "--json", "--no-view", "--scenario", args.scenario,
+    cmd = [sys.executable, "-m", "perception", "-q", "demo", "--json", "--no-view", "--scenario", args.scenario,
            "--duration", str(args.duration), "--fps", str(args.fps), "--width", str(args.width), "--height", str(args.height)]
     res = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "RUST_LOG": "error"})
     if res.returncode != 0:

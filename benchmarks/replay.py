@@ -33,7 +33,7 @@ from common.samples import rgbd_frame  # noqa: E402
 from common.transport import Subscription  # noqa: E402
 from common.zenoh_config import ZenohOptions  # noqa: E402
 from common.zenoh_transport import open_transport  # noqa: E402
-from services.replay.recorder import McapRecorder  # noqa: E402
+from tools.replay.recorder import McapRecorder  # noqa: E402
 
 KEYS = Keys()
 FIFO = Delivery(latest=False, queue=100_000, congestion="block")
@@ -56,7 +56,7 @@ def one_run(path: Path, frames: int, subscriber: ZenohOptions, replay_zenoh: lis
     """(seconds from first to last frame, gaps between frames in ms)."""
     with open_transport(subscriber) as t:
         sub: Subscription[Any] = t.subscribe(KEYS.frames("head"), None, FIFO)
-        cmd = [sys.executable, "-m", "services", "-q", "replay", str(path), "--max", "--no-progress",
+        cmd = [sys.executable, "-m", "perception", "-q", "replay", str(path), "--max", "--no-progress",
                "--wait-subscribers", "30", *replay_zenoh]
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         arrivals: list[int] = []

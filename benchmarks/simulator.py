@@ -24,15 +24,15 @@ import numpy as np
 
 from common.codec import encode
 from common.keys import Keys
-from services.simulator.config import SimulatorConfig
-from services.simulator.core.apartment import default_apartment
-from services.simulator.core.body import PersonPose, body_ellipsoids
-from services.simulator.core.geometry import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
-from services.simulator.core.render import Intrinsics, Renderer
-from services.simulator.core.scenarios import SCENARIOS, build_world
-from services.simulator.core.simulation import Simulation
-from services.simulator.core.wardrobe import OUTFITS
-from services.simulator.source import SimulatedStream
+from tools.simulator.config import SimulatorConfig
+from tools.simulator.core.apartment import default_apartment
+from tools.simulator.core.body import PersonPose, body_ellipsoids
+from tools.simulator.core.geometry import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
+from tools.simulator.core.render import Intrinsics, Renderer
+from tools.simulator.core.scenarios import SCENARIOS, build_world
+from tools.simulator.core.simulation import Simulation
+from tools.simulator.core.wardrobe import OUTFITS
+from tools.simulator.source import SimulatedStream
 
 
 def _stream(scenario: str, width: int, height: int) -> SimulatedStream:

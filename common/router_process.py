@@ -52,7 +52,7 @@ class RouterProcess:
         return f"tcp/{self.host}:{self.port}"
 
     def start(self, timeout: float = 15.0) -> RouterProcess:
-        cmd = [sys.executable, "-m", "services", "-q", "router", "--listen", self.endpoint,
+        cmd = [sys.executable, "-m", "perception", "-q", "router", "--listen", self.endpoint,
                "--no-multicast-scouting", *self.extra_args]
         # A file, not a pipe: a pipe nobody reads would block a chatty router.
         self._log = open(self.log_path, "ab") if self.log_path else tempfile.TemporaryFile()  # noqa: SIM115

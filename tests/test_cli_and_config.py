@@ -11,7 +11,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from common.config import ConfigError, load_config
 from common.keys import Keys
-from services.cli import COMMANDS, main
+from perception.cli import COMMANDS, main
 
 PY = sys.executable
 
@@ -34,13 +34,13 @@ def test_top_level_help_lists_commands(capsys: pytest.CaptureFixture[str]) -> No
 
 
 def test_bad_endpoint_is_a_clear_cli_error() -> None:
-    res = subprocess.run([PY, "-m", "services", "status", "--connect", "localhost:7447"], capture_output=True, text=True, timeout=60)
+    res = subprocess.run([PY, "-m", "perception", "status", "--connect", "localhost:7447"], capture_output=True, text=True, timeout=60)
     assert res.returncode == 2
     assert "is not of the form PROTO/ADDRESS" in res.stderr and "Traceback" not in res.stderr
 
 
 def test_bad_robot_name_is_a_clear_cli_error() -> None:
-    res = subprocess.run([PY, "-m", "services", "keys", "--robot", "a/b"], capture_output=True, text=True, timeout=60)
+    res = subprocess.run([PY, "-m", "perception", "keys", "--robot", "a/b"], capture_output=True, text=True, timeout=60)
     assert res.returncode == 2 and "robot name 'a/b'" in res.stderr
 
 

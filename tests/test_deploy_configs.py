@@ -11,7 +11,7 @@ from pydantic import BaseModel
 from common.config import load_config
 from services.detector.config import DetectorConfig
 from services.embedder.config import EmbedderConfig
-from services.launcher.launchfile import load_launch_file
+from tools.launcher.launchfile import load_launch_file
 from services.localizer.config import LocalizerConfig
 from services.tracker.config import TrackerConfig
 

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from services.cli import main as cli_main
+from perception.cli import main as cli_main
 from services.detector.core.boxes import DetectorError, as_rgb
 from services.detector.core.hog import HogDetector
 from tests.detector_models import constant_yolo_onnx, tiny_darknet

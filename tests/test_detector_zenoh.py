@@ -27,7 +27,7 @@ def test_detector_process_round_trip(router: RouterProcess, zenoh_client: Callab
     keys = Keys(robot="zdet")
     log = (tmp_path / "detector.log").open("wb")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "services", "detector", "--robot", "zdet", "--camera", "head",
+        [sys.executable, "-m", "perception", "detector", "--robot", "zdet", "--camera", "head",
          "--connect", router.endpoint, "--no-multicast-scouting"],
         cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, "RUST_LOG": "error"})
     try:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from services.cli import main as perception
+from perception.cli import main as perception
 from services.embedder import export_cli
 from services.embedder.config import OnnxConfig, sidecar_path, with_sidecar
 from services.embedder.core.calibration import calibrate

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from services.cli import main as perception
+from perception.cli import main as perception
 from services.embedder.core.calibration import calibrate, pair_distances, suggest_thresholds
 from services.embedder.core.synthetic import random_outfit, render_person
 

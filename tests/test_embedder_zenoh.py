@@ -25,7 +25,7 @@ def test_embedder_process_round_trip(router: RouterProcess, zenoh_client: Callab
     client = zenoh_client()
     out = client.subscribe(keys.embeddings("head"), Embeddings, RELIABLE)
     env = {**os.environ, "RUST_LOG": "error"}
-    proc = subprocess.Popen([sys.executable, "-m", "services", "embedder", "--robot", "embtest",
+    proc = subprocess.Popen([sys.executable, "-m", "perception", "embedder", "--robot", "embtest",
                              "--connect", router.endpoint], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
         deadline = time.monotonic() + 60

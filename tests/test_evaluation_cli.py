@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from services.cli import main
-from services.evaluation.evaluate import evaluate_sequences, format_table
+from perception.cli import main
+from tools.evaluation.evaluate import evaluate_sequences, format_table
 
 # py-motmetrics 1.4.0 on its own TUD files (../shared/data/motchallenge/README.md).
 ORACLE = {

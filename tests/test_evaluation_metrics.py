@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from services.evaluation.distances import euclidean_distances, iou_distances
-from services.evaluation.evaluate import evaluate_tables
-from services.evaluation.metrics import ClearMot, ClearMotAccumulator, evaluate_frames, gate_distances, solve_assignment
-from services.evaluation.readers import TrackTable
+from tools.evaluation.distances import euclidean_distances, iou_distances
+from tools.evaluation.evaluate import evaluate_tables
+from tools.evaluation.metrics import ClearMot, ClearMotAccumulator, evaluate_frames, gate_distances, solve_assignment
+from tools.evaluation.readers import TrackTable
 
 
 def points_frame(gt: dict[int, float], hyp: dict[int, float]) -> tuple[list[int], list[int], np.ndarray]:

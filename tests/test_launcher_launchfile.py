@@ -8,10 +8,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from services.cli import main as cli_main
-from services.launcher.launchfile import LaunchFileError, load_launch_file, substitute
-from services.launcher.plan import build_plan, connectable
-from services.launcher.supervisor import BackoffState, describe_exit, should_restart
+from perception.cli import main as cli_main
+from tools.launcher.launchfile import LaunchFileError, load_launch_file, substitute
+from tools.launcher.plan import build_plan, connectable
+from tools.launcher.supervisor import BackoffState, describe_exit, should_restart
 
 ROOT = Path(__file__).resolve().parents[1]
 DEPLOY = ROOT / "deploy"

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from common.router_process import RouterProcess, free_port
-from services.launcher.supervisor import ProcessSpec, Supervisor
+from tools.launcher.supervisor import ProcessSpec, Supervisor
 from tests.helpers.launcher import CHILD, PY, ROOT, TIMEOUT, Launch
 
 
@@ -92,7 +92,7 @@ services:
     command: tracker
     restart: sometimes
 """)
-    res = subprocess.run([PY, "-m", "services", "launch", str(f)], capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT)
+    res = subprocess.run([PY, "-m", "perception", "launch", str(f)], capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT)
     assert res.returncode == 2
     assert "services[1] (tracker).restart" in res.stderr and "'sometimes'" in res.stderr, res.stderr
     assert "Traceback" not in res.stderr
@@ -110,7 +110,7 @@ services:
 def test_launch_file_errors_are_clear(tmp_path: Path, body: str, expected: str) -> None:
     f = tmp_path / "bad.yaml"
     f.write_text(body)
-    res = subprocess.run([PY, "-m", "services", "launch", str(f)], capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT)
+    res = subprocess.run([PY, "-m", "perception", "launch", str(f)], capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT)
     assert res.returncode == 2 and expected in res.stderr, res.stderr
     assert "Traceback" not in res.stderr
 
@@ -185,7 +185,7 @@ def test_router_that_cannot_start_stops_the_launch_before_the_services(tmp_path:
     # 192.0.2.1 (TEST-NET-1) is no address of this machine: the router cannot listen there.
     f.write_text(f'router:\n  listen: ["tcp/192.0.2.1:7447"]\n'
                  f'services:\n  - {{name: x, exec: ["{PY}", "{CHILD}", touch, "{marker}"]}}\n')
-    res = subprocess.run([PY, "-m", "services", "launch", str(f)], capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT)
+    res = subprocess.run([PY, "-m", "perception", "launch", str(f)], capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT)
     assert res.returncode == 1, res.stdout + res.stderr
     assert "router exited during start-up" in res.stderr and "not starting the others" in res.stderr
     assert "[router] perception: error: could not open a Zenoh session" in res.stdout
@@ -216,7 +216,7 @@ def test_supervisor_api_restarts_and_stops_on_request() -> None:
 def test_router_port_already_taken_is_reported_not_mistaken_for_ready(router: RouterProcess, tmp_path: Path) -> None:
     f = tmp_path / "twice.yaml"
     f.write_text(f'router:\n  listen: ["{router.endpoint}"]\nservices:\n  - {{name: x, exec: ["{PY}", "{CHILD}", crash, "0"]}}\n')
-    res = subprocess.run([PY, "-m", "services", "launch", str(f)], capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT)
+    res = subprocess.run([PY, "-m", "perception", "launch", str(f)], capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT)
     assert res.returncode == 1
     assert f"something already accepts connections on 127.0.0.1:{router.port} (another router?)" in res.stderr
     assert "started" not in res.stderr and "boom" not in res.stdout

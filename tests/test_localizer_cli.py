@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from common.geometry import PinholeCamera, RigidTransform
-from services.cli import main
+from perception.cli import main
 from services.localizer.synthetic import Person, person_box, render_depth
 
 K = [525.0, 0.0, 319.5, 0.0, 525.0, 239.5, 0.0, 0.0, 1.0]

@@ -37,7 +37,7 @@ def test_localizer_process_over_router(
         [
             sys.executable,
             "-m",
-            "services",
+            "perception",
             "localizer",
             "--robot",
             "itest",

@@ -51,7 +51,7 @@ def _wait_gone(text: str, timeout: float = 15.0) -> list[int]:
 
 
 def test_demo_runs_the_pipeline_and_scores_it() -> None:
-    proc = subprocess.Popen([PY, "-m", "services", "demo", "--scenario", "still", "--duration", "20", "--json", "--no-view"],
+    proc = subprocess.Popen([PY, "-m", "perception", "demo", "--scenario", "still", "--duration", "20", "--json", "--no-view"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     out, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err[-3000:]
@@ -84,7 +84,7 @@ def launched(tmp_path: Path) -> Iterator[list[subprocess.Popen[bytes]]]:
 
 
 def _launch(file: Path, log: Path) -> subprocess.Popen[bytes]:
-    return subprocess.Popen([PY, "-m", "services", "launch", str(file)], stdout=log.open("wb"), stderr=subprocess.STDOUT,
+    return subprocess.Popen([PY, "-m", "perception", "launch", str(file)], stdout=log.open("wb"), stderr=subprocess.STDOUT,
                             env={**os.environ, "RUST_LOG": "error"})
 
 

@@ -6,9 +6,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from services.replay.core.mapping import parse_remap, plan_topics, remap_key
-from services.replay.core.pairing import RgbdPairer
-from services.replay.core.timeline import Pacer, RateMeter, Reorderer, TimeWindow, reorder
+from tools.replay.core.mapping import parse_remap, plan_topics, remap_key
+from tools.replay.core.pairing import RgbdPairer
+from tools.replay.core.timeline import Pacer, RateMeter, Reorderer, TimeWindow, reorder
 
 MS = 1_000_000
 S = 1_000_000_000

@@ -19,13 +19,13 @@ from common.keys import RELIABLE, Keys
 from common.memory import MemoryBus
 from common.samples import example_messages, rgbd_frame
 from common.schemas import RGBDFrame, TransformBatch
-from services.replay import rosconv
-from services.replay.bag_source import BagOptions
-from services.replay.core.timeline import TimeWindow
-from services.replay.engine import ReplayOptions, Replayer
-from services.replay.recorder import McapRecorder
-from services.replay.sources import McapSource, SourceError, open_source
-from services.replay.synthetic import MAP_ODOM_XYZ, STATIC_XYZ, SyntheticRun, write_bag
+from tools.replay import rosconv
+from tools.replay.bag_source import BagOptions
+from tools.replay.core.timeline import TimeWindow
+from tools.replay.engine import ReplayOptions, Replayer
+from tools.replay.recorder import McapRecorder
+from tools.replay.sources import McapSource, SourceError, open_source
+from tools.replay.synthetic import MAP_ODOM_XYZ, STATIC_XYZ, SyntheticRun, write_bag
 
 KEYS = Keys()
 FRAMES = KEYS.frames("head")
@@ -226,7 +226,7 @@ def test_loop_replays_until_stopped(tmp_path: Path) -> None:
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "services", *args], capture_output=True, text=True, timeout=60)
+    return subprocess.run([sys.executable, "-m", "perception", *args], capture_output=True, text=True, timeout=60)
 
 
 def _assert_clean_error(proc: subprocess.CompletedProcess[str], path: Path, problem: str) -> None:
@@ -298,7 +298,7 @@ def test_truncated_mcap_is_reported_after_the_readable_part(tmp_path: Path) -> N
 
 def test_topic_map_file_and_flags(tmp_path: Path) -> None:
     from common.config import ConfigError
-    from services.replay.config import load_topic_map
+    from tools.replay.config import load_topic_map
 
     path = tmp_path / "topics.yaml"
     path.write_text("cameras:\n  front:\n    rgb: /front/rgb\n    depth: /front/depth\nodom: []\npair_tolerance_ms: 30\n")

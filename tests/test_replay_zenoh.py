@@ -18,9 +18,9 @@ from common.samples import rgbd_frame
 from common.schemas import Detection, Detections, Header, Message, RGBDFrame, Transform, TransformBatch
 from common.transport import Received, Subscription
 from common.zenoh_transport import ZenohTransport
-from services.replay.recorder import McapRecorder
-from services.replay.sources import open_source
-from services.replay.synthetic import SyntheticRun, write_bag
+from tools.replay.recorder import McapRecorder
+from tools.replay.sources import open_source
+from tools.replay.synthetic import SyntheticRun, write_bag
 
 pytestmark = pytest.mark.zenoh
 
@@ -30,7 +30,7 @@ TIMEOUT = 90.0
 
 
 def _perception(*args: str, router: RouterProcess) -> list[str]:
-    return [sys.executable, "-m", "services", "-q", *args, "--connect", router.endpoint]
+    return [sys.executable, "-m", "perception", "-q", *args, "--connect", router.endpoint]
 
 
 def _replay(path: Path, router: RouterProcess, *extra: str) -> subprocess.CompletedProcess[str]:

@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from services.simulator.core.apartment import Apartment, default_apartment
-from services.simulator.core.body import Ellipsoids, PersonPose, body_ellipsoids
-from services.simulator.core.geometry import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
-from services.simulator.core.motion import WALK_RADIUS, Action, Walker
-from services.simulator.core.render import Intrinsics, Renderer, depth_sigma
-from services.simulator.core.robot import HeadMotion, Odometry, Robot, static_trajectory
-from services.simulator.core.scenarios import SCENARIOS, World, build_world
-from services.simulator.core.simulation import Simulation
-from services.simulator.core.wardrobe import OUTFITS
+from tools.simulator.core.apartment import Apartment, default_apartment
+from tools.simulator.core.body import Ellipsoids, PersonPose, body_ellipsoids
+from tools.simulator.core.geometry import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
+from tools.simulator.core.motion import WALK_RADIUS, Action, Walker
+from tools.simulator.core.render import Intrinsics, Renderer, depth_sigma
+from tools.simulator.core.robot import HeadMotion, Odometry, Robot, static_trajectory
+from tools.simulator.core.scenarios import SCENARIOS, World, build_world
+from tools.simulator.core.simulation import Simulation
+from tools.simulator.core.wardrobe import OUTFITS
 
 SMALL = Intrinsics.default(160, 120)
 

@@ -20,13 +20,13 @@ from common.schemas import (
     RGBDFrame,
     TransformBatch,
 )
-from services.cli import main as cli_main
-from services.simulator.config import SimulatorConfig
-from services.simulator.core.geometry import make_pose, matrix_from_quaternion
-from services.simulator.core.scenarios import SCENARIOS
-from services.simulator.groundtruth import write_groundtruth_csv
-from services.simulator.service import SimulatorService
-from services.simulator.source import SimulatedStream
+from perception.cli import main as cli_main
+from tools.simulator.config import SimulatorConfig
+from tools.simulator.core.geometry import make_pose, matrix_from_quaternion
+from tools.simulator.core.scenarios import SCENARIOS
+from tools.simulator.groundtruth import write_groundtruth_csv
+from tools.simulator.service import SimulatorService
+from tools.simulator.source import SimulatedStream
 
 KEYS = Keys()
 START = 1_700_000_000_000_000_000
@@ -176,7 +176,7 @@ def test_alike_dresses_two_people_the_same() -> None:
 
 
 def test_groundtruth_csv_reads_in_the_evaluator(tmp_path: Path) -> None:
-    from services.evaluation.readers import read_tracking_csv
+    from tools.evaluation.readers import read_tracking_csv
 
     stream = SimulatedStream(_config(duration_s=2.0), KEYS)
     msgs = [SimulatedStream.groundtruth_of(stream.messages(seq)[1]) for seq in range(20)]

@@ -27,7 +27,7 @@ def test_simulate_process_publishes_frames_and_groundtruth(
         [
             sys.executable,
             "-m",
-            "services",
+            "perception",
             "simulate",
             "--scenario",
             "still",

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from services.cli import main
+from perception.cli import main
 from services.tracker.offline import FormatError, frame_stamps, read_detections
 
 DIM = 8

@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def start_tracker(router: RouterProcess, memory: Path, log: Path) -> subprocess.Popen[bytes]:
-    cmd = [sys.executable, "-m", "services", "tracker", "--connect", router.endpoint, "--no-multicast-scouting",
+    cmd = [sys.executable, "-m", "perception", "tracker", "--connect", router.endpoint, "--no-multicast-scouting",
            "--robot", KEYS.robot, "--memory", str(memory)]
     env = {**os.environ, "RUST_LOG": "error"}
     return subprocess.Popen(cmd, stdout=log.open("ab"), stderr=subprocess.STDOUT, cwd=ROOT, env=env)

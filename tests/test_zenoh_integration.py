@@ -93,7 +93,7 @@ def test_status_lists_live_services_and_forgets_killed_ones(router: RouterProces
     svc = _spawn("tests.helpers.exchange", "service", router.endpoint, "detector")
     try:
         _wait_line(svc, "READY")
-        cmd = [PY, "-m", "services", "status", "--connect", router.endpoint, "--robot", "xproc", "--json"]
+        cmd = [PY, "-m", "perception", "status", "--connect", router.endpoint, "--robot", "xproc", "--json"]
         listed = json.loads(subprocess.run(cmd, capture_output=True, text=True, timeout=60, check=True).stdout)
         assert [e["service"] for e in listed] == ["detector"]
         assert listed[0]["status"]["pid"] == svc.pid
@@ -118,14 +118,14 @@ def test_router_stops_cleanly_on_sigterm() -> None:
 
 
 def test_router_reports_a_port_in_use(router: RouterProcess) -> None:
-    res = subprocess.run([PY, "-m", "services", "router", "--listen", router.endpoint], capture_output=True, text=True, timeout=60)
+    res = subprocess.run([PY, "-m", "perception", "router", "--listen", router.endpoint], capture_output=True, text=True, timeout=60)
     assert res.returncode == 2
     assert "Address already in use" in res.stderr and "--listen" in res.stderr
 
 
 def test_client_without_router_fails_with_advice() -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    res = subprocess.run([PY, "-m", "services", "status", "--connect", endpoint, "--connect-timeout", "0.5"],
+    res = subprocess.run([PY, "-m", "perception", "status", "--connect", endpoint, "--connect-timeout", "0.5"],
                          capture_output=True, text=True, timeout=60)
     assert res.returncode == 2
     assert "no Zenoh router answered" in res.stderr and "perception router" in res.stderr
@@ -133,6 +133,6 @@ def test_client_without_router_fails_with_advice() -> None:
 
 
 def test_selfcheck_end_to_end() -> None:
-    res = subprocess.run([PY, "-m", "services", "-q", "selfcheck"], capture_output=True, text=True, timeout=120)
+    res = subprocess.run([PY, "-m", "perception", "-q", "selfcheck"], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stdout + res.stderr
     assert f"all {len(example_messages())} message types went through the router and decoded equal" in res.stdout

@@ -1,4 +1,4 @@
-"""Sub-commands of the detector package (see services/cli.py)."""
+"""Sub-commands of the detector package (see perception/cli.py)."""
 
 COMMANDS = {
     "detector": ("services.detector.main", "run the person detector service on a camera's frames"),

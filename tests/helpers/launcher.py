@@ -19,11 +19,11 @@ TIMEOUT = 60.0  # generous: the test machine is shared and slow
 
 
 class Launch:
-    """``python -m services launch FILE`` with its merged output collected line by line."""
+    """``python -m perception launch FILE`` with its merged output collected line by line."""
 
     def __init__(self, file: Path, env: dict[str, str] | None = None, *args: str) -> None:
         full_env = {**os.environ, "PY": PY, "CHILD": CHILD, "RUST_LOG": "error", **(env or {})}
-        self.proc = subprocess.Popen([PY, "-m", "services", "launch", str(file), "--color", "never", *args],
+        self.proc = subprocess.Popen([PY, "-m", "perception", "launch", str(file), "--color", "never", *args],
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=full_env, cwd=ROOT)
         self.lines: list[str] = []
         self._cond = threading.Condition()

@@ -1,0 +1,1 @@
+"""The ``perception`` command (``perception.cli``); ``python -m perception`` runs it too."""

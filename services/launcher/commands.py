@@ -1,5 +1,0 @@
-"""Sub-commands of the launcher package (names only, so ``perception --help`` stays fast)."""
-
-COMMANDS = {
-    "launch": ("services.launcher.main", "start a router and services from a launch file and supervise them"),
-}

@@ -1,0 +1,198 @@
+"""``perception demo``: the whole pipeline on a simulated apartment, live, then scored.
+
+A local router, the four services and the simulator run as separate processes (the
+services supervised by the launcher's :class:`Supervisor`, their output in a log file).
+This process watches the streams, shows the confirmed tracks, the frame rate and the
+latency per stage, and at the end scores the tracks against the simulator's ground truth
+with the ``evaluate`` code (the thesis's Table II).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from common.cli_util import CliError
+from common.keys import Keys
+from common.router_process import free_port
+from common.runtime import Shutdown
+from common.schemas import ServiceStatus
+from common.transport import Transport
+from common.zenoh_config import ZenohOptions
+from common.zenoh_transport import TransportError, open_transport
+from tools.demo.monitor import Monitor
+from tools.demo.scoring import GroundTruthLog, score
+from tools.launcher.supervisor import ProcessSpec, Supervisor
+
+DESCRIPTION = """\
+Run the whole system on a simulated RGB-D apartment with the embedded defaults: a local
+Zenoh router, the detector (depth clusters), localizer, embedder (colour descriptor) and
+tracker (the thesis's tracker with the colour descriptor's thresholds), and the simulator,
+each as a separate process. A live view shows the confirmed tracks, the frame rate and the
+latency per stage; at the end the tracks are scored against the simulator's ground truth
+(objects, misses, FP, ID switches, recall errors, MOTP, MOTA). Ctrl-C ends the run early
+and still prints the table. Nothing is left running afterwards."""
+
+SERVICES = ("detector", "localizer", "embedder", "tracker")
+_CLK_TCK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+def _cpu_seconds(pid: int) -> float | None:
+    """User + system CPU time of a process (Linux /proc), or None."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / _CLK_TCK
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--scenario", default="still", help="simulated scenario (see `perception simulate --list`)")
+    parser.add_argument("--duration", type=float, default=30.0, metavar="S", help="simulated seconds (default 30)")
+    parser.add_argument("--seed", type=int, default=0, help="scenario seed (default 0)")
+    parser.add_argument("--width", type=int, default=320, help="image width (default 320, for speed)")
+    parser.add_argument("--height", type=int, default=240, help="image height (default 240)")
+    parser.add_argument("--fps", type=float, default=10.0, help="camera frames per second (default 10)")
+    parser.add_argument("--detector", default="depth", help="detector backend (default depth; hog also needs no model)")
+    parser.add_argument("--no-view", action="store_true", help="no live view, only the final table")
+    parser.add_argument("--json", action="store_true", help="print the final metrics as JSON")
+    parser.add_argument("--log-dir", type=Path, default=None, help="where the processes' log goes (default: a temp dir)")
+
+
+def _perception(*args: str) -> list[str]:
+    return [sys.executable, "-m", "perception", *args]
+
+
+def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memory: Path) -> list[ProcessSpec]:
+    env = {**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "error"), "OPENBLAS_NUM_THREADS": "1",
+           "OMP_NUM_THREADS": "1"}
+    common = ("--connect", endpoint, "--robot", robot)
+    specs = [ProcessSpec("router", _perception("router", "--listen", endpoint, "--no-multicast-scouting"), env,
+                         restart="on-failure", ready_tcp=("127.0.0.1", port), stop_last=True)]
+    extra = {
+        "detector": ("--backend", args.detector),
+        "localizer": (),
+        "embedder": ("--backend", "colour"),
+        "tracker": ("--memory", str(memory)),
+    }
+    for name in SERVICES:
+        specs.append(ProcessSpec(name, _perception(name, *common, *extra[name]), env, restart="on-failure",
+                                 backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
+    return specs
+
+
+def _wait_alive(transport: Transport, keys: Keys, supervisor_thread: threading.Thread, shutdown: Shutdown,
+                timeout: float) -> list[str]:
+    """The services alive once all four are (or whatever is alive at the timeout)."""
+    deadline = time.monotonic() + timeout
+    alive: list[str] = []
+    while time.monotonic() < deadline and supervisor_thread.is_alive() and not shutdown.is_set():
+        alive = sorted({keys.parse_alive(k).service for k in transport.alive(keys.alive(), timeout=0.5)})
+        if all(s in alive for s in SERVICES):
+            return alive
+        shutdown.wait(0.2)
+    return alive
+
+
+def main(args: argparse.Namespace) -> int:
+    # The live view owns the terminal: the supervisor's and the session's info lines would
+    # scroll it away (the children's own output goes to the log file).
+    for name in ("tools.launcher", "common.zenoh_transport"):
+        logging.getLogger(name).setLevel(logging.WARNING)
+    if args.duration <= 0 or args.fps <= 0 or args.width < 64 or args.height < 48:
+        raise CliError("--duration and --fps must be positive and the image at least 64x48")
+    log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="perception-demo-"))
+    log_dir.mkdir(parents=True, exist_ok=True)
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    robot = f"demo{os.getpid()}"
+    keys = Keys(robot=robot)
+    log_file = open(log_dir / "processes.log", "wb")  # noqa: SIM115
+    supervisor = Supervisor(_specs(endpoint, port, robot, args, log_dir / "id-memory.json"), log_file, handle_signals=False)
+    codes: list[int] = []
+    sup_thread = threading.Thread(target=lambda: codes.append(supervisor.run()), name="supervisor", daemon=True)
+    sim: subprocess.Popen[bytes] | None = None
+    print(f"starting the router and the four services (log: {log_dir / 'processes.log'}) ...", flush=True)
+    with Shutdown() as shutdown:
+        sup_thread.start()
+        try:
+            transport = open_transport(ZenohOptions(mode="client", connect=[endpoint], connect_timeout_s=30))
+        except TransportError as exc:
+            supervisor.request_stop()
+            sup_thread.join(30)
+            raise CliError(f"{exc} (see {log_dir / 'processes.log'})") from exc
+        try:
+            monitor = Monitor(transport, keys)
+            gt = GroundTruthLog(transport, keys)
+            alive = _wait_alive(transport, keys, sup_thread, shutdown, 60.0)
+            if not all(s in alive for s in SERVICES):
+                if shutdown.is_set():
+                    return 130
+                raise CliError(f"services did not come up (alive: {', '.join(alive) or 'none'}); see {log_dir / 'processes.log'}")
+            sim = subprocess.Popen(
+                _perception("simulate", "--scenario", args.scenario, "--duration", str(args.duration), "--seed", str(args.seed),
+                            "--width", str(args.width), "--height", str(args.height), "--fps", str(args.fps),
+                            "--connect", endpoint, "--robot", robot),
+                stdout=log_file, stderr=subprocess.STDOUT, start_new_session=True,
+                env={**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "error")},
+            )
+            started = time.monotonic()
+            pids = {m.name: m.pid for _, m in transport.query(keys.status(), timeout=2.0) if isinstance(m, ServiceStatus)}
+            cpu_start = {n: (pid, _cpu_seconds(pid)) for n, pid in pids.items() if n in SERVICES}
+            tty = sys.stdout.isatty() and not args.no_view
+            last_line = 0.0
+            while not shutdown.is_set():
+                monitor.poll()
+                gt.poll()
+                elapsed = time.monotonic() - started
+                if sim.poll() is not None and gt.idle_for(1.5):
+                    break  # the scenario is over and the pipeline has drained
+                if tty:
+                    view = monitor.render(f"perception demo: scenario {args.scenario!r}, {args.width}x{args.height} "
+                                          f"at {args.fps:g} fps, {args.duration:g} s   (Ctrl-C to stop)", elapsed)
+                    sys.stdout.write("\x1b[H\x1b[J" + view + "\n")
+                    sys.stdout.flush()
+                elif not args.no_view and time.monotonic() - last_line > 5:
+                    last_line = time.monotonic()
+                    n = len(monitor.latest_tracks.tracks) if monitor.latest_tracks else 0
+                    print(f"{elapsed:6.1f} s: {monitor.stats['tracker'].count} track updates, {n} confirmed tracks", flush=True)
+                shutdown.wait(0.5)
+            monitor.poll()
+            gt.poll()
+            wall = time.monotonic() - started
+            cpu = {}
+            for name, (pid, t0) in cpu_start.items():
+                t1 = _cpu_seconds(pid)
+                cpu[name] = round(100.0 * (t1 - t0) / wall, 1) if t0 is not None and t1 is not None else None
+            if not args.no_view and not args.json:
+                print(monitor.render(f"final state after {time.monotonic() - started:.1f} s"))
+        finally:
+            if sim is not None and sim.poll() is None:
+                os.killpg(sim.pid, signal.SIGTERM)
+                try:
+                    sim.wait(10)
+                except subprocess.TimeoutExpired:
+                    os.killpg(sim.pid, signal.SIGKILL)
+                    sim.wait()
+            transport.close()
+            supervisor.request_stop()
+            sup_thread.join(60)
+            log_file.close()
+    report, table = score(gt, monitor, args.scenario)
+    if args.json:
+        print(json.dumps({"scenario": args.scenario, "log": str(log_dir / "processes.log"),
+                          "pipeline": monitor.summary(), "cpu_percent": cpu, **report}, indent=2))
+    else:
+        print(f"\nTable II for this run (ground truth from the simulator; logs in {log_dir}):\n")
+        print(table)
+        print("\nCPU per service: " + ", ".join(f"{n} {v}%" for n, v in cpu.items() if v is not None))
+    return 0

@@ -1,0 +1,61 @@
+"""``perception evaluate``: CLEAR MOT, IDF1, recall errors and ID consistency of a tracker's output."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from common.cli_util import CliError
+from tools.evaluation.evaluate import FORMATS, evaluate_sequences, format_table
+from tools.evaluation.readers import EvaluationInputError
+
+DESCRIPTION = """\
+Compare tracker output with ground truth, frame by frame (CLEAR MOT, Bernardin and
+Stiefelhagen 2008): last frame's correspondences are kept while still within the
+threshold, the rest are matched by the Hungarian algorithm.
+
+Formats:
+  tracks        GT CSV frame,id,x,y,z; tracks CSV frame,stamp,id,x,y,z (perception track).
+                Euclidean distance on the ground plane (x, y), or in 3-D with --dims 3;
+                a pair matches when its distance is < 1 m (--threshold).
+  motchallenge  frame,id,left,top,width,height,conf,... (no header); GT rows with conf < 1
+                dropped; a pair matches when 1 - IoU <= 0.5 (IoU >= 0.5).
+
+GT and TRACKS are two files, or two directories holding same-named files (SEQ.csv or
+SEQ.txt; a GT directory may also use MOTChallenge's SEQ/gt/gt.txt): one row per
+sequence and an overall row.
+
+Prints seed 000's Table II (objects, matches, misses, FP, IDSW, recall errors, MOTP,
+MOTA), then IDF1/IDP/IDR, MT/PT/ML, fragmentations and seed 001's ID consistency.
+A recall error is an ID switch to a hypothesis ID that had earlier been matched to a
+different ground-truth person.
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--gt", required=True, metavar="GT", help="ground-truth file or directory")
+    parser.add_argument("--tracks", required=True, metavar="TRACKS", help="tracker output file or directory")
+    parser.add_argument("--format", dest="fmt", choices=sorted(FORMATS), default="tracks",
+                        help="input format (default: tracks)")
+    parser.add_argument("--threshold", type=float, default=None,
+                        help="match threshold: metres for tracks (default 1.0), 1 - IoU for motchallenge (default 0.5)")
+    parser.add_argument("--dims", type=int, choices=(2, 3), default=None,
+                        help="tracks format: 2 = ground plane (x, y) (default), 3 = (x, y, z)")
+    parser.add_argument("--json", action="store_true", help="print every figure as JSON instead of tables")
+
+
+def main(args: argparse.Namespace) -> int:
+    if args.fmt == "motchallenge" and args.dims is not None:
+        raise CliError("--dims applies to --format tracks only (MOTChallenge files are 2-D boxes)")
+    if args.threshold is not None and not args.threshold > 0:
+        raise CliError(f"--threshold must be a positive number, got {args.threshold}")
+    try:
+        report = evaluate_sequences(args.gt, args.tracks, fmt=args.fmt, threshold=args.threshold,
+                                    dims=args.dims or 2)
+    except EvaluationInputError as exc:
+        raise CliError(str(exc)) from exc
+    if args.json:
+        print(json.dumps(report.to_dict(), indent=2, allow_nan=False))
+    else:
+        print(format_table(report))
+    return 0

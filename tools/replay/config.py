@@ -1,0 +1,95 @@
+"""The topic map of a ROS bag replay: which topics feed which perception streams.
+
+A YAML file (``--topic-map``), for example::
+
+    cameras:
+      head:                       # camera name: frames go to .../frames/head
+        rgb: /camera/rgb/image_color
+        depth: /camera/depth_registered/image_raw
+        camera_info: /camera/rgb/camera_info
+    tf: [/tf]
+    tf_static: [/tf_static]
+    odom: [/odom]                 # nav_msgs/Odometry -> transform odom -> base_link on tf
+    pair_tolerance_ms: 20
+
+The ``--rgb-topic``/``--depth-topic``/... flags override the file for the camera named
+by ``--camera``. Anything left out takes the defaults of
+:data:`tools.replay.core.mapping.DEFAULT_TOPICS`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from common.config import load_config
+from common.keys import validate_chunk
+
+__all__ = ["CameraTopics", "TopicMapConfig", "load_topic_map"]
+
+
+def _topic(v: str | None) -> str | None:
+    if v is not None and not v.startswith("/"):
+        raise ValueError(f"topic {v!r} must start with '/'")
+    return v
+
+
+class CameraTopics(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    rgb: str | None = Field(default=None, description="sensor_msgs/Image or CompressedImage colour topic")
+    depth: str | None = Field(default=None, description="sensor_msgs/Image depth topic (16UC1 mm or 32FC1 m)")
+    camera_info: str | None = Field(default=None, description="sensor_msgs/CameraInfo of the colour camera")
+
+    @field_validator("rgb", "depth", "camera_info")
+    @classmethod
+    def _check(cls, v: str | None) -> str | None:
+        return _topic(v)
+
+
+class TopicMapConfig(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    cameras: dict[str, CameraTopics] = Field(default_factory=dict)
+    tf: list[str] | None = None
+    tf_static: list[str] | None = None
+    odom: list[str] | None = None
+    pair_tolerance_ms: float = Field(default=20.0, gt=0.0, le=1000.0,
+                                     description="largest stamp difference of paired colour and depth images")
+
+    @field_validator("cameras")
+    @classmethod
+    def _camera_names(cls, v: dict[str, CameraTopics]) -> dict[str, CameraTopics]:
+        for name in v:
+            validate_chunk(name, "camera name")
+        return v
+
+    @field_validator("tf", "tf_static", "odom")
+    @classmethod
+    def _topics(cls, v: list[str] | None) -> list[str] | None:
+        for t in v or []:
+            _topic(t)
+        return v
+
+    def camera_dict(self) -> dict[str, dict[str, str]]:
+        return {name: {k: t for k, t in cam.model_dump().items() if t} for name, cam in self.cameras.items()}
+
+    def list_dict(self) -> dict[str, list[str]]:
+        return {k: v for k, v in (("tf", self.tf), ("tf_static", self.tf_static), ("odom", self.odom)) if v is not None}
+
+
+def load_topic_map(path: Path | None, camera: str, flags: dict[str, Any]) -> TopicMapConfig:
+    """File, then flags (``rgb``/``depth``/``camera_info`` for ``camera``, ``tf``... lists)."""
+    cfg = load_config(TopicMapConfig, path)
+    cam_flags = {k: flags.get(k) for k in ("rgb", "depth", "camera_info") if flags.get(k)}
+    data = cfg.model_dump()
+    if cam_flags:
+        data["cameras"].setdefault(camera, {}).update(cam_flags)
+    for k in ("tf", "tf_static", "odom"):
+        if flags.get(k):
+            data[k] = flags[k]
+    if flags.get("pair_tolerance_ms") is not None:
+        data["pair_tolerance_ms"] = flags["pair_tolerance_ms"]
+    return load_config(TopicMapConfig, None, overrides=data)

@@ -1,0 +1,107 @@
+"""``perception record --output run.mcap``: record perception streams from Zenoh into MCAP."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import time
+from pathlib import Path
+from typing import Any
+
+from common.cli_util import CliError, add_key_arguments, keys_from_args
+from common.keys import Delivery
+from common.runtime import Counters, ServiceRuntime, Shutdown, package_version
+from common.transport import Received, Subscription, Transport, wait_any
+from common.zenoh_config import add_zenoh_arguments
+from tools.replay.recorder import McapRecorder
+
+log = logging.getLogger(__name__)
+
+DESCRIPTION = """Record perception messages from Zenoh into an MCAP file, until Ctrl-C (or --duration).
+
+Every payload is decoded first: messages that are not valid perception messages are
+counted as invalid and not recorded. The file holds one channel per key (topic = the
+key, message encoding msgpack), the JSON schema of every message type, and the
+schema versions; log time = receive time, publish time = header.stamp_ns.
+On SIGINT/SIGTERM what was received is written and the file is closed properly.
+
+examples:
+  perception record --output run.mcap
+  perception record --keys 'pp/robot/perception/v1/tracks' --keys 'pp/robot/perception/v1/tf' -o tracks.mcap"""
+
+#: Recording must not lose messages: a deep FIFO (overflow is counted and reported).
+RECORD_DELIVERY = Delivery(latest=False, queue=1024, congestion="block")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--output", "-o", type=Path, required=True, metavar="FILE.mcap", help="MCAP file to write")
+    parser.add_argument("--keys", "-k", action="append", default=None, metavar="EXPR",
+                        help="key expression to record, repeatable (default: everything of the robot, KEYS.all())")
+    parser.add_argument("--compression", choices=("zstd", "lz4", "none"), default="zstd",
+                        help="MCAP chunk compression (default zstd; lz4 is cheaper on CPU)")
+    parser.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
+    parser.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
+    add_key_arguments(parser)
+    add_zenoh_arguments(parser)
+
+
+def drain(subs: list[Subscription[Any]]) -> list[Received[Any]]:
+    """Everything pending on ``subs``, in receive order."""
+    got: list[Received[Any]] = []
+    for sub in subs:
+        while (r := sub.try_recv()) is not None:
+            got.append(r)
+    got.sort(key=lambda r: r.recv_ns)
+    return got
+
+
+def record(transport: Transport, recorder: McapRecorder, exprs: list[str], runtime: ServiceRuntime,
+           shutdown: Shutdown, duration_s: float | None) -> list[Subscription[Any]]:
+    """Record until ``shutdown`` or ``duration_s``; returns the subscriptions (for their stats)."""
+    subs: list[Subscription[Any]] = [transport.subscribe(e, None, RECORD_DELIVERY) for e in exprs]
+    runtime.watch(*subs)
+    own_status = runtime.keys.status(runtime.name, runtime.instance)
+    deadline = None if duration_s is None else time.monotonic() + duration_s
+
+    def write_pending() -> None:
+        for r in drain(subs):
+            if r.key != own_status:
+                recorder.write(r.key, r.msg, r.recv_ns)
+        runtime.counters.gauge("recorded", sum(recorder.counts.values()))
+
+    while not shutdown.is_set() and (deadline is None or time.monotonic() < deadline):
+        wait_any(subs, transport.notify, 0.1)
+        write_pending()
+    write_pending()  # what arrived before the stop
+    return subs
+
+
+def main(args: argparse.Namespace) -> int:
+    from common.zenoh_transport import open_transport_from_args
+
+    keys = keys_from_args(args)
+    exprs = args.keys or [keys.all()]
+    if args.output.exists() and not args.force:
+        raise CliError(f"{args.output} exists; pass --force to overwrite it")
+    if not args.output.parent.is_dir():
+        raise CliError(f"{args.output}: folder {args.output.parent} does not exist")
+    transport = open_transport_from_args(args)
+    try:
+        recorder = McapRecorder(args.output, compression=args.compression, key_exprs=exprs,
+                                writer_version=package_version())
+    except OSError as exc:
+        transport.close()
+        raise CliError(f"{args.output}: cannot be written ({exc.strerror or exc})") from exc
+    counters = Counters()
+    with Shutdown() as shutdown, transport, recorder, ServiceRuntime("record", transport, keys, counters=counters) as rt:
+        log.info("recording %s into %s", ", ".join(exprs), args.output)
+        subs = record(transport, recorder, exprs, rt, shutdown, args.duration)
+    total = sum(recorder.counts.values())
+    print(f"recorded {total} messages ({sum(recorder.bytes.values()) / 1e6:.1f} MB) into {args.output}")
+    for key in sorted(recorder.counts):
+        print(f"  {key} [{recorder.schema_of[key]}]: {recorder.counts[key]}")
+    dropped = sum(s.stats.dropped for s in subs)
+    invalid = sum(s.stats.invalid for s in subs)
+    if dropped or invalid:
+        print(f"  not recorded: {dropped} dropped (writer too slow), {invalid} invalid payloads")
+    return 0

@@ -1,0 +1,39 @@
+"""Configuration of the simulator (``perception simulate``)."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from tools.simulator.core.scenarios import SCENARIOS
+from tools.simulator.core.simulation import MIN_VISIBLE
+
+__all__ = ["SimulatorConfig"]
+
+
+class SimulatorConfig(BaseModel):
+    """What to simulate and how fast. ``duration_s`` None = the scenario's length, 0 = until stopped."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    scenario: str = "still"
+    seed: int = Field(default=0, ge=0)
+    fps: float = Field(default=15.0, gt=0.0, le=120.0, description="camera frames per simulated second")
+    width: int = Field(default=640, ge=16, le=4096)
+    height: int = Field(default=480, ge=16, le=4096)
+    camera: str = Field(default="head", min_length=1, description="camera name in the frames key and header.source")
+    rate: float = Field(default=1.0, gt=0.0, le=100.0, description="speed relative to real time")
+    max_speed: bool = Field(default=False, description="as fast as the detector keeps up instead of --rate")
+    max_wait_s: float = Field(default=1.0, gt=0.0, description="--max: longest wait for the detector per frame")
+    duration_s: float | None = Field(default=None, ge=0.0)
+    alike: bool = Field(default=False, description="dress the first two people the same")
+    min_visible: float = Field(default=MIN_VISIBLE, ge=0.0, le=1.0, description="GT rule: visible share of the body")
+    depth_noise: bool = True
+    start_ns: int | None = Field(default=None, ge=0, description="stamp of frame 0 (default: the wall clock at start)")
+    static_period_s: float = Field(default=1.0, gt=0.0, description="how often tf_static is re-sent for late joiners")
+
+    @field_validator("scenario")
+    @classmethod
+    def _known(cls, v: str) -> str:
+        if v not in SCENARIOS:
+            raise ValueError(f"unknown scenario {v!r}; choose one of {', '.join(SCENARIOS)}")
+        return v

@@ -1,0 +1,1 @@
+"""The simulator core: apartment, bodies, motion, robot, renderer and the per-frame ground truth (numpy and scipy, no I/O)."""

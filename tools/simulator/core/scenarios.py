@@ -1,0 +1,259 @@
+"""The seven scenarios of the thesis dataset (seed 000, §IV-B), each deterministic per seed."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from tools.simulator.core.apartment import Apartment, default_apartment
+from tools.simulator.core.motion import Action, Walker
+from tools.simulator.core.robot import (
+    HeadMotion,
+    Odometry,
+    Robot,
+    follow_trajectory,
+    loop_trajectory,
+    static_trajectory,
+)
+from tools.simulator.core.wardrobe import draw_outfits, person_height
+
+__all__ = ["SCENARIOS", "Scenario", "World", "build_world"]
+
+LIVING = (0.4, 1.9, 5.8, 6.6)  # where people roam in front of the robot
+BEDROOM = (6.5, 0.4, 8.7, 4.6)  # behind the partition: out of view
+
+
+@dataclass
+class World:
+    """Everything that moves: people (``ids[i]`` is ``walkers[i]``'s ground-truth id) and the robot."""
+
+    apartment: Apartment
+    walkers: list[Walker]
+    ids: list[int]
+    robot: Robot
+    head_moves: bool
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    description: str
+    duration_s: float
+    build: Callable[[np.random.Generator, Apartment, bool], World]
+
+
+def _walkers(
+    rng: np.random.Generator,
+    apt: Apartment,
+    plans: list[list[Action]],
+    starts: list[tuple[float, float]],
+    alike: bool,
+    per_person: int = 1,
+    avoid: list[tuple[float, float, float]] | None = None,
+    regions: list[tuple[float, float, float, float]] | None = None,
+) -> list[Walker]:
+    wardrobes = draw_outfits(rng, len(plans), per_person, alike)
+    walkers = []
+    for i, (plan, start) in enumerate(zip(plans, starts)):
+        child = np.random.default_rng(rng.integers(2**63))
+        walkers.append(
+            Walker(
+                apt,
+                start,
+                float(child.uniform(-np.pi, np.pi)),
+                person_height(child),
+                wardrobes[i],
+                plan,
+                child,
+                speed=float(child.uniform(0.8, 1.1)),
+                roam_regions=regions or [LIVING, LIVING, BEDROOM],
+                avoid=avoid or [],
+            )
+        )
+    return walkers
+
+
+def _robot(
+    trajectory: Callable[[float], tuple[float, float, float]], head: HeadMotion, rng: np.random.Generator
+) -> Robot:
+    odo = Odometry(
+        trajectory,
+        scale_error=float(rng.normal(0.03, 0.01)),
+        yaw_scale_error=float(rng.normal(0.04, 0.01)),
+        yaw_drift_per_m=float(rng.normal(0.03, 0.01)),
+    )
+    return Robot(trajectory, head, odo)
+
+
+_STILL_POSE = (3.0, 0.6, np.pi / 2)
+_STARTS = [(0.6, 5.6), (4.2, 3.0), (7.2, 2.5)]
+
+
+def _still(rng: np.random.Generator, apt: Apartment, alike: bool, head: HeadMotion | None = None) -> World:
+    avoid = [(_STILL_POSE[0], _STILL_POSE[1], 0.5)]
+    # people 1 and 2 first cross in front of the camera, 1 m apart in depth: person 1 stops and
+    # person 2 passes behind them, hidden for a moment; then everybody roams
+    plans = [
+        [Action("goto", (3.7, 2.8)), Action("turn", -np.pi / 2), Action("wait", seconds=4.0), Action("roam")],
+        [Action("wait", seconds=2.0), Action("goto", (2.3, 3.9)), Action("wait", seconds=1.0), Action("roam")],
+        [Action("goto", "door"), Action("roam")],
+    ]
+    starts = [(2.3, 2.8), (5.3, 3.9), (7.2, 2.5)]
+    walkers = _walkers(rng, apt, plans, starts, alike, avoid=avoid)
+    head = head or HeadMotion()
+    return World(apt, walkers, [1, 2, 3], _robot(static_trajectory(*_STILL_POSE), head, rng), head.moves, 39.5)
+
+
+def _moving_head(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
+    world = _still(
+        rng, apt, alike, HeadMotion(pan_amp=0.6, pan_period=14.0, tilt0=0.12, tilt_amp=0.06, tilt_period=9.0)
+    )
+    world.duration_s = 42.1
+    return world
+
+
+def _moving_base(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
+    loop = loop_trajectory(apt, [(1.2, 1.3), (5.3, 1.3), (5.4, 3.3), (3.6, 3.0)])
+    plans = [[Action("roam")], [Action("goto", "tv"), Action("roam")], [Action("goto", "door"), Action("roam")]]
+    walkers = _walkers(rng, apt, plans, _STARTS, alike, regions=[LIVING, LIVING, LIVING, BEDROOM])
+    head = HeadMotion(tilt0=0.15, look_at=(3.0, 4.6))  # the head keeps looking into the living room
+    return World(apt, walkers, [1, 2, 3], _robot(loop, head, rng), head.moves, 60.0)
+
+
+def _chairs(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
+    pose = (2.6, 1.0, float(np.arctan2(4.8 - 1.0, 3.4 - 2.6)))
+    plans = [
+        [Action("sit", "chair-w", 8.0), Action("goto", "hall"), Action("sit", "chair-e", 9.0), Action("roam")],
+        [Action("sit", "chair-s", 6.0), Action("goto", "window"), Action("sit", "chair-n", 8.0), Action("roam")],
+        [
+            Action("goto", "centre"),
+            Action("sit", "sofa-right", 6.0),
+            Action("wait", seconds=3.0),
+            Action("sit", "chair-w", 10.0),
+            Action("roam"),
+        ],
+    ]
+    starts = [(3.0, 6.2), (5.2, 3.2), (0.6, 2.6)]
+    walkers = _walkers(rng, apt, plans, starts, alike, avoid=[(pose[0], pose[1], 0.5)], regions=[LIVING])
+    return World(apt, walkers, [1, 2, 3], _robot(static_trajectory(*pose), HeadMotion(tilt0=0.15), rng), False, 52.2)
+
+
+def _following(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
+    tour = [
+        Action("goto", p) for p in ("hall", "door", "bedroom", "kitchen", "door", "centre", "tv", "window", "shelf")
+    ]
+    plans = [[Action("wait", seconds=2.0), *tour, Action("roam")], [Action("roam")], [Action("roam")]]
+    starts = [(3.0, 2.6), (0.6, 5.6), (2.8, 5.6)]
+    walkers = _walkers(rng, apt, plans, starts, alike)
+    target = walkers[0]
+    target.speed = 0.65  # a person being followed walks calmly
+    follow = follow_trajectory(lambda t: _xy(target, t), (3.0, 0.9, np.pi / 2))
+    return World(apt, walkers, [1, 2, 3], _robot(follow, HeadMotion(tilt0=0.1), rng), False, 39.0)
+
+
+def _xy(walker: Walker, t: float) -> np.ndarray:
+    pose = walker.state(t)[0]
+    return np.array([pose.x, pose.y])
+
+
+def _clothes_world(rng: np.random.Generator, apt: Apartment, alike: bool, plans: list[list[Action]],
+                   duration_s: float) -> World:
+    """Two people with a second outfit each, watched by a still robot in the living room."""
+    walkers = _walkers(
+        rng,
+        apt,
+        plans,
+        [(0.6, 5.6), (2.7, 5.0)],
+        alike,
+        per_person=2,
+        avoid=[(_STILL_POSE[0], _STILL_POSE[1], 0.5)],
+        regions=[LIVING],
+    )
+    return World(apt, walkers, [1, 2], _robot(static_trajectory(*_STILL_POSE), HeadMotion(), rng), False, duration_s)
+
+
+def _clothes_in_view(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
+    plans = [
+        [
+            Action("goto", (2.8, 3.8)),
+            Action("turn", -np.pi / 2),
+            Action("wait", seconds=3.0),
+            Action("dress", 1),
+            Action("wait", seconds=3.0),
+            Action("roam", seconds=20.0),
+            Action("goto", (2.9, 4.4)),
+            Action("wait", seconds=2.0),
+            Action("dress", 0),
+            Action("wait", seconds=2.0),
+            Action("roam"),
+        ],
+        [Action("roam")],
+    ]
+    return _clothes_world(rng, apt, alike, plans, 68.0)
+
+
+def _clothes_out_of_view(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
+    plans = [
+        [
+            Action("roam", seconds=10.0),
+            Action("goto", "bedroom"),
+            Action("wait", seconds=4.0),
+            Action("dress", 1),
+            Action("goto", "centre"),
+            Action("roam"),
+        ],
+        [
+            Action("roam", seconds=25.0),
+            Action("goto", "kitchen"),
+            Action("wait", seconds=4.0),
+            Action("dress", 1),
+            Action("goto", "tv"),
+            Action("roam"),
+        ],
+    ]
+    return _clothes_world(rng, apt, alike, plans, 56.7)
+
+
+SCENARIOS: dict[str, Scenario] = {
+    s.name: s
+    for s in (
+        Scenario("still", "static robot and head; three people walk, stop, cross and leave the room", 39.5, _still),
+        Scenario("moving-head", "static base, the head pans and tilts; three people walk around", 42.1, _moving_head),
+        Scenario(
+            "moving-base",
+            "the robot drives a loop, its head looking into the room; furniture occludes people",
+            60.0,
+            _moving_base,
+        ),
+        Scenario("chairs", "three people sit on chairs and the sofa and switch places", 52.2, _chairs),
+        Scenario(
+            "people-following",
+            "the robot follows person 1 through the apartment; two others walk around",
+            39.0,
+            _following,
+        ),
+        Scenario(
+            "changing-clothes-in-view",
+            "two people; person 1 changes clothes in front of the camera",
+            68.0,
+            _clothes_in_view,
+        ),
+        Scenario(
+            "changing-clothes-out-of-view",
+            "two people; each changes clothes in the other room and comes back",
+            56.7,
+            _clothes_out_of_view,
+        ),
+    )
+}
+
+
+def build_world(name: str, seed: int = 0, alike: bool = False, apartment: Apartment | None = None) -> World:
+    """The world of scenario ``name`` for ``seed``; ``alike`` dresses the first two people the same."""
+    if name not in SCENARIOS:
+        raise KeyError(f"unknown scenario {name!r}; choose one of {', '.join(SCENARIOS)}")
+    rng = np.random.default_rng(seed)
+    return SCENARIOS[name].build(rng, apartment or default_apartment(), alike)

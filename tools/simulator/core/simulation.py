@@ -1,0 +1,145 @@
+"""One simulated frame: render the world at time t and compute the people's ground truth.
+
+Ground-truth rule (documented in the README): a person is a ground-truth *object* of a
+frame when at least ``min_visible`` (default 0.25) of its body sample points -- the centre
+of each solid and two points along its long axis, about 50 points -- project inside the
+image onto pixels where that person is the nearest surface. People outside the field of
+view or hidden behind walls, furniture or other people are recorded too, for debugging,
+with ``counted = False``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tools.simulator.core.body import Clothing, Ellipsoids, body_ellipsoids, torso_centre
+from tools.simulator.core.render import NEAR_M, Intrinsics, Renderer, RenderResult
+from tools.simulator.core.scenarios import World
+
+__all__ = ["FrameData", "PersonTruth", "Simulation", "visible_fraction"]
+
+MIN_VISIBLE = 0.25
+
+
+@dataclass(frozen=True)
+class PersonTruth:
+    """Ground truth of one person in one frame (map frame, metres)."""
+
+    id: int
+    position: np.ndarray  # (3,) torso centre
+    velocity: np.ndarray  # (3,)
+    visible_fraction: float
+    in_view_fraction: float
+    counted: bool
+    posture: str
+    height_m: float
+    clothing: Clothing
+    outfit: int
+
+
+@dataclass
+class FrameData:
+    """A rendered frame with its time, poses and ground truth. Poses are (4, 4) T_parent_child."""
+
+    seq: int
+    t: float
+    render: RenderResult
+    map_base: np.ndarray
+    map_odom: np.ndarray
+    odom_base: np.ndarray
+    base_head: np.ndarray
+    head_camera: np.ndarray
+    map_camera: np.ndarray
+    people: list[PersonTruth]
+
+
+def visible_fraction(
+    points: np.ndarray, owner: int, map_camera: np.ndarray, intr: Intrinsics, owner_image: np.ndarray
+) -> tuple[float, float]:
+    """(visible, in-view) fractions of ``points`` (K, 3): in view = in front of the camera and
+    inside the image; visible = also on a pixel whose nearest surface is person ``owner``."""
+    cam = (points - map_camera[:3, 3]) @ map_camera[:3, :3]
+    z = cam[:, 2]
+    front = z > NEAR_M
+    zs = np.where(front, z, 1.0)
+    u = np.floor(intr.fx * cam[:, 0] / zs + intr.cx + 0.5).astype(np.int64)
+    v = np.floor(intr.fy * cam[:, 1] / zs + intr.cy + 0.5).astype(np.int64)
+    inside = front & (u >= 0) & (u < intr.width) & (v >= 0) & (v < intr.height)
+    seen = np.zeros_like(inside)
+    seen[inside] = owner_image[v[inside], u[inside]] == owner
+    n = max(len(points), 1)
+    return float(seen.sum()) / n, float(inside.sum()) / n
+
+
+class Simulation:
+    """Frames of a :class:`World` at ``fps``; frame ``seq`` is at t = seq / fps."""
+
+    def __init__(
+        self,
+        world: World,
+        intrinsics: Intrinsics,
+        fps: float = 15.0,
+        seed: int = 0,
+        min_visible: float = MIN_VISIBLE,
+        depth_noise: bool = True,
+    ) -> None:
+        self.world = world
+        self.intr = intrinsics
+        self.fps = fps
+        self.min_visible = min_visible
+        self.renderer = Renderer(world.apartment, intrinsics, seed=seed, depth_noise=depth_noise)
+
+    def people_solids(
+        self, t: float
+    ) -> tuple[Ellipsoids, list[tuple[int, np.ndarray, np.ndarray, str, float, Clothing, int]]]:
+        """All people's solids at ``t``, and per person: (id, torso centre (3,), velocity (3,),
+        posture, height, clothing, outfit index)."""
+        solids, info = [], []
+        for k, (walker, pid) in enumerate(zip(self.world.walkers, self.world.ids)):
+            pose, outfit, vel = walker.state(t)
+            clothing = walker.wardrobe[outfit]
+            solids.append(body_ellipsoids(walker.height, pose, clothing, k))
+            info.append(
+                (
+                    pid,
+                    torso_centre(walker.height, pose),
+                    np.array([vel[0], vel[1], 0.0]),
+                    pose.posture,
+                    walker.height,
+                    clothing,
+                    outfit,
+                )
+            )
+        return Ellipsoids.concat(solids), info
+
+    def frame(self, seq: int) -> FrameData:
+        """Render frame ``seq`` and compute its ground truth."""
+        t = seq / self.fps
+        robot = self.world.robot
+        map_base = robot.base_pose(t)
+        odom_base = robot.odometry.pose(t)
+        base_head = robot.head_joint(t)
+        head_cam = robot.camera_mount()
+        map_cam = map_base @ base_head @ head_cam
+        solids, info = self.people_solids(t)
+        result = self.renderer.render(map_cam, solids)
+        people = []
+        for k, (pid, centre, vel, posture, height, clothing, outfit) in enumerate(info):
+            vis, in_view = visible_fraction(solids.sample_points(k), k, map_cam, self.intr, result.owner)
+            people.append(
+                PersonTruth(pid, centre, vel, vis, in_view, vis >= self.min_visible, posture, height, clothing, outfit)
+            )
+        return FrameData(
+            seq,
+            t,
+            result,
+            map_base,
+            map_base @ np.linalg.inv(odom_base),
+            odom_base,
+            base_head,
+            head_cam,
+            map_cam,
+            people,
+        )

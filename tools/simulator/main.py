@@ -1,0 +1,196 @@
+"""``perception simulate``: a simulated robot publishing RGB-D frames, transforms and ground truth."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+from common.cli_util import CliError, add_key_arguments, keys_from_args
+from common.config import ConfigError, load_config
+from common.runtime import Counters, ServiceRuntime, Shutdown, package_version
+from common.zenoh_config import add_zenoh_arguments, options_from_args
+from common.zenoh_transport import TransportError, open_transport
+from tools.simulator.config import SimulatorConfig
+from tools.simulator.core.scenarios import SCENARIOS
+from tools.simulator.groundtruth import GroundTruthCsv
+from tools.replay.recorder import McapRecorder
+from tools.simulator.service import SimulatorService
+from tools.simulator.snapshot import write_snapshot
+from tools.simulator.source import SimulatedStream
+
+log = logging.getLogger(__name__)
+
+DESCRIPTION = """\
+Simulate the robot's head RGB-D camera and localization in an apartment with people:
+RGB + registered depth (16UC1 mm) frames with camera info, transforms map->odom->base_link
+->head_link->camera, and the people's true positions (map frame) with a visibility flag.
+
+  perception simulate --list
+  perception simulate --scenario moving-base                 # publish in real time
+  perception simulate --scenario chairs --max                # as fast as the detector keeps up
+  perception simulate --scenario still --output run.mcap --gt-csv gt.csv
+  perception simulate --scenario still --snapshot still.png --snapshot-time 6"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--list", action="store_true", help="list the scenarios and exit")
+    parser.add_argument("--scenario", default=None, help="scenario name (default still; see --list)")
+    parser.add_argument("--seed", type=int, default=None, help="random seed (default 0): same seed, same run")
+    parser.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="simulated seconds (default: the scenario's length; 0 = until Ctrl-C)",
+    )
+    parser.add_argument("--fps", type=float, default=None, help="frames per simulated second (default 15)")
+    parser.add_argument("--width", type=int, default=None, help="image width (default 640)")
+    parser.add_argument("--height", type=int, default=None, help="image height (default 480)")
+    parser.add_argument("--camera", default=None, help="camera name in keys and headers (default head)")
+    speed = parser.add_mutually_exclusive_group()
+    speed.add_argument("--rate", type=float, default=None, help="speed relative to real time (default 1)")
+    speed.add_argument(
+        "--max",
+        dest="max_speed",
+        action="store_true",
+        default=None,
+        help="publish each frame once the detector has answered the previous one",
+    )
+    parser.add_argument("--alike", action="store_true", default=None, help="dress the first two people alike")
+    parser.add_argument(
+        "--min-visible",
+        type=float,
+        default=None,
+        metavar="F",
+        help="ground-truth rule: share of the body that must be seen (default 0.25)",
+    )
+    parser.add_argument(
+        "--no-depth-noise", dest="depth_noise", action="store_false", default=None, help="exact depth (for debugging)"
+    )
+    parser.add_argument("--start-ns", type=int, default=None, help="stamp of frame 0 (default: now)")
+    parser.add_argument(
+        "--settings",
+        dest="config_file",
+        default=None,
+        metavar="FILE",
+        help="YAML/JSON file with a 'simulator' section (--config is the Zenoh config)",
+    )
+    out = parser.add_argument_group("files instead of (or besides) publishing")
+    out.add_argument("--output", type=Path, default=None, help="write an MCAP recording instead of publishing")
+    out.add_argument("--gt-csv", type=Path, default=None, help="write the ground truth as frame,id,x,y,z")
+    out.add_argument("--snapshot", type=Path, default=None, help="write one RGB + depth picture (PNG) and exit")
+    out.add_argument("--snapshot-time", type=float, default=5.0, metavar="S", help="time of the snapshot (default 5)")
+    add_key_arguments(parser)
+    add_zenoh_arguments(parser)
+
+
+def _config(args: argparse.Namespace) -> SimulatorConfig:
+    overrides = {
+        name: getattr(args, name)
+        for name in (
+            "scenario",
+            "seed",
+            "fps",
+            "width",
+            "height",
+            "camera",
+            "rate",
+            "max_speed",
+            "alike",
+            "min_visible",
+            "depth_noise",
+            "start_ns",
+        )
+    }
+    overrides["duration_s"] = args.duration
+    try:
+        return load_config(
+            SimulatorConfig,
+            args.config_file,
+            env_prefix="PERCEPTION_SIMULATOR",
+            overrides=overrides,
+            section="simulator",
+        )
+    except ConfigError as exc:
+        raise CliError(f"{exc} (see perception simulate --help and --list)") from exc
+
+
+def list_scenarios() -> str:
+    width = max(len(n) for n in SCENARIOS)
+    return "\n".join(f"{s.name:<{width}}  {s.duration_s:5.1f} s  {s.description}" for s in SCENARIOS.values())
+
+
+def _writable(path: Path | None) -> None:
+    if path is not None and not path.parent.exists():
+        raise CliError(f"{path}: the folder {path.parent} does not exist")
+
+
+def _record(config: SimulatorConfig, args: argparse.Namespace, gt: GroundTruthCsv | None) -> int:
+    keys = keys_from_args(args)
+    stream = SimulatedStream(config, keys)
+    if stream.frame_count is None:
+        raise CliError("--duration 0 (until Ctrl-C) cannot be written to a file; give a duration in seconds")
+    with McapRecorder(args.output, key_exprs=[keys.all()], writer_version=package_version()) as sink, Shutdown() as shutdown:
+        for seq in range(stream.frame_count):
+            if shutdown.is_set():
+                break
+            _, pairs = stream.messages(seq)
+            for key, msg in pairs:
+                sink.write(key, msg, log_time_ns=msg.header.stamp_ns)
+            if gt is not None:
+                gt.add(SimulatedStream.groundtruth_of(pairs))
+        counts = ", ".join(f"{k.rsplit('/', 1)[-1]}: {n}" for k, n in sink.counts.items())
+    print(f"wrote {args.output} ({counts})")
+    return 0
+
+
+def main(args: argparse.Namespace) -> int:
+    if args.list:
+        print(list_scenarios())
+        return 0
+    config = _config(args)
+    for path in (args.output, args.gt_csv, args.snapshot):
+        _writable(path)
+    if args.snapshot is not None:
+        stream = SimulatedStream(config, keys_from_args(args))
+        fd, _ = stream.messages(round(args.snapshot_time * config.fps))
+        write_snapshot(fd, args.snapshot)
+        print(f"wrote {args.snapshot}")
+        return 0
+    gt = GroundTruthCsv(args.gt_csv) if args.gt_csv is not None else None
+    try:
+        if args.output is not None:
+            return _record(config, args, gt)
+        return _publish(config, args, gt)
+    finally:
+        if gt is not None:
+            gt.close()
+            print(f"wrote {args.gt_csv} ({gt.rows} rows)")
+
+
+def _publish(config: SimulatorConfig, args: argparse.Namespace, gt: GroundTruthCsv | None) -> int:
+    keys = keys_from_args(args)
+    try:
+        opts = options_from_args(args)
+        transport = open_transport(opts)
+    except (TransportError, ValueError) as exc:
+        raise CliError(str(exc)) from exc
+    counters = Counters()
+    try:
+        service = SimulatorService(transport, keys, config, counters, gt_csv=gt)
+        with Shutdown() as shutdown, ServiceRuntime("simulator", transport, keys, counters=counters) as runtime:
+            runtime.watch(*service.publishers.values())
+            log.info(
+                "simulating %s at %gx%g, %g fps, %s",
+                config.scenario,
+                config.width,
+                config.height,
+                config.fps,
+                "max speed" if config.max_speed else f"rate {config.rate:g}",
+            )
+            service.run(shutdown)
+        service.close()
+    finally:
+        transport.close()
+    return 0

@@ -1,0 +1,125 @@
+"""``SimulatorService``: publishes the simulated camera, transforms and ground truth."""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Any
+
+from common.keys import FRAMES, RELIABLE, Keys
+from common.runtime import Counters, Shutdown
+from common.schemas import Detections, Message, PeopleGroundTruth, RGBDFrame, TransformBatch
+from common.transport import Publisher, Transport
+from tools.simulator.config import SimulatorConfig
+from tools.simulator.groundtruth import GroundTruthCsv
+from tools.simulator.source import SimulatedStream
+
+__all__ = ["SimulatorService"]
+
+log = logging.getLogger(__name__)
+
+
+class SimulatorService:
+    """Publishes frame after frame of a scenario, in real time (``rate``) or, with
+    ``max_speed``, each frame as soon as the detector has answered the previous one."""
+
+    #: --max: timeouts in a row after which the detector is taken as absent.
+    GIVE_UP = 3
+
+    def __init__(
+        self,
+        transport: Transport,
+        keys: Keys,
+        config: SimulatorConfig,
+        counters: Counters | None = None,
+        gt_csv: GroundTruthCsv | None = None,
+    ) -> None:
+        self.transport = transport
+        self.keys = keys
+        self.config = config
+        self.counters = counters if counters is not None else Counters()
+        self.stream = SimulatedStream(config, keys)
+        self.gt_csv = gt_csv
+        self.seq = 0
+        self._timeouts_in_row = 0
+        self.publishers: dict[str, Publisher[Any]] = {
+            keys.frames(config.camera): transport.publisher(keys.frames(config.camera), RGBDFrame, FRAMES),
+            keys.tf(): transport.publisher(keys.tf(), TransformBatch, RELIABLE),
+            keys.tf_static(): transport.publisher(keys.tf_static(), TransformBatch, RELIABLE),
+            keys.groundtruth(): transport.publisher(keys.groundtruth(), PeopleGroundTruth, RELIABLE),
+        }
+        self._detections = (
+            transport.subscribe(keys.detections(config.camera), Detections, RELIABLE) if config.max_speed else None
+        )
+
+    @property
+    def done(self) -> bool:
+        total = self.stream.frame_count
+        return total is not None and self.seq >= total
+
+    def step(self) -> list[tuple[str, Message]]:
+        """Render and publish the next frame; returns what was published."""
+        t0 = time.perf_counter()
+        _, pairs = self.stream.messages(self.seq)
+        self.counters.gauge("render_ms", (time.perf_counter() - t0) * 1000.0)
+        for key, msg in pairs:
+            self.publishers[key].put(msg)
+        if self.gt_csv is not None:
+            self.gt_csv.add(SimulatedStream.groundtruth_of(pairs))
+        self.counters.count("frames")
+        self.seq += 1
+        return pairs
+
+    def _wait_for_detector(self, seq: int, shutdown: Shutdown) -> None:
+        """--max: wait until the detector has published the detections of frame ``seq``.
+
+        After ``GIVE_UP`` timeouts in a row the detector is taken as absent and frames go out
+        unpaced, until it answers again.
+        """
+        assert self._detections is not None
+        if not self.publishers[self.keys.frames(self.config.camera)].has_subscribers():
+            return
+        if self._timeouts_in_row >= self.GIVE_UP:
+            if self._detections.try_recv() is None:
+                return
+            self._timeouts_in_row = 0
+        deadline = time.monotonic() + self.config.max_wait_s
+        while not shutdown.is_set():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                self.counters.count("detector_timeouts")
+                self._timeouts_in_row += 1
+                if self._timeouts_in_row == self.GIVE_UP:
+                    log.warning("no detections for %d frames: unpaced until the detector answers", self.GIVE_UP)
+                return
+            got = self._detections.recv(timeout=min(remaining, 0.1))
+            if got is not None and got.msg.header.seq >= seq:
+                self._timeouts_in_row = 0
+                return
+
+    def run(self, shutdown: Shutdown) -> None:
+        """Publish until the scenario ends or ``shutdown`` is set."""
+        cfg = self.config
+        wall0 = time.monotonic()
+        first = self.seq
+        while not self.done and not shutdown.is_set():
+            if not cfg.max_speed:
+                delay = wall0 + (self.seq - first) / cfg.fps / cfg.rate - time.monotonic()
+                if delay > 0 and shutdown.wait(delay):
+                    break
+                if delay < -1.0 / cfg.fps:
+                    self.counters.count("late_frames")
+            seq = self.seq
+            self.step()
+            if self._detections is not None:
+                self._wait_for_detector(seq, shutdown)
+            elapsed = time.monotonic() - wall0
+            if elapsed > 0:
+                self.counters.gauge("fps", (self.seq - first) / elapsed)
+        log.info("simulator published %d frames", self.seq - first)
+
+    def close(self) -> None:
+        for pub in self.publishers.values():
+            pub.close()
+        if self._detections is not None:
+            self._detections.close()

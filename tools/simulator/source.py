@@ -1,0 +1,55 @@
+"""The simulated sensor stream: configuration -> world -> (key, message) pairs per frame."""
+
+from __future__ import annotations
+
+import math
+import time
+
+from common.keys import Keys
+from common.schemas import Message, PeopleGroundTruth
+from tools.simulator.config import SimulatorConfig
+from tools.simulator.core.render import Intrinsics
+from tools.simulator.core.scenarios import SCENARIOS, build_world
+from tools.simulator.core.simulation import FrameData, Simulation
+from tools.simulator.messages import frame_message, groundtruth_message, static_transforms, tf_message
+
+__all__ = ["SimulatedStream"]
+
+
+class SimulatedStream:
+    """Frames of one scenario as messages. Frame ``seq`` is at ``start_ns + seq / fps`` seconds."""
+
+    def __init__(self, config: SimulatorConfig, keys: Keys) -> None:
+        self.config = config
+        self.keys = keys
+        self.world = build_world(config.scenario, config.seed, config.alike)
+        self.intrinsics = Intrinsics.default(config.width, config.height)
+        self.simulation = Simulation(
+            self.world, self.intrinsics, config.fps, config.seed, config.min_visible, config.depth_noise
+        )
+        self.start_ns = time.time_ns() if config.start_ns is None else config.start_ns
+        duration = SCENARIOS[config.scenario].duration_s if config.duration_s is None else config.duration_s
+        #: Number of frames to produce; None = until stopped.
+        self.frame_count: int | None = math.ceil(duration * config.fps) if duration > 0 else None
+        self._static_every = max(1, round(config.static_period_s * config.fps))
+
+    def stamp_ns(self, seq: int) -> int:
+        return self.start_ns + round(seq * 1e9 / self.config.fps)
+
+    def messages(self, seq: int) -> tuple[FrameData, list[tuple[str, Message]]]:
+        """Render frame ``seq``: its (key, message) pairs in publishing order (static
+        transforms, transforms, ground truth, then the frame) and the raw frame data."""
+        cfg, keys = self.config, self.keys
+        fd = self.simulation.frame(seq)
+        stamp = self.stamp_ns(seq)
+        out: list[tuple[str, Message]] = []
+        if seq % self._static_every == 0:
+            out.append((keys.tf_static(), static_transforms(fd, stamp, cfg.camera, self.world.head_moves)))
+        out.append((keys.tf(), tf_message(fd, stamp, cfg.camera, self.world.head_moves)))
+        out.append((keys.groundtruth(), groundtruth_message(fd, stamp, cfg.camera, cfg.min_visible)))
+        out.append((keys.frames(cfg.camera), frame_message(fd, self.intrinsics, stamp, cfg.camera)))
+        return fd, out
+
+    @staticmethod
+    def groundtruth_of(pairs: list[tuple[str, Message]]) -> PeopleGroundTruth:
+        return next(m for _, m in pairs if isinstance(m, PeopleGroundTruth))

@@ -20,7 +20,7 @@ from common.schemas import CameraInfo, Image, Message, RGBDFrame, TransformBatch
 from tools.replay import rosconv
 from tools.replay.core.mapping import TopicPlan, plan_topics
 from tools.replay.core.pairing import RgbdPairer
-from tools.replay.sources import Item, Source, SourceError, StreamSummary, Summary
+from tools.replay.source_base import Item, Source, SourceError, StreamSummary, Summary
 
 __all__ = ["BagOptions", "BagSource"]
 

@@ -10,17 +10,13 @@ from __future__ import annotations
 
 import logging
 import struct
-from abc import ABC, abstractmethod
 from collections import Counter
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, BinaryIO, Iterator
+from typing import Any, BinaryIO, Iterator
 
-from common.codec import encode
 from common.schemas import MESSAGE_TYPES, Message
-
-if TYPE_CHECKING:
-    from tools.replay.bag_source import BagOptions
+from tools.replay.bag_source import BagOptions, BagSource
+from tools.replay.source_base import Item, Source, SourceError, StreamSummary, Summary
 
 __all__ = ["Item", "McapSource", "Source", "SourceError", "StreamSummary", "Summary", "open_source"]
 
@@ -30,94 +26,6 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 ROSBAG1_MAGIC = b"#ROSBAG V2.0"
 #: Message encoding of the channels ``perception record`` writes.
 MSGPACK = "msgpack"
-
-
-class SourceError(Exception):
-    """A recording that cannot be read; ``str()`` is ``"PATH: problem"``."""
-
-    def __init__(self, path: Path | str, problem: str) -> None:
-        self.path = str(path)
-        self.problem = problem
-        super().__init__(f"{path}: {problem}")
-
-
-@dataclass
-class Item:
-    """One message to publish. ``payload`` (encoded) or ``message`` is set."""
-
-    stamp_ns: int
-    log_ns: int
-    key: str
-    model: type[Message]
-    payload: bytes | None = None
-    message: Message | None = None
-
-    def encoded(self) -> bytes:
-        if self.payload is None:
-            assert self.message is not None
-            self.payload = encode(self.message)
-        return self.payload
-
-
-@dataclass
-class StreamSummary:
-    name: str
-    type: str
-    count: int
-    note: str = ""
-
-
-@dataclass
-class Summary:
-    format: str
-    streams: list[StreamSummary]
-    start_ns: int
-    end_ns: int
-    extra: list[str] = field(default_factory=list)
-
-    @property
-    def duration_s(self) -> float:
-        return max(0, self.end_ns - self.start_ns) / 1e9
-
-
-class Source(ABC):
-    """A readable recording."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        #: Channels/topics that are not replayed, with the reason.
-        self.skipped: dict[str, str] = {}
-        #: Messages that could not be converted: (stream, reason) -> count.
-        self.problems: Counter[tuple[str, str]] = Counter()
-
-    @abstractmethod
-    def streams(self) -> dict[str, type[Message]]:
-        """The keys this source publishes on, with their message type."""
-
-    @abstractmethod
-    def items(self) -> Iterator[Item]:
-        """Every message, in recording order; raises :class:`SourceError` on a damaged file."""
-
-    @abstractmethod
-    def summary(self) -> Summary: ...
-
-    def duration_s(self) -> float:
-        return self.summary().duration_s
-
-    def problem(self, stream: str, reason: str) -> None:
-        """Count a message that could not be used; log the first of each kind."""
-        if not self.problems[(stream, reason)]:
-            log.warning("%s: %s: %s (further ones counted, not logged)", self.path, stream, reason)
-        self.problems[(stream, reason)] += 1
-
-    def close(self) -> None:
-        """Release the file."""
-
-    def __enter__(self) -> Source:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def _mcap_errors() -> tuple[type[BaseException], ...]:
@@ -271,8 +179,6 @@ def open_source(path: Path | str, bag_options: BagOptions | None = None) -> Sour
     if not p.exists():
         raise SourceError(p, "no such file or directory")
     if p.is_dir() or p.suffix in (".db3",) or (p.suffix == ".mcap" and (p.parent / "metadata.yaml").is_file()):
-        from tools.replay.bag_source import BagOptions, BagSource
-
         bag = p if p.is_dir() else p.parent
         if not (bag / "metadata.yaml").is_file():
             raise SourceError(p, "a folder, but not a ROS 2 bag (no metadata.yaml in it)")
@@ -286,12 +192,8 @@ def open_source(path: Path | str, bag_options: BagOptions | None = None) -> Sour
         raise SourceError(p, "the file is empty")
     if head.startswith(MCAP_MAGIC):
         if _mcap_profile(p) == "ros2":  # a ROS 2 bag's MCAP file on its own (no metadata.yaml)
-            from tools.replay.bag_source import BagOptions, BagSource
-
             return BagSource(p, bag_options or BagOptions())
         return McapSource(p)
     if head.startswith(ROSBAG1_MAGIC):
-        from tools.replay.bag_source import BagOptions, BagSource
-
         return BagSource(p, bag_options or BagOptions())
     raise SourceError(p, "not an MCAP recording, a ROS 1 bag or a ROS 2 bag folder (unknown file format)")

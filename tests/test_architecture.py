@@ -1,0 +1,87 @@
+"""The architecture's rules (ARCHITECTURE.md), checked on the code itself.
+
+* ``.importlinter``'s contracts: the layers perception > tools > services > common, no
+  pipeline node importing another, algorithm cores free of transport, messages, config
+  models and serialisation. Run with import-linter, the tool the contracts are written for.
+* No import cycle between the project's modules, module level or inside functions.
+* Every node's ``main.py`` stays a thin entry: description, flags, one ``run_node`` call.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("common", "services", "tools", "perception")
+NODES = ("detector", "localizer", "embedder", "tracker")
+
+
+def test_import_contracts_hold() -> None:
+    from importlinter.cli import lint_imports
+
+    code = lint_imports(config_filename=str(ROOT / ".importlinter"), no_cache=True)
+    assert code == 0, "an import contract is broken: run `lint-imports` for the chain that breaks it"
+
+
+def _strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Tarjan's components with more than one module (the import cycles)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    import sys
+
+    sys.setrecursionlimit(max(10_000, sys.getrecursionlimit()))
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_cycles() -> None:
+    import grimp
+
+    g = grimp.build_graph(*PACKAGES, cache_dir=None)
+    # a package's __init__ importing its own submodules is not a cycle worth forbidding
+    graph = {m: {i for i in g.find_modules_directly_imported_by(m) if not m.startswith(i + ".")} for m in g.modules}
+    cycles = _strongly_connected(graph)
+    assert cycles == [], f"import cycles: {cycles}"
+
+
+@pytest.mark.parametrize("node", NODES)
+def test_node_main_is_a_thin_entry(node: str) -> None:
+    path = ROOT / "services" / node / "main.py"
+    tree = ast.parse(path.read_text())
+    code_lines = {n.lineno for n in ast.walk(tree) if isinstance(n, ast.stmt) and not (
+        isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant))}
+    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", "") == "run_node"]
+    assert len(calls) == 1, f"{path} should hand its node to run_node"
+    # the DESCRIPTION string is documentation; the code is imports, flags and one call
+    assert len(code_lines) <= 15, f"{path} has {len(code_lines)} statements; move logic into the node or its flags"
+    assert len(path.read_text().splitlines()) <= 40

@@ -129,9 +129,9 @@ class MemoryTransport(Transport):
         entry = (key, handler)
         with self.bus.lock:
             self.bus.queryables.append(entry)
-        undeclare = self._remove(self.bus.queryables, entry)
-        self._closeables.append(Closer(undeclare))
-        return undeclare
+        closer = Closer(self._remove(self.bus.queryables, entry))
+        self._closeables.append(closer)
+        return closer.close  # undeclaring twice (here and at close) is harmless
 
     def query(self, selector: str, timeout: float = 1.0) -> list[tuple[str, Message]]:
         key, _, params = selector.partition("?")

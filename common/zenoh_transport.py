@@ -114,8 +114,9 @@ class ZenohTransport(Transport):
                 query.reply(key, encode(msg), encoding=zenoh.Encoding(_ENCODING))
 
         q = self.session.declare_queryable(key, on_query)
-        self._closeables.append(Closer(q.undeclare))
-        return q.undeclare
+        closer = Closer(q.undeclare)
+        self._closeables.append(closer)
+        return closer.close  # undeclaring twice (here and at close) is harmless
 
     def query(self, selector: str, timeout: float = 1.0) -> list[tuple[str, Message]]:
         out: list[tuple[str, Message]] = []

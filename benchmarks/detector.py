@@ -32,7 +32,7 @@ from services.detector.core.darknet import DarknetDetector, DarknetParams  # noq
 from services.detector.core.depth import DepthClusterDetector, DepthParams  # noqa: E402
 from services.detector.core.hog import HogDetector, HogParams  # noqa: E402
 from services.detector.core.yolo_onnx import YoloOnnxDetector, YoloParams  # noqa: E402
-from services.detector.synthetic import Block, render_depth, scene_intrinsics  # noqa: E402
+from tests.fixtures.detector_synthetic import Block, render_depth, scene_intrinsics  # noqa: E402
 
 SIZES = ((640, 480), (320, 240))
 SHARED = Path(os.environ.get("PERCEPTION_SHARED_DATA", ROOT.parent / "shared" / "data"))

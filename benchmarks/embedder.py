@@ -13,15 +13,18 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from services.embedder.core.backend import Backend
-from services.embedder.core.colour import ColourDescriptor
-from services.embedder.core.synthetic import random_outfit, render_person
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root, for tests.fixtures
+
+from services.embedder.core.backend import Backend  # noqa: E402
+from services.embedder.core.colour import ColourDescriptor  # noqa: E402
+from tests.fixtures.embedder_synthetic import random_outfit, render_person  # noqa: E402
 
 
 def crops(n: int, rng: np.random.Generator) -> list[np.ndarray]:
@@ -55,7 +58,7 @@ def main() -> None:
     backends: list[tuple[str, Backend]] = [("colour (128-D)", ColourDescriptor())]
     tmp = tempfile.TemporaryDirectory()
     try:
-        from services.embedder.testing import conv_model
+        from tests.fixtures.embedder_onnx_models import conv_model
 
         path = conv_model(Path(tmp.name) / "reid_like.onnx")
         backends.append(("onnx conv net 256x128, 512-D", OnnxEmbedder(OnnxParams(path=str(path),

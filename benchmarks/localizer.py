@@ -35,11 +35,11 @@ from common.schemas import (  # noqa: E402
     RGBDFrame,
     TransformBatch,
 )
-from services.localizer import scene  # noqa: E402
 from services.localizer.config import LocalizerConfig  # noqa: E402
 from services.localizer.core import LocalizerParams, localize  # noqa: E402
 from services.localizer.service import LocalizerService  # noqa: E402
-from services.localizer.synthetic import Person, render_depth  # noqa: E402
+from tests.fixtures import localizer_scene as scene  # noqa: E402
+from tests.fixtures.localizer_synthetic import Person, render_depth  # noqa: E402
 
 K = np.array([[525.0, 0.0, 319.5], [0.0, 525.0, 239.5], [0.0, 0.0, 1.0]])
 PLUMB_BOB = np.array([-0.28, 0.09, 0.001, -0.0005, -0.01])

@@ -8,7 +8,7 @@ import pytest
 from services.detector.core.boxes import DetectorError, iou_matrix
 from services.detector.core.depth import DepthClusterDetector, DepthParams, cluster_points, voxel_grid
 from services.detector.core.ground import GroundParams, initial_plane, refine_plane
-from services.detector.synthetic import Block, render_depth, scene_intrinsics
+from tests.fixtures.detector_synthetic import Block, render_depth, scene_intrinsics
 
 W, H = 640, 480
 CAMERA_HEIGHT = 1.2

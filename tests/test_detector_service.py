@@ -17,7 +17,7 @@ from common.schemas import Detections, Header, Image, RGBDFrame
 from services.detector.config import DetectorConfig, build_detector
 from services.detector.core.boxes import DetectorError
 from services.detector.service import DetectorService
-from services.detector.synthetic import Block, render_depth, scene_intrinsics
+from tests.fixtures.detector_synthetic import Block, render_depth, scene_intrinsics
 
 KEYS = Keys(robot="testbot")
 

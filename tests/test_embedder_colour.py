@@ -10,7 +10,7 @@ import pytest
 
 from services.embedder.core import ColourDescriptor, crop_boxes
 from services.embedder.core.colour import DIM, ColourParams
-from services.embedder.core.synthetic import Illumination, Outfit, random_outfit, render_person
+from tests.fixtures.embedder_synthetic import Illumination, Outfit, random_outfit, render_person
 
 RED_BLUE = Outfit(skin=(220, 180, 150), hair=(40, 30, 20), shirt=(200, 30, 30), trousers=(30, 40, 160))
 GREEN_BLACK = Outfit(skin=(220, 180, 150), hair=(40, 30, 20), shirt=(40, 160, 60), trousers=(25, 25, 25))

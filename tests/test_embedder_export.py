@@ -14,7 +14,7 @@ from services.embedder import export_cli
 from services.embedder.config import OnnxConfig, sidecar_path, with_sidecar
 from services.embedder.core.calibration import calibrate
 from services.embedder.core.onnx_model import OnnxEmbedder, OnnxParams
-from services.embedder.core.synthetic import random_outfit, render_person
+from tests.fixtures.embedder_synthetic import random_outfit, render_person
 
 
 def test_missing_packages_give_the_exact_pip_commands(monkeypatch: pytest.MonkeyPatch,

@@ -12,7 +12,7 @@ pytest.importorskip("onnx", reason="the onnx package builds the test graphs (pip
 
 from services.embedder.core.backend import EmbedderError
 from services.embedder.core.onnx_model import OnnxEmbedder, OnnxParams, choose_providers
-from services.embedder.testing import projection_model, rank3_model
+from tests.fixtures.embedder_onnx_models import projection_model, rank3_model
 
 H, W = 8, 4
 
@@ -110,7 +110,7 @@ def test_provider_choice() -> None:
 def test_output_that_is_not_n_by_d(tmp_path: Path) -> None:
     from onnx import TensorProto, helper
 
-    from services.embedder.testing import _save
+    from tests.fixtures.embedder_onnx_models import _save
 
     graph = helper.make_graph(
         [helper.make_node("Identity", ["input"], ["output"])], "feature_map",

@@ -14,8 +14,8 @@ from common.samples import camera_info
 from common.schemas import Detection, Detections, Embeddings, Header, Image, RGBDFrame
 from services.embedder.config import EmbedderConfig
 from services.embedder.core import ColourDescriptor
-from services.embedder.core.synthetic import Outfit, render_person
 from services.embedder.service import EmbedderService
+from tests.fixtures.embedder_synthetic import Outfit, render_person
 
 KEYS = Keys(robot="testbot")
 RED = Outfit(skin=(220, 180, 150), hair=(40, 30, 20), shirt=(200, 30, 30), trousers=(30, 40, 160))

@@ -11,7 +11,7 @@ import pytest
 
 from perception.cli import main as perception
 from services.embedder.core.calibration import calibrate, pair_distances, suggest_thresholds
-from services.embedder.core.synthetic import random_outfit, render_person
+from tests.fixtures.embedder_synthetic import random_outfit, render_person
 
 
 def test_pair_distances_split_by_label() -> None:

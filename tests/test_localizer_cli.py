@@ -11,7 +11,7 @@ import pytest
 
 from common.geometry import PinholeCamera, RigidTransform
 from perception.cli import main
-from services.localizer.synthetic import Person, person_box, render_depth
+from tests.fixtures.localizer_synthetic import Person, person_box, render_depth
 
 K = [525.0, 0.0, 319.5, 0.0, 525.0, 239.5, 0.0, 0.0, 1.0]
 D = [-0.28, 0.09, 0.001, -0.0005, -0.01]

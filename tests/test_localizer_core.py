@@ -16,7 +16,7 @@ from services.localizer.core import (
     LocalizerParams,
     localize,
 )
-from services.localizer.synthetic import Person, person_box, render_depth
+from tests.fixtures.localizer_synthetic import Person, person_box, render_depth
 
 K = np.array([[525.0, 0.0, 319.5], [0.0, 525.0, 239.5], [0.0, 0.0, 1.0]])
 PLUMB_BOB = np.array([-0.28, 0.09, 0.001, -0.0005, -0.01])

@@ -22,8 +22,8 @@ from common.schemas import (
     TransformBatch,
 )
 from common.zenoh_transport import ZenohTransport
-from services.localizer import scene
-from services.localizer.synthetic import Person
+from tests.fixtures import localizer_scene as scene
+from tests.fixtures.localizer_synthetic import Person
 
 KEYS = Keys(robot="itest")
 

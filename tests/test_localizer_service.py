@@ -21,11 +21,11 @@ from common.schemas import (
     TransformBatch,
 )
 from common.transport import Transport
-from services.localizer import scene
 from services.localizer.config import LocalizerConfig, StaticTransformConfig
-from services.localizer.scene import T0, S
 from services.localizer.service import LocalizerService
-from services.localizer.synthetic import Person
+from tests.fixtures import localizer_scene as scene
+from tests.fixtures.localizer_scene import T0, S
+from tests.fixtures.localizer_synthetic import Person
 
 KEYS = Keys()
 PEOPLE = [Person((0.3, 0.1, 2.5)), Person((-1.2, 0.0, 4.0))]

@@ -19,13 +19,13 @@ from common.keys import RELIABLE, Keys
 from common.memory import MemoryBus
 from common.samples import example_messages, rgbd_frame
 from common.schemas import RGBDFrame, TransformBatch
+from tests.fixtures.replay_bags import MAP_ODOM_XYZ, STATIC_XYZ, SyntheticRun, write_bag
 from tools.replay import rosconv
 from tools.replay.bag_source import BagOptions
 from tools.replay.core.timeline import TimeWindow
 from tools.replay.engine import ReplayOptions, Replayer
 from tools.replay.recorder import McapRecorder
 from tools.replay.sources import McapSource, SourceError, open_source
-from tools.replay.synthetic import MAP_ODOM_XYZ, STATIC_XYZ, SyntheticRun, write_bag
 
 KEYS = Keys()
 FRAMES = KEYS.frames("head")

@@ -18,9 +18,9 @@ from common.samples import rgbd_frame
 from common.schemas import Detection, Detections, Header, Message, RGBDFrame, Transform, TransformBatch
 from common.transport import Received, Subscription
 from common.zenoh_transport import ZenohTransport
+from tests.fixtures.replay_bags import SyntheticRun, write_bag
 from tools.replay.recorder import McapRecorder
 from tools.replay.sources import open_source
-from tools.replay.synthetic import SyntheticRun, write_bag
 
 pytestmark = pytest.mark.zenoh
 

@@ -11,9 +11,9 @@ from pydantic import BaseModel
 from common.config import load_config
 from services.detector.config import DetectorConfig
 from services.embedder.config import EmbedderConfig
-from tools.launcher.launchfile import load_launch_file
 from services.localizer.config import LocalizerConfig
 from services.tracker.config import TrackerConfig
+from tools.launcher.launchfile import load_launch_file
 
 DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
 MODELS: dict[str, type[BaseModel]] = {

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from common.router_process import RouterProcess, free_port
-from tools.launcher.supervisor import ProcessSpec, Supervisor
 from tests.helpers.launcher import CHILD, PY, ROOT, TIMEOUT, Launch
+from tools.launcher.supervisor import ProcessSpec, Supervisor
 
 
 @pytest.fixture

@@ -11,10 +11,10 @@ from common.config import ConfigError, load_config
 from common.runtime import Counters, ServiceRuntime, Shutdown, package_version
 from common.zenoh_config import add_zenoh_arguments, options_from_args
 from common.zenoh_transport import TransportError, open_transport
+from tools.replay.recorder import McapRecorder
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.scenarios import SCENARIOS
 from tools.simulator.groundtruth import GroundTruthCsv
-from tools.replay.recorder import McapRecorder
 from tools.simulator.service import SimulatorService
 from tools.simulator.snapshot import write_snapshot
 from tools.simulator.source import SimulatedStream

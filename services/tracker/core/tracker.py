@@ -203,90 +203,132 @@ class Tracker:
         detection without a descriptor. ``measurement_cov`` (N, 3, 3) replaces the
         thesis's fixed ``R`` per detection when given.
         """
-        p = self.params
-        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-        n = len(positions)
-        if descriptors is not None:
-            descriptors = np.asarray(descriptors, dtype=np.float32)
-            if descriptors.ndim != 2 or len(descriptors) != n:
-                raise ValueError(f"descriptors must be (N, D) with N = {n} detections, got shape {descriptors.shape}")
-        appearance = descriptors is not None and p.gate is not None
+        positions, descriptors = _checked_inputs(positions, descriptors)
+        appearance = descriptors is not None and self.params.gate is not None
+        used = descriptors if appearance else None  # descriptors without thresholds are ignored
         dt, q_scale, frames = self._step(stamp)
         self.last_stamp = stamp
         if appearance:
             self._flush_pending()
 
-        # predict every track at once
+        means, covs = self._predict(dt, q_scale)
+        matches, unmatched_d, unmatched_t = self._associate(positions, used, means, covs)
+        result = FrameResult(stamp=stamp, appearance_available=appearance, matches=len(matches))
+        has_desc = _with_descriptor(used, len(positions))
+        self._update_matched(matches, means, covs, positions, used, has_desc, measurement_cov, stamp)
+        result.deleted = self._age_missed(unmatched_t, frames, appearance, stamp)
+        result.new_ids, result.recovered_ids = self._birth(unmatched_d, positions, used, has_desc, stamp)
+        result.tracks = [TrackView.of(t, stamp) for t in self.tracks]
+        return result
+
+    def _predict(self, dt: float, q_scale: float) -> tuple[np.ndarray, np.ndarray]:
+        """Move every track to this frame; returns the means (T, 6) and covariances (T, 6, 6)."""
         if self.tracks and q_scale > 0:
-            means = np.stack([t.mean for t in self.tracks])
-            covs = np.stack([t.cov for t in self.tracks])
+            means, covs = self._states()
             means, covs = kalman.predict(means, covs, dt, np.diag(self._q_frame * q_scale))
             for t, m, c in zip(self.tracks, means, covs):
                 t.mean, t.cov = m, c
-        means = np.stack([t.mean for t in self.tracks]) if self.tracks else np.zeros((0, 6))
-        covs = np.stack([t.cov for t in self.tracks]) if self.tracks else np.zeros((0, 6, 6))
+        return self._states()
 
-        # associate
-        if appearance:
-            assert descriptors is not None and p.gate is not None
-            galleries = [t.gallery if t.gallery is not None else Gallery(max(1, descriptors.shape[1]), 1) for t in self.tracks]
-            cost = appearance_cost(descriptors, galleries)
-            spatial = spatial_distance(positions[:, :2], means[:, :2], covs[:, :2, :2])
-            cost = gate_appearance(cost, spatial, p.gate)
+    def _states(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every track's mean (T, 6) and covariance (T, 6, 6), stacked."""
+        if not self.tracks:
+            return np.zeros((0, 6)), np.zeros((0, 6, 6))
+        return np.stack([t.mean for t in self.tracks]), np.stack([t.cov for t in self.tracks])
+
+    def _associate(self, positions: np.ndarray, descriptors: np.ndarray | None, means: np.ndarray,
+                   covs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Algorithm 1 with ``descriptors``, else position-only: (matches (K, 2) of (detection,
+        track)), unmatched detections, unmatched tracks)."""
+        if descriptors is not None:
+            cost = self._appearance_cost(positions, descriptors, means, covs)
         else:
-            cost = gate_position(innovation_distance(positions, means, covs, self._r), self._position_gate, p.inf)
-        matches, unmatched_d, unmatched_t = match(cost, p.inf)
+            distance = innovation_distance(positions, means, covs, self._r)
+            cost = gate_position(distance, self._position_gate, self.params.inf)
+        return match(cost, self.params.inf)
 
-        result = FrameResult(stamp=stamp, appearance_available=appearance, matches=len(matches))
-        has_desc = (np.all(np.isfinite(descriptors), axis=1) if descriptors is not None and descriptors.shape[1]
-                    else np.zeros(n, bool)) if appearance else np.zeros(n, bool)
+    def _appearance_cost(self, positions: np.ndarray, descriptors: np.ndarray, means: np.ndarray,
+                         covs: np.ndarray) -> np.ndarray:
+        """Appearance distances to the track galleries, gated by the (x, y) Mahalanobis distance."""
+        gate = self.params.gate
+        assert gate is not None
+        empty = Gallery(max(1, descriptors.shape[1]), 1)
+        galleries = [t.gallery if t.gallery is not None else empty for t in self.tracks]
+        cost = appearance_cost(descriptors, galleries)
+        spatial = spatial_distance(positions[:, :2], means[:, :2], covs[:, :2, :2])
+        return gate_appearance(cost, spatial, gate)
 
-        # update matched tracks at once
-        if len(matches):
-            d_idx, t_idx = matches[:, 0], matches[:, 1]
-            r = measurement_cov[d_idx] if measurement_cov is not None else self._r
-            new_means, new_covs = kalman.update(means[t_idx], covs[t_idx], positions[d_idx], r)
-            for k, (d, ti) in enumerate(matches.tolist()):
-                self._hit(self.tracks[ti], new_means[k], new_covs[k], stamp)
-                if has_desc[d]:
-                    self._add_descriptor(self.tracks[ti], descriptors[d])  # type: ignore[index]
+    def _update_matched(self, matches: np.ndarray, means: np.ndarray, covs: np.ndarray, positions: np.ndarray,
+                        descriptors: np.ndarray | None, has_desc: np.ndarray, measurement_cov: np.ndarray | None,
+                        stamp: float) -> None:
+        """Kalman-update the matched tracks at once; add their detections' descriptors."""
+        if not len(matches):
+            return
+        d_idx, t_idx = matches[:, 0], matches[:, 1]
+        r = measurement_cov[d_idx] if measurement_cov is not None else self._r
+        new_means, new_covs = kalman.update(means[t_idx], covs[t_idx], positions[d_idx], r)
+        for k, (d, ti) in enumerate(matches.tolist()):
+            self._hit(self.tracks[ti], new_means[k], new_covs[k], stamp)
+            if has_desc[d]:
+                self._add_descriptor(self.tracks[ti], descriptors[d])  # type: ignore[index]
 
-        # age missed tracks; delete after max_misses
+    def _age_missed(self, unmatched_t: np.ndarray, frames: int, appearance: bool, stamp: float) -> list[TrackView]:
+        """Count a miss for every unmatched track; delete (and archive) those at ``max_misses``.
+
+        Returns the deleted tracks.
+        """
+        deleted: list[TrackView] = []
         deleted_idx = set()
         for ti in unmatched_t.tolist():
             t = self.tracks[ti]
-            t.hits = 0
-            t.misses += frames
-            t.status = TrackStatus.TENTATIVE
-            if t.misses >= p.max_misses:
-                t.status = TrackStatus.DELETED
+            self._miss(t, frames)
+            if t.status is TrackStatus.DELETED:
                 deleted_idx.add(ti)
-                result.deleted.append(TrackView.of(t, stamp))
-                if t.gallery is not None and len(t.gallery):
-                    if appearance:
-                        self.memory.archive(t.id, t.gallery.descriptors)
-                    else:
-                        self._pending.append((t.id, t.gallery))
+                deleted.append(TrackView.of(t, stamp))
+                self._archive(t, appearance)
         if deleted_idx:
             self.tracks = [t for i, t in enumerate(self.tracks) if i not in deleted_idx]
+        return deleted
 
-        # new tracks from the unmatched detections (Algorithm 2 for their IDs)
+    def _miss(self, t: Track, frames: int) -> None:
+        t.hits = 0
+        t.misses += frames
+        t.status = TrackStatus.TENTATIVE
+        if t.misses >= self.params.max_misses:
+            t.status = TrackStatus.DELETED
+
+    def _archive(self, t: Track, appearance: bool) -> None:
+        """Give a deleted track's gallery to the ID memory (held back in position-only frames)."""
+        if t.gallery is not None and len(t.gallery):
+            if appearance:
+                self.memory.archive(t.id, t.gallery.descriptors)
+            else:
+                self._pending.append((t.id, t.gallery))
+
+    def _birth(self, unmatched_d: np.ndarray, positions: np.ndarray, descriptors: np.ndarray | None,
+               has_desc: np.ndarray, stamp: float) -> tuple[list[int], list[int]]:
+        """A new track per unmatched detection, its ID from Algorithm 2; returns (new IDs, recovered IDs)."""
+        new_ids: list[int] = []
+        recovered_ids: list[int] = []
         for d in unmatched_d.tolist():
             desc = descriptors[d] if has_desc[d] else None  # type: ignore[index]
-            track_id, recovered = self.memory.assign(desc, self.live_ids() | {i for i, _ in self._pending}, p.t_recover)
-            mean, cov = kalman.initiate(positions[d], np.asarray(p.sigma0))
-            t = Track(track_id, mean, cov, None, stamp, stamp)
-            if p.n_init <= 1:
-                t.status, t.ever_confirmed = TrackStatus.CONFIRMED, True
-            if desc is not None:
-                self._add_descriptor(t, desc)
-            self.tracks.append(t)
-            result.new_ids.append(track_id)
+            track_id, recovered = self._new_track(positions[d], desc, stamp)
+            new_ids.append(track_id)
             if recovered:
-                result.recovered_ids.append(track_id)
+                recovered_ids.append(track_id)
+        return new_ids, recovered_ids
 
-        result.tracks = [TrackView.of(t, stamp) for t in self.tracks]
-        return result
+    def _new_track(self, position: np.ndarray, desc: np.ndarray | None, stamp: float) -> tuple[int, bool]:
+        p = self.params
+        track_id, recovered = self.memory.assign(desc, self.live_ids() | {i for i, _ in self._pending}, p.t_recover)
+        mean, cov = kalman.initiate(position, np.asarray(p.sigma0))
+        t = Track(track_id, mean, cov, None, stamp, stamp)
+        if p.n_init <= 1:
+            t.status, t.ever_confirmed = TrackStatus.CONFIRMED, True
+        if desc is not None:
+            self._add_descriptor(t, desc)
+        self.tracks.append(t)
+        return track_id, recovered
 
     def _hit(self, t: Track, mean: np.ndarray, cov: np.ndarray, stamp: float) -> None:
         t.mean, t.cov = mean, cov
@@ -331,3 +373,20 @@ def _replace(params: TrackerParams, **changes: object) -> TrackerParams:
 
     return replace(params, **changes)  # type: ignore[arg-type]
 
+
+def _checked_inputs(positions: np.ndarray, descriptors: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """``positions`` as (N, 3) float64 and ``descriptors`` as (N, D) float32 (or None)."""
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    n = len(positions)
+    if descriptors is not None:
+        descriptors = np.asarray(descriptors, dtype=np.float32)
+        if descriptors.ndim != 2 or len(descriptors) != n:
+            raise ValueError(f"descriptors must be (N, D) with N = {n} detections, got shape {descriptors.shape}")
+    return positions, descriptors
+
+
+def _with_descriptor(descriptors: np.ndarray | None, n: int) -> np.ndarray:
+    """(N,) bool: which detections carry a usable (finite) descriptor."""
+    if descriptors is not None and descriptors.shape[1]:
+        return np.all(np.isfinite(descriptors), axis=1)
+    return np.zeros(n, bool)

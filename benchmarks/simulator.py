@@ -28,7 +28,7 @@ from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.apartment import default_apartment
 from tools.simulator.core.body import PersonPose, body_ellipsoids
 from tools.simulator.core.geometry import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
-from tools.simulator.core.render import Intrinsics, Renderer
+from tools.simulator.core.render import Renderer, default_camera
 from tools.simulator.core.scenarios import SCENARIOS, build_world
 from tools.simulator.core.simulation import Simulation
 from tools.simulator.core.wardrobe import OUTFITS
@@ -84,7 +84,7 @@ def _hit(rects: np.ndarray, u: float, v: float) -> bool:
 
 def hog_controlled() -> dict[float, float]:
     """Hit rate per distance for one person in the open (camera 1.23 m high, tilted 0.12 rad down)."""
-    hog, intr = _hog(), Intrinsics.default(640, 480)
+    hog, intr = _hog(), default_camera(640, 480)
     renderer = Renderer(default_apartment(), intr, seed=0)
     cam = (
         planar_pose(0.6, 2.0, 0.0)
@@ -106,7 +106,7 @@ def hog_controlled() -> dict[float, float]:
 
 def hog_scenario(name: str, seeds: tuple[int, ...] = (0, 1, 2), step: int = 15) -> tuple[int, int, int, int]:
     """(people at 2-5 m, hits, people at 2.6-5 m, hits) over scenario frames at 640x480."""
-    hog, intr = _hog(), Intrinsics.default(640, 480)
+    hog, intr = _hog(), default_camera(640, 480)
     n = h = n_far = h_far = 0
     for seed in seeds:
         sim = Simulation(build_world(name, seed=seed), intr, fps=15.0, seed=seed)
@@ -128,7 +128,7 @@ def hog_scenario(name: str, seeds: tuple[int, ...] = (0, 1, 2), step: int = 15) 
 def groundtruth_stats(name: str, seed: int = 0, fps: float = 15.0) -> tuple[float, int, int, float, int]:
     """(duration s, frames, counted people instances, % frames with ground truth, ids) at 320x240."""
     world = build_world(name, seed=seed)
-    sim = Simulation(world, Intrinsics.default(320, 240), fps=fps, seed=seed)
+    sim = Simulation(world, default_camera(320, 240), fps=fps, seed=seed)
     frames = int(np.ceil(world.duration_s * fps))
     counted = [sum(p.counted for p in sim.frame(seq).people) for seq in range(frames)]
     return world.duration_s, frames, int(np.sum(counted)), 100.0 * float(np.mean(np.array(counted) > 0)), len(world.ids)

@@ -78,6 +78,14 @@ class PinholeCamera:
     def fy(self) -> float:
         return float(self.K[1, 1])
 
+    @property
+    def cx(self) -> float:
+        return float(self.K[0, 2])
+
+    @property
+    def cy(self) -> float:
+        return float(self.K[1, 2])
+
     def project(self, points: np.ndarray) -> np.ndarray:
         """Pixels (N, 2) of camera-frame points (N, 3) with z > 0 (distortion applied)."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)

@@ -5,17 +5,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from common.geometry import PinholeCamera
 from tools.simulator.core.apartment import Apartment, default_apartment
 from tools.simulator.core.body import Ellipsoids, PersonPose, body_ellipsoids
 from tools.simulator.core.geometry import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
 from tools.simulator.core.motion import WALK_RADIUS, Action, Walker
-from tools.simulator.core.render import Intrinsics, Renderer, depth_sigma
+from tools.simulator.core.render import Renderer, default_camera, depth_sigma
 from tools.simulator.core.robot import HeadMotion, Odometry, Robot, static_trajectory
 from tools.simulator.core.scenarios import SCENARIOS, World, build_world
 from tools.simulator.core.simulation import Simulation
 from tools.simulator.core.wardrobe import OUTFITS
 
-SMALL = Intrinsics.default(160, 120)
+SMALL = default_camera(160, 120)
 
 
 def _camera(x: float, y: float, yaw: float, z: float = 1.2, tilt: float = 0.0) -> np.ndarray:
@@ -43,9 +44,17 @@ def test_motion_does_not_depend_on_the_frame_rate() -> None:
             assert a.state(t)[0] == b.state(t)[0]
 
 
+def test_the_camera_is_a_pinhole_camera_without_distortion() -> None:
+    cam = default_camera(160, 120)
+    assert (cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy) == (160, 120, 131.25, 131.25, 79.5, 59.5)
+    assert not cam.distorted
+    with pytest.raises(ValueError, match="distortion or skew"):
+        Renderer(_empty_apartment(), PinholeCamera(cam.K, 160, 120, np.array([0.1, 0.0, 0.0, 0.0, 0.0])))
+
+
 def test_wall_depth_is_the_plane_distance_with_quadratic_noise() -> None:
     """The east wall (x = 9) seen square-on from x = 4: every pixel's depth is 5 m along the optical axis."""
-    intr = Intrinsics.default(320, 240)
+    intr = default_camera(320, 240)
     out = Renderer(_empty_apartment(), intr, seed=1).render(_camera(4.0, 3.5, 0.0, z=1.3), Ellipsoids.concat([]))
     depth = out.depth_mm.astype(np.float64) / 1000.0
     wall = depth[60:180, 80:240]  # well inside the wall (the floor/ceiling are further out)
@@ -56,7 +65,7 @@ def test_wall_depth_is_the_plane_distance_with_quadratic_noise() -> None:
 
 
 def test_sphere_depth_and_silhouette_follow_the_pinhole_model() -> None:
-    intr = Intrinsics.default(640, 480)
+    intr = default_camera(640, 480)
     r, dist = 0.3, 3.0
     e = Ellipsoids(
         centres=np.array([[4.0 + dist, 3.5, 1.3]]),
@@ -80,7 +89,7 @@ def test_sphere_depth_and_silhouette_follow_the_pinhole_model() -> None:
 
 
 def test_depth_is_invalid_beyond_eight_metres() -> None:
-    intr = Intrinsics.default(160, 120)
+    intr = default_camera(160, 120)
     out = Renderer(_empty_apartment(), intr, seed=0).render(_camera(0.5, 3.5, 0.0, z=1.3), Ellipsoids.concat([]))
     assert np.all(out.depth_mm[50:70, 70:90] == 0)  # the far wall is 8.5 m away
     assert np.all(out.depth_mm[-5:, 70:90] > 0)  # the floor nearby is valid
@@ -165,7 +174,7 @@ def test_groundtruth_rule_counts_only_people_the_camera_can_see() -> None:
     world = _still_world([(5.26, 2.8), (7.0, 3.0), (4.0, 0.4), (5.55, 3.21)])
     pose = (4.0, 1.0, np.radians(40.0))
     world.robot = Robot(static_trajectory(*pose), HeadMotion(tilt0=0.12), Odometry(static_trajectory(*pose)))
-    people = {p.id: p for p in Simulation(world, Intrinsics.default(320, 240), seed=0).frame(0).people}
+    people = {p.id: p for p in Simulation(world, default_camera(320, 240), seed=0).frame(0).people}
     assert people[1].counted and people[1].visible_fraction > 0.9
     assert not people[2].counted and people[2].visible_fraction == 0.0 and people[2].in_view_fraction > 0.5
     assert not people[3].counted and people[3].in_view_fraction == 0.0
@@ -177,7 +186,7 @@ def test_a_person_behind_the_sofa_is_partly_hidden() -> None:
     world = _still_world([(0.5, 4.1)])
     pose = (3.5, 4.1, np.pi)
     world.robot = Robot(static_trajectory(*pose), HeadMotion(tilt0=0.12), Odometry(static_trajectory(*pose)))
-    person = Simulation(world, Intrinsics.default(320, 240), seed=0).frame(0).people[0]
+    person = Simulation(world, default_camera(320, 240), seed=0).frame(0).people[0]
     assert person.in_view_fraction == 1.0
     assert 0.25 <= person.visible_fraction < 0.8 and person.counted  # legs hidden, torso and head seen
 
@@ -187,7 +196,7 @@ def test_hog_finds_standing_people_at_two_to_five_metres() -> None:
     cv2 = pytest.importorskip("cv2")
     hog = cv2.HOGDescriptor()
     hog.setSVMDetector(cv2.HOGDescriptor.getDefaultPeopleDetector())
-    intr = Intrinsics.default(640, 480)
+    intr = default_camera(640, 480)
     renderer = Renderer(default_apartment(), intr, seed=0)
     cam = (
         planar_pose(0.6, 2.0, 0.0)
@@ -208,7 +217,7 @@ def test_hog_finds_standing_people_at_two_to_five_metres() -> None:
 
 def test_back_projected_depth_lands_on_the_floor_and_on_the_peoples_heights() -> None:
     """What a depth-cluster detector relies on: a flat floor at z = 0 and people of their true height."""
-    intr = Intrinsics.default(320, 240)
+    intr = default_camera(320, 240)
     world = _still_world([(2.6, 3.2), (3.6, 4.0)])
     fd = Simulation(world, intr, seed=0, depth_noise=False).frame(0)
     v, u = np.mgrid[0 : intr.height, 0 : intr.width]

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from common.codec import decode
+from common.geometry_messages import rigid_from_msg
 from common.keys import FRAMES, RELIABLE, Keys
 from common.memory import MemoryBus
 from common.runtime import Counters, Shutdown
@@ -18,11 +19,11 @@ from common.schemas import (
     Header,
     PeopleGroundTruth,
     RGBDFrame,
+    Transform,
     TransformBatch,
 )
 from perception.cli import main as cli_main
 from tools.simulator.config import SimulatorConfig
-from tools.simulator.core.geometry import make_pose, matrix_from_quaternion
 from tools.simulator.core.scenarios import SCENARIOS
 from tools.simulator.groundtruth import write_groundtruth_csv
 from tools.simulator.service import SimulatorService
@@ -38,8 +39,9 @@ def _config(**kw: object) -> SimulatorConfig:
     return SimulatorConfig(**base)  # type: ignore[arg-type]
 
 
-def _pose(tf: object) -> np.ndarray:
-    return make_pose(matrix_from_quaternion(tf.rotation_xyzw), tf.translation)  # type: ignore[attr-defined]
+def _pose(tf: Transform) -> np.ndarray:
+    """T_parent_child of a published transform, read as the localizer reads it."""
+    return rigid_from_msg(tf).matrix
 
 
 def test_published_messages_share_the_frame_header_and_compose_to_the_camera_pose(memory_bus: MemoryBus) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from common.geometry import PinholeCamera
 from common.schemas import (
     CameraInfo,
     Header,
@@ -15,7 +16,6 @@ from common.schemas import (
     TransformBatch,
 )
 from tools.simulator.core.geometry import quaternion_from_matrix
-from tools.simulator.core.render import Intrinsics
 from tools.simulator.core.simulation import FrameData
 
 __all__ = ["CAMERA_FRAME", "frame_message", "groundtruth_message", "static_transforms", "tf_message"]
@@ -35,11 +35,12 @@ def transform(parent: str, child: str, pose: np.ndarray, stamp_ns: int, static: 
     )
 
 
-def frame_message(fd: FrameData, intr: Intrinsics, stamp_ns: int, camera: str) -> RGBDFrame:
+def frame_message(fd: FrameData, pinhole: PinholeCamera, stamp_ns: int, camera: str) -> RGBDFrame:
     """The RGB-D frame; RGB, depth and camera info share one header (stamp, seq, source)."""
     header = Header(stamp_ns=stamp_ns, frame_id=CAMERA_FRAME, seq=fd.seq, source=camera)
     info = CameraInfo(
-        header=header, width=intr.width, height=intr.height, K=intr.K, D=np.zeros(5), distortion_model="plumb_bob"
+        header=header, width=pinhole.width, height=pinhole.height, K=pinhole.K.copy(), D=np.zeros(5),
+        distortion_model="plumb_bob",
     )
     return RGBDFrame(
         header=header,

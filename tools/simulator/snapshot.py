@@ -7,7 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tools.simulator.core.render import DEPTH_MAX_M
+from tools.simulator.core.render import DEPTH_MAX_M, default_camera
 from tools.simulator.core.simulation import FrameData
 
 __all__ = ["snapshot_image", "write_snapshot"]
@@ -24,12 +24,12 @@ def snapshot_image(fd: FrameData) -> np.ndarray:
     cam_from_map = np.linalg.inv(fd.map_camera)
     h, w = depth.shape
     scale = max(0.35, w / 1280.0)
-    f = 525.0 * w / 640.0
+    cam = default_camera(w, h)  # the simulator's camera (SimulatedStream)
     for p in fd.people:
         c = cam_from_map @ np.append(p.position, 1.0)
         if not p.counted or c[2] <= 0.1:
             continue
-        u, v = int(f * c[0] / c[2] + (w - 1) / 2), int(f * c[1] / c[2] + (h - 1) / 2)
+        u, v = int(cam.fx * c[0] / c[2] + cam.cx), int(cam.fy * c[1] / c[2] + cam.cy)
         for img in (rgb, coloured):
             cv2.drawMarker(img, (u, v), (255, 255, 255), cv2.MARKER_CROSS, int(12 * scale * 2), 2)
             cv2.putText(img, str(p.id), (u + 6, v - 6), cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 2)

@@ -8,7 +8,7 @@ import time
 from common.keys import Keys
 from common.schemas import Message, PeopleGroundTruth
 from tools.simulator.config import SimulatorConfig
-from tools.simulator.core.render import Intrinsics
+from tools.simulator.core.render import default_camera
 from tools.simulator.core.scenarios import SCENARIOS, build_world
 from tools.simulator.core.simulation import FrameData, Simulation
 from tools.simulator.messages import frame_message, groundtruth_message, static_transforms, tf_message
@@ -23,9 +23,9 @@ class SimulatedStream:
         self.config = config
         self.keys = keys
         self.world = build_world(config.scenario, config.seed, config.alike)
-        self.intrinsics = Intrinsics.default(config.width, config.height)
+        self.camera = default_camera(config.width, config.height)
         self.simulation = Simulation(
-            self.world, self.intrinsics, config.fps, config.seed, config.min_visible, config.depth_noise
+            self.world, self.camera, config.fps, config.seed, config.min_visible, config.depth_noise
         )
         self.start_ns = time.time_ns() if config.start_ns is None else config.start_ns
         duration = SCENARIOS[config.scenario].duration_s if config.duration_s is None else config.duration_s
@@ -47,7 +47,7 @@ class SimulatedStream:
             out.append((keys.tf_static(), static_transforms(fd, stamp, cfg.camera, self.world.head_moves)))
         out.append((keys.tf(), tf_message(fd, stamp, cfg.camera, self.world.head_moves)))
         out.append((keys.groundtruth(), groundtruth_message(fd, stamp, cfg.camera, cfg.min_visible)))
-        out.append((keys.frames(cfg.camera), frame_message(fd, self.intrinsics, stamp, cfg.camera)))
+        out.append((keys.frames(cfg.camera), frame_message(fd, self.camera, stamp, cfg.camera)))
         return fd, out
 
     @staticmethod

@@ -1,7 +1,13 @@
-"""Rigid transforms as 4x4 homogeneous matrices, rotations and quaternions.
+"""The simulator's poses: 4x4 homogeneous matrices built from elementary rotations.
 
-Convention (ROS TF): ``T_a_b`` maps points expressed in frame ``b`` into frame ``a``
-(``p_a = T_a_b @ p_b``), so ``T_a_c = T_a_b @ T_b_c``.
+Convention (ROS TF, as in :mod:`common.geometry`): ``T_a_b`` maps points expressed in
+frame ``b`` into frame ``a`` (``p_a = T_a_b @ p_b``), so ``T_a_c = T_a_b @ T_b_c``.
+
+The camera is :class:`common.geometry.PinholeCamera`. The poses stay plain numpy
+matrices rather than :class:`common.geometry.RigidTransform`: that class holds a scipy
+``Rotation`` (a quaternion), and a pose that goes through it comes back different in the
+last bits for most poses (its inverse and its quaternion too), while the simulator's
+frames, ground truth and messages are reproducible bit for bit for a seed.
 """
 
 from __future__ import annotations
@@ -13,7 +19,6 @@ __all__ = [
     "make_pose",
     "pose_inverse",
     "quaternion_from_matrix",
-    "matrix_from_quaternion",
     "rot_x",
     "rot_y",
     "rot_z",
@@ -84,15 +89,3 @@ def quaternion_from_matrix(r: np.ndarray) -> np.ndarray:
         q[3] = (m[k, j] - m[j, k]) / s
     q /= np.linalg.norm(q)
     return -q if q[3] < 0 else q
-
-
-def matrix_from_quaternion(q: np.ndarray) -> np.ndarray:
-    """(3, 3) rotation matrix of a quaternion (x, y, z, w)."""
-    x, y, z, w = np.asarray(q, dtype=np.float64) / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )

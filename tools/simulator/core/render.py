@@ -14,10 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from common.geometry import PinholeCamera
 from tools.simulator.core.apartment import Apartment
 from tools.simulator.core.body import Ellipsoids
 
-__all__ = ["DEPTH_MAX_M", "Intrinsics", "RenderResult", "Renderer", "depth_sigma"]
+__all__ = ["DEPTH_MAX_M", "RenderResult", "Renderer", "default_camera", "depth_sigma"]
 
 NEAR_M = 0.1
 #: Depth beyond this range is reported invalid (0), like a structured-light sensor.
@@ -34,26 +35,12 @@ def depth_sigma(z: np.ndarray) -> np.ndarray:
     return 1.425e-3 * np.square(z)
 
 
-@dataclass(frozen=True)
-class Intrinsics:
-    """Pinhole camera without distortion; K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]."""
-
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-
-    @staticmethod
-    def default(width: int = 640, height: int = 480) -> Intrinsics:
-        """An Orbbec Astra / Kinect-like camera: f = 525 px at 640 wide, scaled with the width."""
-        f = 525.0 * width / 640.0
-        return Intrinsics(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0)
-
-    @property
-    def K(self) -> np.ndarray:
-        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+def default_camera(width: int = 640, height: int = 480) -> PinholeCamera:
+    """An Orbbec Astra / Kinect-like camera without distortion: f = 525 px at 640 wide, scaled
+    with the width, the principal point at the image centre."""
+    f = 525.0 * width / 640.0
+    cx, cy = (width - 1) / 2.0, (height - 1) / 2.0
+    return PinholeCamera(np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]]), width, height)
 
 
 @dataclass
@@ -74,16 +61,18 @@ class Renderer:
     def __init__(
         self,
         apartment: Apartment,
-        intrinsics: Intrinsics,
+        camera: PinholeCamera,
         seed: int = 0,
         rgb_noise: float = 3.0,
         depth_noise: bool = True,
     ) -> None:
+        if camera.distorted or camera.K[0, 1] != 0.0:
+            raise ValueError("the renderer casts straight rays: give it a camera without distortion or skew")
         self.apartment = apartment
-        self.intr = intrinsics
-        w, h = intrinsics.width, intrinsics.height
+        self.camera = camera
+        w, h = camera.width, camera.height
         u, v = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-        rx, ry = (u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy
+        rx, ry = (u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy
         self._rays_cam = (rx.astype(np.float32), ry.astype(np.float32))  # camera-frame ray x, y (z = 1)
         self._inv_norm = (1.0 / np.sqrt(rx * rx + ry * ry + 1.0)).astype(np.float32)
         boxes = list(apartment.boxes)
@@ -114,9 +103,10 @@ class Renderer:
             a, b = a[cross], b[cross]
             s = (NEAR_M - a[:, 2]) / (b[:, 2] - a[:, 2])
             pts = np.concatenate([pts, a + s[:, None] * (b - a)])
-        w, h = self.intr.width, self.intr.height
-        u = self.intr.fx * pts[:, 0] / pts[:, 2] + self.intr.cx
-        v = self.intr.fy * pts[:, 1] / pts[:, 2] + self.intr.cy
+        cam = self.camera
+        w, h = cam.width, cam.height
+        u = cam.fx * pts[:, 0] / pts[:, 2] + cam.cx
+        v = cam.fy * pts[:, 1] / pts[:, 2] + cam.cy
         u0, u1 = max(0, int(np.floor(u.min()))), min(w, int(np.ceil(u.max())) + 1)
         v0, v1 = max(0, int(np.floor(v.min()))), min(h, int(np.ceil(v.max())) + 1)
         if u0 >= u1 or v0 >= v1:
@@ -277,7 +267,7 @@ class Renderer:
         """Render the scene seen from ``camera_pose`` (4, 4) T_map_camera (optical frame)."""
         r = camera_pose[:3, :3].astype(np.float32)
         o = camera_pose[:3, 3].astype(np.float32)
-        h, w = self.intr.height, self.intr.width
+        h, w = self.camera.height, self.camera.width
         rc = self._rays_cam
         d = [rc[0] * r[a, 0] + rc[1] * r[a, 1] + r[a, 2] for a in range(3)]  # ray z in the camera is 1
         key = np.asarray(camera_pose, np.float64).tobytes()

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from common.geometry import PinholeCamera
 from tools.simulator.core.body import Clothing, Ellipsoids, body_ellipsoids, torso_centre
-from tools.simulator.core.render import NEAR_M, Intrinsics, Renderer, RenderResult
+from tools.simulator.core.render import NEAR_M, Renderer, RenderResult
 from tools.simulator.core.scenarios import World
 
 __all__ = ["FrameData", "PersonTruth", "Simulation", "visible_fraction"]
@@ -56,7 +57,7 @@ class FrameData:
 
 
 def visible_fraction(
-    points: np.ndarray, owner: int, map_camera: np.ndarray, intr: Intrinsics, owner_image: np.ndarray
+    points: np.ndarray, owner: int, map_camera: np.ndarray, camera: PinholeCamera, owner_image: np.ndarray
 ) -> tuple[float, float]:
     """(visible, in-view) fractions of ``points`` (K, 3): in view = in front of the camera and
     inside the image; visible = also on a pixel whose nearest surface is person ``owner``."""
@@ -64,9 +65,9 @@ def visible_fraction(
     z = cam[:, 2]
     front = z > NEAR_M
     zs = np.where(front, z, 1.0)
-    u = np.floor(intr.fx * cam[:, 0] / zs + intr.cx + 0.5).astype(np.int64)
-    v = np.floor(intr.fy * cam[:, 1] / zs + intr.cy + 0.5).astype(np.int64)
-    inside = front & (u >= 0) & (u < intr.width) & (v >= 0) & (v < intr.height)
+    u = np.floor(camera.fx * cam[:, 0] / zs + camera.cx + 0.5).astype(np.int64)
+    v = np.floor(camera.fy * cam[:, 1] / zs + camera.cy + 0.5).astype(np.int64)
+    inside = front & (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
     seen = np.zeros_like(inside)
     seen[inside] = owner_image[v[inside], u[inside]] == owner
     n = max(len(points), 1)
@@ -79,17 +80,17 @@ class Simulation:
     def __init__(
         self,
         world: World,
-        intrinsics: Intrinsics,
+        camera: PinholeCamera,
         fps: float = 15.0,
         seed: int = 0,
         min_visible: float = MIN_VISIBLE,
         depth_noise: bool = True,
     ) -> None:
         self.world = world
-        self.intr = intrinsics
+        self.camera = camera
         self.fps = fps
         self.min_visible = min_visible
-        self.renderer = Renderer(world.apartment, intrinsics, seed=seed, depth_noise=depth_noise)
+        self.renderer = Renderer(world.apartment, camera, seed=seed, depth_noise=depth_noise)
 
     def people_solids(
         self, t: float
@@ -127,7 +128,7 @@ class Simulation:
         result = self.renderer.render(map_cam, solids)
         people = []
         for k, (pid, centre, vel, posture, height, clothing, outfit) in enumerate(info):
-            vis, in_view = visible_fraction(solids.sample_points(k), k, map_cam, self.intr, result.owner)
+            vis, in_view = visible_fraction(solids.sample_points(k), k, map_cam, self.camera, result.owner)
             people.append(
                 PersonTruth(pid, centre, vel, vis, in_view, vis >= self.min_visible, posture, height, clothing, outfit)
             )

@@ -19,6 +19,7 @@ from services.tracker.core.association import (
 )
 from services.tracker.core.gallery import Gallery, pairwise_sq_distances
 from services.tracker.core.identity import IdentityMemory
+from services.tracker.memory_file import read_memory, save_memory
 
 SIGMA = np.array([0.2, 0.2, 0.2, 1.0, 1.0, 1.0])
 R = np.diag([0.04, 0.04, 0.04])
@@ -225,9 +226,9 @@ def test_memory_save_load_roundtrip(tmp_path: Path) -> None:
     mem.archive(3, rng.normal(size=(2, 6)))
     live = rng.normal(size=(3, 6))
     path = tmp_path / "sub" / "memory.npz"
-    mem.save(path, model="colour", extra=[(2, live)])
+    save_memory(path, mem, model="colour", extra=[(2, live)])
     assert [p.name for p in path.parent.iterdir()] == ["memory.npz"]  # no temporary file left
-    loaded, model = IdentityMemory.load(path)
+    loaded, model = read_memory(path)
     assert model == "colour" and loaded.next_id == 4
     assert sorted(loaded.entries) == [1, 2, 3]
     np.testing.assert_allclose(loaded.entries[1].descriptors, mem.entries[1].descriptors)
@@ -238,4 +239,33 @@ def test_memory_load_rejects_garbage(tmp_path: Path) -> None:
     bad = tmp_path / "bad.npz"
     bad.write_bytes(b"not a zip file")
     with pytest.raises(ValueError, match="not a tracker ID memory file"):
-        IdentityMemory.load(bad)
+        read_memory(bad)
+
+
+def test_memory_file_layout_is_stable(tmp_path: Path) -> None:
+    """A file of format 1 written field by field (as older versions did) still loads."""
+    path = tmp_path / "v1.npz"
+    np.savez(path, format_version=np.int64(1), model=np.str_("colour"), next_id=np.int64(9), capacity=np.int64(20),
+             ids=np.array([3, 7, 3], np.int64), counts=np.array([1, 2, 1], np.int64),
+             descriptors=np.arange(8, dtype=np.float32).reshape(4, 2))
+    loaded, model = read_memory(path)
+    assert model == "colour" and loaded.next_id == 9 and loaded.capacity == 20 and loaded.version == 0
+    np.testing.assert_array_equal(loaded.entries[3].descriptors, [[0, 1], [6, 7]])
+    np.testing.assert_array_equal(loaded.entries[7].descriptors, [[2, 3], [4, 5]])
+    with np.load(path) as f:
+        np.savez(tmp_path / "v2.npz", **{**dict(f), "format_version": np.int64(2)})
+    with pytest.raises(ValueError, match="ID memory format 2"):
+        read_memory(tmp_path / "v2.npz")
+
+
+def test_memory_blocks_round_trip_without_files() -> None:
+    rng = np.random.default_rng(4)
+    mem = IdentityMemory(capacity=5, next_id=3)
+    mem.archive(2, rng.normal(size=(3, 4)))
+    ids, counts, data = mem.to_blocks(extra=[(8, rng.normal(size=(2, 4)))])
+    assert ids.tolist() == [2, 8] and counts.tolist() == [3, 2] and data.dtype == np.float32
+    back = IdentityMemory.from_blocks(5, mem.next_id, ids, counts, data)
+    assert back.next_id == 9 and back.version == 0
+    np.testing.assert_array_equal(back.entries[2].descriptors, mem.entries[2].descriptors)
+    with pytest.raises(ValueError, match="inconsistent"):
+        IdentityMemory.from_blocks(5, 1, ids, counts + 1, data)

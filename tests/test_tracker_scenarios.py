@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from services.tracker.core import AppearanceGate, IdentityMemory, Tracker, TrackerParams, TrackStatus
+from services.tracker.core import AppearanceGate, Tracker, TrackerParams, TrackStatus
+from services.tracker.memory_file import read_memory, save_memory
 
 FPS = 30.0
 GATE = AppearanceGate(t_lower=0.25, t_upper=0.6, s_max=0.05)
@@ -229,8 +230,8 @@ def test_memory_round_trip_gives_same_ids_after_restart(tmp_path) -> None:
     people = People(1)
     tr = Tracker(params())
     run_single(tr, people, [True] * 5)
-    tr.memory.save(tmp_path / "m.npz", "colour", extra=tr.live_galleries())
-    memory, _ = IdentityMemory.load(tmp_path / "m.npz")
+    save_memory(tmp_path / "m.npz", tr.memory, "colour", extra=tr.live_galleries())
+    memory, _ = read_memory(tmp_path / "m.npz")
     restarted = Tracker(params(), memory)
     res = run_single(restarted, people, [True] * 3, start=100.0)
     assert res[0].recovered_ids == [1] and [t.id for t in res[-1].confirmed] == [1]

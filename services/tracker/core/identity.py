@@ -7,27 +7,20 @@ distance over their union, so each ID here keeps one bounded :class:`Gallery` (a
 ``capacity`` descriptors, pruned like a track gallery) that absorbs every archived
 gallery of that ID.
 
-The memory can be saved to and loaded from a ``.npz`` file (no pickle). Saving writes a
-temporary file next to the target and renames it over the target, so a crash never
-leaves a half-written memory behind.
+The memory turns into plain arrays and back (:meth:`IdentityMemory.to_blocks`,
+:meth:`IdentityMemory.from_blocks`); writing them to a file and reading them back is the
+service's business (``services/tracker/memory_file.py``): the core does no I/O.
 """
 
 from __future__ import annotations
 
-import os
-import tempfile
-import zipfile
 from collections.abc import Iterable
-from pathlib import Path
 
 import numpy as np
 
 from services.tracker.core.gallery import Gallery
 
-__all__ = ["FORMAT_VERSION", "IdentityMemory"]
-
-#: Version of the ``.npz`` layout written by :meth:`IdentityMemory.save`.
-FORMAT_VERSION = 1
+__all__ = ["IdentityMemory"]
 
 
 class IdentityMemory:
@@ -98,12 +91,13 @@ class IdentityMemory:
         other.version = self.version
         return other
 
-    # -------------------------------------------------------------- persistence
-    def save(self, path: str | Path, model: str = "", extra: Iterable[tuple[int, np.ndarray]] = ()) -> None:
-        """Write the memory atomically to ``path`` (``.npz``).
-
-        ``extra`` adds (ID, descriptors (M, D)) blocks stored next to the memory, e.g. the
-        galleries of the tracks alive now; :meth:`load` merges them into their IDs.
+    # ------------------------------------------------------- plain-array form
+    def to_blocks(self, extra: Iterable[tuple[int, np.ndarray]] = ()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The remembered descriptors as plain arrays: ``ids`` (K,) int64, ``counts`` (K,)
+        int64 and ``descriptors`` (sum of counts, D) float32, block k holding ``counts[k]``
+        rows of ID ``ids[k]``; the IDs in order, then the ``extra`` (ID, descriptors (M, D))
+        blocks, e.g. the galleries of the tracks alive now. :meth:`from_blocks` merges
+        blocks of the same ID.
         """
         blocks = [(k, g.descriptors) for k, g in sorted(self.entries.items())]
         blocks += [(int(k), np.asarray(d, np.float32)) for k, d in extra if len(d)]
@@ -114,42 +108,21 @@ class IdentityMemory:
         ids = np.array([k for k, _ in blocks], dtype=np.int64)
         counts = np.array([len(d) for _, d in blocks], dtype=np.int64)
         data = np.concatenate([d for _, d in blocks]) if blocks else np.zeros((0, dim), np.float32)
-        target = Path(path)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=target.name + ".", suffix=".tmp", dir=target.parent)
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, format_version=np.int64(FORMAT_VERSION), model=np.str_(model), next_id=np.int64(self.next_id),
-                         capacity=np.int64(self.capacity), ids=ids, counts=counts, descriptors=data)
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, target)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        return ids, counts, data
 
     @classmethod
-    def load(cls, path: str | Path, capacity: int | None = None) -> tuple[IdentityMemory, str]:
-        """Read a memory written by :meth:`save`; returns it and the embedding model's name.
+    def from_blocks(cls, capacity: int, next_id: int, ids: np.ndarray, counts: np.ndarray,
+                    descriptors: np.ndarray) -> IdentityMemory:
+        """A memory holding the blocks of :meth:`to_blocks` (its ``version`` is 0).
 
-        Raises ``ValueError`` naming the file when it is not a valid memory file.
+        Raises ``ValueError`` when the counts do not add up to the descriptors.
         """
-        try:
-            with np.load(path, allow_pickle=False) as f:
-                version = int(f["format_version"])
-                model = str(f["model"])
-                memory = cls(int(capacity or f["capacity"]), int(f["next_id"]))
-                ids, counts, data = f["ids"], f["counts"], f["descriptors"]
-        except (OSError, KeyError, EOFError, ValueError, AttributeError, zipfile.BadZipFile) as exc:
-            raise ValueError(f"{path} is not a tracker ID memory file: {exc}") from exc
-        if version != FORMAT_VERSION:
-            raise ValueError(f"{path}: ID memory format {version}, this version reads {FORMAT_VERSION}")
-        if counts.sum() != len(data) or len(ids) != len(counts):
-            raise ValueError(f"{path}: ID memory file is inconsistent ({len(ids)} ids, {counts.sum()} counted, {len(data)} stored)")
+        if counts.sum() != len(descriptors) or len(ids) != len(counts):
+            raise ValueError(f"inconsistent blocks ({len(ids)} ids, {counts.sum()} counted, {len(descriptors)} stored)")
+        memory = cls(capacity, next_id)
         start = 0
         for k, c in zip(ids.tolist(), counts.tolist()):
-            memory.archive(int(k), data[start : start + c])
+            memory.archive(int(k), descriptors[start : start + c])
             start += c
         memory.version = 0
-        return memory, model
+        return memory

@@ -1,0 +1,93 @@
+"""The ID memory's file: an ``.npz`` (no pickle) loaded at start and rewritten on change.
+
+Layout (version :data:`FORMAT_VERSION`): ``format_version``, ``model`` (the embedding
+model's name), ``next_id``, ``capacity``, then the memory's blocks as
+:meth:`IdentityMemory.to_blocks` gives them: ``ids`` (K,), ``counts`` (K,) and
+``descriptors`` (sum of counts, D) float32.
+
+Saving writes a temporary file next to the target, syncs it and renames it over the
+target, so a crash never leaves a half-written memory behind.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+import zipfile
+from collections.abc import Iterable
+from pathlib import Path
+
+import numpy as np
+
+from services.tracker.config import TrackerConfig
+from services.tracker.core import IdentityMemory
+
+__all__ = ["FORMAT_VERSION", "load_memory", "read_memory", "save_memory"]
+
+log = logging.getLogger(__name__)
+
+#: Version of the ``.npz`` layout written by :func:`save_memory`.
+FORMAT_VERSION = 1
+
+
+def save_memory(path: str | Path, memory: IdentityMemory, model: str = "",
+                extra: Iterable[tuple[int, np.ndarray]] = ()) -> None:
+    """Write ``memory`` atomically to ``path`` (``.npz``).
+
+    ``extra`` adds (ID, descriptors (M, D)) blocks stored next to the memory, e.g. the
+    galleries of the tracks alive now; :func:`read_memory` merges them into their IDs.
+    Raises ``OSError``, or ``ValueError`` for descriptors of several dimensions.
+    """
+    ids, counts, data = memory.to_blocks(extra)
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=target.name + ".", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, format_version=np.int64(FORMAT_VERSION), model=np.str_(model), next_id=np.int64(memory.next_id),
+                     capacity=np.int64(memory.capacity), ids=ids, counts=counts, descriptors=data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, target)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def read_memory(path: str | Path, capacity: int | None = None) -> tuple[IdentityMemory, str]:
+    """Read a memory written by :func:`save_memory`; returns it and the embedding model's name.
+
+    ``capacity`` overrides the file's. Raises ``ValueError`` naming the file when it is
+    not a valid memory file.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            version = int(f["format_version"])
+            model = str(f["model"])
+            capacity, next_id = int(capacity or f["capacity"]), int(f["next_id"])
+            ids, counts, data = f["ids"], f["counts"], f["descriptors"]
+    except (OSError, KeyError, EOFError, ValueError, AttributeError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path} is not a tracker ID memory file: {exc}") from exc
+    if version != FORMAT_VERSION:
+        raise ValueError(f"{path}: ID memory format {version}, this version reads {FORMAT_VERSION}")
+    if counts.sum() != len(data) or len(ids) != len(counts):
+        raise ValueError(f"{path}: ID memory file is inconsistent ({len(ids)} ids, {counts.sum()} counted, {len(data)} stored)")
+    return IdentityMemory.from_blocks(capacity, next_id, ids, counts, data), model
+
+
+def load_memory(config: TrackerConfig) -> tuple[IdentityMemory, str | None]:
+    """The ID memory from ``config.memory_path`` (empty if the file does not exist).
+
+    Raises ``ValueError`` for an unreadable file or one written for another model.
+    """
+    path = config.memory_path
+    if path is None or not path.exists():
+        return IdentityMemory(config.memory_size), None
+    memory, model = read_memory(path, capacity=config.memory_size)
+    if config.embedding_model and model and model != config.embedding_model:
+        raise ValueError(f"{path} holds identities of embedding model {model!r}, the tracker is configured for "
+                         f"{config.embedding_model!r}; move the file away or set memory_path to another file")
+    log.info("loaded %d identities from %s (next id %d)", len(memory), path, memory.next_id)
+    return memory, model or None

@@ -27,7 +27,7 @@ from common.keys import Keys
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.apartment import default_apartment
 from tools.simulator.core.body import PersonPose, body_ellipsoids
-from tools.simulator.core.geometry import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
+from common.poses import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
 from tools.simulator.core.render import Renderer, default_camera
 from tools.simulator.core.scenarios import SCENARIOS, build_world
 from tools.simulator.core.simulation import Simulation

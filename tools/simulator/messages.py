@@ -15,7 +15,7 @@ from common.schemas import (
     Transform,
     TransformBatch,
 )
-from tools.simulator.core.geometry import quaternion_from_matrix
+from common.poses import quaternion_from_matrix
 from tools.simulator.core.simulation import FrameData
 
 __all__ = ["CAMERA_FRAME", "frame_message", "groundtruth_message", "static_transforms", "tf_message"]

@@ -13,7 +13,7 @@ from typing import Callable
 import numpy as np
 
 from tools.simulator.core.apartment import Apartment
-from tools.simulator.core.geometry import OPTICAL_FROM_BODY, make_pose, planar_pose, pose_inverse, rot_y, rot_z
+from common.poses import OPTICAL_FROM_BODY, make_pose, planar_pose, pose_inverse, rot_y, rot_z
 
 __all__ = [
     "HeadMotion",

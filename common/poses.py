@@ -1,13 +1,13 @@
-"""The simulator's poses: 4x4 homogeneous matrices built from elementary rotations.
+"""Poses as plain 4x4 homogeneous matrices built from elementary rotations.
 
 Convention (ROS TF, as in :mod:`common.geometry`): ``T_a_b`` maps points expressed in
 frame ``b`` into frame ``a`` (``p_a = T_a_b @ p_b``), so ``T_a_c = T_a_b @ T_b_c``.
 
-The camera is :class:`common.geometry.PinholeCamera`. The poses stay plain numpy
-matrices rather than :class:`common.geometry.RigidTransform`: that class holds a scipy
-``Rotation`` (a quaternion), and a pose that goes through it comes back different in the
-last bits for most poses (its inverse and its quaternion too), while the simulator's
-frames, ground truth and messages are reproducible bit for bit for a seed.
+These complement :class:`common.geometry.RigidTransform` where results must be
+reproducible bit for bit: that class holds a scipy ``Rotation`` (a quaternion), and a
+pose that goes through it comes back different in the last bits for most poses (its
+inverse and its quaternion too). The simulator builds its robot, head and camera poses
+with these, so its frames, ground truth and messages are identical for a seed.
 """
 
 from __future__ import annotations

@@ -16,11 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
+from services.tracker.config import TrackerConfig
 from services.tracker.core import Tracker, TrackerParams
 
-__all__ = ["Detections", "OUTPUT_HEADER", "read_detections", "track", "write_tracks"]
+__all__ = ["Detections", "OUTPUT_HEADER", "Row", "read_detections", "track", "track_config", "write_tracks"]
 
 INPUT_COLUMNS = ("frame", "stamp", "x", "y", "z", "score")
+#: One output row: (frame, stamp, id, x, y, z).
+Row = tuple[int, float, int, float, float, float]
 OUTPUT_HEADER = "frame,stamp,id,x,y,z"
 
 
@@ -98,6 +101,21 @@ def track(dets: Detections, params: TrackerParams) -> list[tuple[int, float, int
             x, y, z = view.mean[:3].tolist()
             rows.append((frame, stamp, view.id, x, y, z))
     return rows
+
+
+def track_config(dets: Detections, config: TrackerConfig, embedding_model: str | None = None) -> list[Row]:
+    """Track ``dets`` as ``perception track`` does with ``config``.
+
+    The descriptors, if any, are compared with ``embedding_model``'s thresholds from the
+    config; ValueError if it has none. Without descriptors the tracking is position-only.
+    """
+    thresholds = None
+    if dets.descriptors is not None:
+        thresholds = config.thresholds(embedding_model or "")
+        if thresholds is None:
+            known = ", ".join(sorted(config.appearance)) or "none"
+            raise ValueError(f"no appearance thresholds for embedding model {embedding_model!r} (configured: {known})")
+    return track(dets, config.params(thresholds))
 
 
 def write_tracks(path: str | Path, rows: list[tuple[int, float, int, float, float, float]]) -> None:

@@ -1,9 +1,11 @@
 """DetectorConfig: which backend, its settings, and how to build it.
 
-Defaults: the ``hog`` backend (no model file); seed 002's values for ``depth``. Model
-paths are plain settings, nothing is downloaded. :func:`build_detector` turns the
-config into a core detector and fails with :class:`DetectorError` naming the setting
-to fix (missing/truncated model, unavailable onnxruntime provider).
+Defaults: the ``hog`` backend (no model file); seed 002's values for ``depth``. Every
+backend setting's default is the core's (its ``*Params`` dataclass), written there only;
+each section's ``params()`` builds those params. Model paths are plain settings, nothing
+is downloaded. :func:`build_detector` turns the config into a core detector and fails
+with :class:`DetectorError` naming the setting to fix (missing/truncated model,
+unavailable onnxruntime provider).
 """
 
 from __future__ import annotations
@@ -15,11 +17,26 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
+from services.detector.core.darknet import DarknetDetector, DarknetParams
+from services.detector.core.depth_params import DepthParams
+from services.detector.core.ground import GroundParams
+from services.detector.core.hog import HogDetector, HogParams
+from services.detector.core.yolo_onnx import YoloOnnxDetector, YoloParams
 
 __all__ = ["BACKENDS", "DarknetConfig", "DepthConfig", "DetectorConfig", "HogConfig", "YoloOnnxConfig", "build_detector"]
 
 BACKENDS = ("hog", "depth", "yolo-onnx", "darknet")
 Backend = Literal["hog", "depth", "yolo-onnx", "darknet"]
+
+# The core's defaults, read by the sections below so each is written once, in the core
+# (tests/test_config_defaults.py checks they agree). Model files are required in the core
+# and None here until configured: the placeholders are unused. ``providers`` None is
+# "not given" in both (a list here, a tuple there).
+_HOG = HogParams()
+_DEPTH = DepthParams()
+_GROUND = _DEPTH.ground
+_YOLO = YoloParams(model=Path())
+_DARKNET = DarknetParams(cfg=Path(), weights=Path())
 
 
 class _Section(BaseModel):
@@ -29,38 +46,51 @@ class _Section(BaseModel):
 class HogConfig(_Section):
     """OpenCV HOG people detector. ``upsample`` > 1 finds people smaller than ~96 px."""
 
-    upsample: float = Field(default=1.0, ge=0.25, le=8.0, description="image scale before HOG; 2.25 for ~50 px people")
-    hit_threshold: float = Field(default=1.0, ge=-2.0, le=5.0, description="minimum SVM margin of a window")
-    win_stride: int = Field(default=8, ge=8, le=64, multiple_of=8)
-    scale: float = Field(default=1.05, gt=1.0, le=2.0, description="pyramid step")
-    nms_iou: float = Field(default=0.3, gt=0.0, le=1.0)
-    box_scale_x: float = Field(default=0.6, gt=0.0, le=1.0, description="person width / window width")
-    box_scale_y: float = Field(default=0.8, gt=0.0, le=1.0, description="person height / window height")
-    max_detections: int = Field(default=100, ge=1)
+    upsample: float = Field(default=_HOG.upsample, ge=0.25, le=8.0,
+                            description="image scale before HOG; 2.25 for ~50 px people")
+    hit_threshold: float = Field(default=_HOG.hit_threshold, ge=-2.0, le=5.0,
+                                 description="minimum SVM margin of a window")
+    win_stride: int = Field(default=_HOG.win_stride, ge=8, le=64, multiple_of=8)
+    scale: float = Field(default=_HOG.scale, gt=1.0, le=2.0, description="pyramid step")
+    nms_iou: float = Field(default=_HOG.nms_iou, gt=0.0, le=1.0)
+    box_scale_x: float = Field(default=_HOG.box_scale_x, gt=0.0, le=1.0, description="person width / window width")
+    box_scale_y: float = Field(default=_HOG.box_scale_y, gt=0.0, le=1.0, description="person height / window height")
+    max_detections: int = Field(default=_HOG.max_detections, ge=1)
+
+    def params(self) -> HogParams:
+        """The core's parameters."""
+        return HogParams(**self.model_dump())
 
 
 class DepthConfig(_Section):
     """Seed 002's depth-cluster detector; needs depth registered to the colour image."""
 
-    camera_height_m: float = Field(default=1.2, gt=0.0, le=5.0, description="initial plane: camera height over the floor")
-    tilt_deg: float = Field(default=0.0, ge=-45.0, le=89.0, description="initial plane: downward pitch of the camera")
-    voxel_m: float = Field(default=0.06, gt=0.0, le=0.5)
-    pixel_step: int = Field(default=2, ge=1, le=8, description="use every n-th depth pixel in rows and columns")
-    min_depth_m: float = Field(default=0.3, ge=0.0)
-    max_depth_m: float = Field(default=8.0, gt=0.0)
-    floor_clearance_m: float = Field(default=0.12, ge=0.0, le=0.5, description="points lower than this are floor")
-    cluster_tolerance_m: float = Field(default=0.13, gt=0.0, le=1.0)
-    min_cluster_points: int = Field(default=15, ge=1)
-    min_height_m: float = Field(default=1.4, gt=0.0, description="lower it (e.g. 1.0) to keep sitting people")
-    max_height_m: float = Field(default=2.3, gt=0.0)
-    max_width_m: float = Field(default=1.5, gt=0.0)
-    max_bottom_m: float = Field(default=0.6, ge=0.0, description="a cluster must reach this close to the floor")
-    plane_window_m: float = Field(default=0.25, gt=0.0, description="floor candidates: distance from the last plane")
-    plane_inlier_m: float = Field(default=0.04, gt=0.0)
-    plane_max_step_deg: float = Field(default=10.0, gt=0.0, le=45.0)
-    ransac_iterations: int = Field(default=60, ge=1)
-    hog_confirm: bool = Field(default=False, description="score each cluster box with HOG and drop weak ones")
-    hog_min_score: float = Field(default=0.5, ge=0.0, le=1.0)
+    camera_height_m: float = Field(default=_DEPTH.camera_height_m, gt=0.0, le=5.0,
+                                   description="initial plane: camera height over the floor")
+    tilt_deg: float = Field(default=_DEPTH.tilt_deg, ge=-45.0, le=89.0,
+                            description="initial plane: downward pitch of the camera")
+    voxel_m: float = Field(default=_DEPTH.voxel_m, gt=0.0, le=0.5)
+    pixel_step: int = Field(default=_DEPTH.pixel_step, ge=1, le=8,
+                            description="use every n-th depth pixel in rows and columns")
+    min_depth_m: float = Field(default=_DEPTH.min_depth_m, ge=0.0)
+    max_depth_m: float = Field(default=_DEPTH.max_depth_m, gt=0.0)
+    floor_clearance_m: float = Field(default=_DEPTH.floor_clearance_m, ge=0.0, le=0.5,
+                                     description="points lower than this are floor")
+    cluster_tolerance_m: float = Field(default=_DEPTH.cluster_tolerance_m, gt=0.0, le=1.0)
+    min_cluster_points: int = Field(default=_DEPTH.min_cluster_points, ge=1)
+    min_height_m: float = Field(default=_DEPTH.min_height_m, gt=0.0,
+                                description="lower it (e.g. 1.0) to keep sitting people")
+    max_height_m: float = Field(default=_DEPTH.max_height_m, gt=0.0)
+    max_width_m: float = Field(default=_DEPTH.max_width_m, gt=0.0)
+    max_bottom_m: float = Field(default=_DEPTH.max_bottom_m, ge=0.0,
+                                description="a cluster must reach this close to the floor")
+    plane_window_m: float = Field(default=_GROUND.window_m, gt=0.0,
+                                  description="floor candidates: distance from the last plane")
+    plane_inlier_m: float = Field(default=_GROUND.inlier_m, gt=0.0)
+    plane_max_step_deg: float = Field(default=_GROUND.max_step_deg, gt=0.0, le=45.0)
+    ransac_iterations: int = Field(default=_GROUND.iterations, ge=1)
+    hog_confirm: bool = Field(default=_DEPTH.hog_confirm, description="score each cluster box with HOG and drop weak ones")
+    hog_min_score: float = Field(default=_DEPTH.hog_min_score, ge=0.0, le=1.0)
 
     @model_validator(mode="after")
     def _ranges(self) -> DepthConfig:
@@ -70,20 +100,35 @@ class DepthConfig(_Section):
             raise ValueError(f"min_depth_m ({self.min_depth_m}) must be below max_depth_m ({self.max_depth_m})")
         return self
 
+    def params(self) -> DepthParams:
+        """The core's parameters (the ``plane_*`` and ``ransac_iterations`` settings are its ``ground``)."""
+        ground = GroundParams(window_m=self.plane_window_m, inlier_m=self.plane_inlier_m,
+                              iterations=self.ransac_iterations, max_step_deg=self.plane_max_step_deg)
+        skip = {"plane_window_m", "plane_inlier_m", "ransac_iterations", "plane_max_step_deg"}
+        return DepthParams(ground=ground, **{k: v for k, v in self.model_dump().items() if k not in skip})
+
 
 class YoloOnnxConfig(_Section):
     """A YOLO export in ONNX (v5 layout (1, N, 5+C) or v8/v11 layout (1, 4+C, N))."""
 
     model: Path | None = Field(default=None, description="path of the .onnx file")
-    layout: Literal["auto", "v5", "v8"] = "auto"
-    input_size: int = Field(default=640, ge=32, le=4096, multiple_of=32, description="used when the model's input is dynamic")
-    num_classes: int | None = Field(default=None, ge=1, description="helps 'auto' tell v5 from v8")
-    person_class: int = Field(default=0, ge=0)
-    conf_threshold: float = Field(default=0.35, ge=0.0, le=1.0)
-    nms_iou: float = Field(default=0.45, gt=0.0, le=1.0)
-    max_detections: int = Field(default=100, ge=1)
+    layout: Literal["auto", "v5", "v8"] = _YOLO.layout
+    input_size: int = Field(default=_YOLO.input_size, ge=32, le=4096, multiple_of=32,
+                            description="used when the model's input is dynamic")
+    num_classes: int | None = Field(default=_YOLO.num_classes, ge=1, description="helps 'auto' tell v5 from v8")
+    person_class: int = Field(default=_YOLO.person_class, ge=0)
+    conf_threshold: float = Field(default=_YOLO.conf_threshold, ge=0.0, le=1.0)
+    nms_iou: float = Field(default=_YOLO.nms_iou, gt=0.0, le=1.0)
+    max_detections: int = Field(default=_YOLO.max_detections, ge=1)
     providers: list[str] | None = Field(default=None, description="onnxruntime providers; default TensorRT, CUDA, CPU as available")
-    intra_op_threads: int = Field(default=0, ge=0, description="CPU threads, 0 = onnxruntime's choice")
+    intra_op_threads: int = Field(default=_YOLO.intra_op_threads, ge=0,
+                                  description="CPU threads, 0 = onnxruntime's choice")
+
+    def params(self) -> YoloParams:
+        """The core's parameters (``model`` None until the config names a file)."""
+        y = self.model_dump()
+        y["providers"] = tuple(y["providers"]) if y["providers"] else None
+        return YoloParams(**y)
 
 
 class DarknetConfig(_Section):
@@ -91,12 +136,17 @@ class DarknetConfig(_Section):
 
     cfg: Path | None = None
     weights: Path | None = None
-    input_size: int = Field(default=0, ge=0, le=4096, multiple_of=32, description="0 keeps the cfg's width/height")
-    person_class: int = Field(default=0, ge=0)
-    conf_threshold: float = Field(default=0.35, ge=0.0, le=1.0)
-    nms_iou: float = Field(default=0.45, gt=0.0, le=1.0)
-    max_detections: int = Field(default=100, ge=1)
-    use_cuda: bool = Field(default=False, description="cv2.dnn CUDA backend (needs an OpenCV built with CUDA)")
+    input_size: int = Field(default=_DARKNET.input_size, ge=0, le=4096, multiple_of=32,
+                            description="0 keeps the cfg's width/height")
+    person_class: int = Field(default=_DARKNET.person_class, ge=0)
+    conf_threshold: float = Field(default=_DARKNET.conf_threshold, ge=0.0, le=1.0)
+    nms_iou: float = Field(default=_DARKNET.nms_iou, gt=0.0, le=1.0)
+    max_detections: int = Field(default=_DARKNET.max_detections, ge=1)
+    use_cuda: bool = Field(default=_DARKNET.use_cuda, description="cv2.dnn CUDA backend (needs an OpenCV built with CUDA)")
+
+    def params(self) -> DarknetParams:
+        """The core's parameters (``cfg`` and ``weights`` None until the config names files)."""
+        return DarknetParams(**self.model_dump())
 
 
 class DetectorConfig(_Section):
@@ -125,29 +175,16 @@ class DetectorConfig(_Section):
 
 def build_detector(config: DetectorConfig) -> Detector:
     """The core detector the config names; :class:`DetectorError` if its model cannot be used."""
-    from services.detector.core.hog import HogDetector, HogParams
-
-    hog_params = HogParams(**config.hog.model_dump())
+    hog_params = config.hog.params()
     if config.backend == "hog":
         return HogDetector(hog_params)
     if config.backend == "depth":
-        from services.detector.core.depth import DepthClusterDetector, DepthParams
-        from services.detector.core.ground import GroundParams
+        from services.detector.core.depth import DepthClusterDetector  # imports scipy: only when used
 
-        d = config.depth
-        ground = GroundParams(window_m=d.plane_window_m, inlier_m=d.plane_inlier_m, iterations=d.ransac_iterations,
-                              max_step_deg=d.plane_max_step_deg)
-        skip = {"plane_window_m", "plane_inlier_m", "ransac_iterations", "plane_max_step_deg"}
-        params = DepthParams(ground=ground, **{k: v for k, v in d.model_dump().items() if k not in skip})
-        return DepthClusterDetector(params, hog=HogDetector(hog_params) if d.hog_confirm else None)
+        params = config.depth.params()
+        return DepthClusterDetector(params, hog=HogDetector(hog_params) if config.depth.hog_confirm else None)
     if config.backend == "yolo-onnx":
-        from services.detector.core.yolo_onnx import YoloOnnxDetector, YoloParams
-
-        y = config.yolo.model_dump()
-        y["providers"] = tuple(y["providers"]) if y["providers"] else None
-        return YoloOnnxDetector(YoloParams(**y))
+        return YoloOnnxDetector(config.yolo.params())
     if config.backend == "darknet":
-        from services.detector.core.darknet import DarknetDetector, DarknetParams
-
-        return DarknetDetector(DarknetParams(**config.darknet.model_dump()))
+        return DarknetDetector(config.darknet.params())
     raise DetectorError(f"unknown backend {config.backend!r}; choose one of {', '.join(BACKENDS)}")

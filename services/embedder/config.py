@@ -15,9 +15,15 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from common.config import ConfigError
 from services.embedder.core.backend import Backend, EmbedderError
-from services.embedder.core.onnx_model import IMAGENET_MEAN, IMAGENET_STD
+from services.embedder.core.onnx_model import OnnxEmbedder, OnnxParams
 
 __all__ = ["EmbedderConfig", "OnnxConfig", "ThresholdsConfig", "build_backend", "sidecar_path", "with_sidecar"]
+
+#: The core's defaults, read by :class:`OnnxConfig` so each is written once, in the core
+#: (tests/test_config_defaults.py checks they agree). ``path`` is required in the core and
+#: "" here until configured: the placeholder is unused. ``thresholds`` and ``providers``
+#: None are "not given" in both (other types here than there).
+_D = OnnxParams(path="")
 
 
 class ThresholdsConfig(BaseModel):
@@ -44,18 +50,19 @@ class OnnxConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     path: str = Field(default="", description="the .onnx file")
-    name: str = Field(default="", description="model card name (default: the file name without .onnx)")
-    input_size: tuple[int, int] = Field(default=(256, 128), description="(H, W) the crops are resized to")
-    channel_order: Literal["rgb", "bgr"] = "rgb"
-    scale: float = Field(default=1.0 / 255.0, gt=0.0, description="pixel scale before mean/std")
-    mean: tuple[float, float, float] = IMAGENET_MEAN
-    std: tuple[float, float, float] = IMAGENET_STD
-    normalize: bool = Field(default=True, description="L2-normalise the outputs")
-    metric: Literal["euclidean", "cosine"] = "euclidean"
+    name: str = Field(default=_D.name, description="model card name (default: the file name without .onnx)")
+    input_size: tuple[int, int] = Field(default=_D.input_size, description="(H, W) the crops are resized to")
+    channel_order: Literal["rgb", "bgr"] = _D.channel_order
+    scale: float = Field(default=_D.scale, gt=0.0, description="pixel scale before mean/std")
+    mean: tuple[float, float, float] = _D.mean
+    std: tuple[float, float, float] = _D.std
+    normalize: bool = Field(default=_D.normalize, description="L2-normalise the outputs")
+    metric: Literal["euclidean", "cosine"] = _D.metric
     thresholds: ThresholdsConfig | None = None
     providers: list[str] | None = Field(default=None, description="e.g. [CUDAExecutionProvider, CPUExecutionProvider]; "
                                         "default: TensorRT, CUDA, CPU as available")
-    intra_op_threads: int = Field(default=0, ge=0, description="CPU threads (0 = onnxruntime's default)")
+    intra_op_threads: int = Field(default=_D.intra_op_threads, ge=0,
+                                  description="CPU threads (0 = onnxruntime's default)")
 
     @model_validator(mode="after")
     def _sizes(self) -> OnnxConfig:
@@ -64,6 +71,14 @@ class OnnxConfig(BaseModel):
         if min(self.std) <= 0:
             raise ValueError("std must be positive")
         return self
+
+    def params(self) -> OnnxParams:
+        """The core's parameters (apply :func:`with_sidecar` first for the model's ``MODEL.json``)."""
+        return OnnxParams(
+            path=self.path, name=self.name, input_size=self.input_size, channel_order=self.channel_order,
+            scale=self.scale, mean=self.mean, std=self.std, normalize=self.normalize, metric=self.metric,
+            thresholds=self.thresholds.as_tuple() if self.thresholds else None,
+            providers=tuple(self.providers) if self.providers else None, intra_op_threads=self.intra_op_threads)
 
 
 class EmbedderConfig(BaseModel):
@@ -113,14 +128,7 @@ def build_backend(config: EmbedderConfig) -> Backend:
 
         backend = ColourDescriptor()
     else:
-        from services.embedder.core.onnx_model import OnnxEmbedder, OnnxParams
-
-        o = with_sidecar(config.onnx)
-        backend = OnnxEmbedder(OnnxParams(
-            path=o.path, name=o.name, input_size=o.input_size, channel_order=o.channel_order, scale=o.scale,
-            mean=o.mean, std=o.std, normalize=o.normalize, metric=o.metric,
-            thresholds=o.thresholds.as_tuple() if o.thresholds else None,
-            providers=tuple(o.providers) if o.providers else None, intra_op_threads=o.intra_op_threads))
+        backend = OnnxEmbedder(with_sidecar(config.onnx).params())
     if config.thresholds is not None:
         card = replace(backend.card, thresholds=config.thresholds.as_tuple())
         try:

@@ -9,6 +9,10 @@ from services.localizer.core import DepthNoiseModel, LocalizerParams
 
 __all__ = ["LocalizerConfig", "StaticTransformConfig"]
 
+#: The core's defaults: every default below that the core also has is taken from here,
+#: so it is written once, in the core (tests/test_config_defaults.py checks they agree).
+_D = LocalizerParams()
+
 
 class StaticTransformConfig(BaseModel):
     """A fixed ``parent -> child`` transform given in the config (e.g. the camera mount)."""
@@ -32,17 +36,28 @@ class LocalizerConfig(BaseModel):
         default="", description="camera frame id used when a frame's header and camera_info carry none"
     )
     percentile: float = Field(
-        default=25.0, ge=0.0, le=100.0, description="depth percentile inside the box (seed 000: 25)"
+        default=_D.percentile, ge=0.0, le=100.0, description="depth percentile inside the box (seed 000: 25)"
     )
-    min_depth_m: float = Field(default=0.3, ge=0.0, description="depth pixels nearer than this are invalid")
-    max_depth_m: float = Field(default=10.0, gt=0.0, le=100.0, description="depth pixels farther than this are invalid")
-    min_valid_pixels: int = Field(default=20, ge=1, description="fewer valid depth pixels in a box rejects it")
-    depth_unit_m: float = Field(default=0.001, gt=0.0, description="metres per unit of integer (16UC1) depth")
-    depth_noise_a_m: float = Field(default=0.0, ge=0.0, le=1.0, description="axial sigma = a + b z^2: a, m")
+    min_depth_m: float = Field(default=_D.min_depth_m, ge=0.0, description="depth pixels nearer than this are invalid")
+    max_depth_m: float = Field(
+        default=_D.max_depth_m, gt=0.0, le=100.0, description="depth pixels farther than this are invalid"
+    )
+    min_valid_pixels: int = Field(
+        default=_D.min_valid_pixels, ge=1, description="fewer valid depth pixels in a box rejects it"
+    )
+    depth_unit_m: float = Field(default=_D.depth_unit_m, gt=0.0, description="metres per unit of integer (16UC1) depth")
+    depth_noise_a_m: float = Field(
+        default=_D.noise.axial_a_m, ge=0.0, le=1.0, description="axial sigma = a + b z^2: a, m"
+    )
     depth_noise_b_per_m: float = Field(
-        default=1.425e-3, ge=0.0, le=1.0, description="axial sigma = a + b z^2: b, 1/m (Khoshelham and Elberink 2012)"
+        default=_D.noise.axial_b_per_m,
+        ge=0.0,
+        le=1.0,
+        description="axial sigma = a + b z^2: b, 1/m (Khoshelham and Elberink 2012)",
     )
-    pixel_sigma_px: float = Field(default=2.0, ge=0.0, le=100.0, description="sigma of the box-centre pixel")
+    pixel_sigma_px: float = Field(
+        default=_D.noise.pixel_sigma_px, ge=0.0, le=100.0, description="sigma of the box-centre pixel"
+    )
     tf_history_s: float = Field(default=10.0, gt=0.0, le=3600.0, description="history kept per transform edge")
     tf_tolerance_s: float = Field(
         default=0.05, ge=0.0, le=10.0, description="a lookup this far outside an edge's history uses its end"

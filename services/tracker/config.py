@@ -1,4 +1,5 @@
-"""TrackerConfig: the tracker's settings, with seed 000's values as defaults.
+"""TrackerConfig: the tracker's settings, with seed 000's values as defaults (the core's
+:class:`TrackerParams` defaults, written there only).
 
 Appearance thresholds depend on the embedding model's distance scale, so they live under
 the model's name in ``appearance``. :data:`DEFAULT_APPEARANCE` below is the one place the
@@ -7,6 +8,7 @@ shipped per-model values are written.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 from typing import Literal
@@ -62,6 +64,12 @@ def _default_appearance() -> dict[str, AppearanceConfig]:
     return {k: AppearanceConfig(**v) for k, v in DEFAULT_APPEARANCE.items()}
 
 
+#: The core's defaults: every default below that the core also has is taken from here,
+#: so it is written once, in the core (tests/test_config_defaults.py checks they agree).
+_D = TrackerParams()
+_S_MAX = next(f.default for f in dataclasses.fields(AppearanceGate) if f.name == "s_max")
+
+
 class TrackerConfig(BaseModel):
     """Everything ``perception tracker`` and ``perception track`` can be told."""
 
@@ -69,30 +77,32 @@ class TrackerConfig(BaseModel):
 
     # --- Kalman filter (seed 000, III-C)
     sigma0: tuple[float, float, float, float, float, float] = Field(
-        default=(0.2, 0.2, 0.2, 1.0, 1.0, 1.0), description="initial std of (x, y, z, vx, vy, vz); P0 = diag(sigma0^2)")
+        default=_D.sigma0, description="initial std of (x, y, z, vx, vy, vz); P0 = diag(sigma0^2)")
     sigma_q: tuple[float, float, float, float, float, float] = Field(
-        default=(0.2, 0.2, 0.2, 1.0, 1.0, 1.0), description="process noise std per nominal frame; Q = diag(sigma_q^2)")
-    sigma_r: tuple[float, float, float] = Field(default=(0.2, 0.2, 0.2), description="measurement noise std (m)")
+        default=_D.sigma_q, description="process noise std per nominal frame; Q = diag(sigma_q^2)")
+    sigma_r: tuple[float, float, float] = Field(default=_D.sigma_r, description="measurement noise std (m)")
     use_detection_covariance: bool = Field(
         default=False, description="use each LocalizedDetection's covariance as R instead of sigma_r")
     time_step: Literal["time", "frame"] = Field(
-        default="time", description="'time': dt from stamps; 'frame': dt = 1 per frame, as the thesis")
-    frame_period_s: float = Field(default=1.0 / 30.0, gt=0.0, le=10.0,
+        default=_D.time_step, description="'time': dt from stamps; 'frame': dt = 1 per frame, as the thesis")
+    frame_period_s: float = Field(default=_D.frame_period_s, gt=0.0, le=10.0,
                                   description="nominal frame period: Q and miss counts are per this period")
     # --- association (Algorithm 1) and ID memory (Algorithm 2)
     embedding_model: str | None = Field(
         default=None, min_length=1, description="accept descriptors of this model only; None: the first model seen")
     appearance: dict[str, AppearanceConfig] = Field(default_factory=_default_appearance)
-    s_max: float = Field(default=0.05, ge=0.0, description="S_max: max squared Mahalanobis (x, y) in the ambiguous band")
-    infinite_cost: float = Field(default=1e5, gt=0.0, description="cost of an inadmissible pair")
-    position_gate_probability: float = Field(default=0.95, gt=0.0, lt=1.0,
+    s_max: float = Field(default=_S_MAX, ge=0.0,
+                         description="S_max: max squared Mahalanobis (x, y) in the ambiguous band")
+    infinite_cost: float = Field(default=_D.inf, gt=0.0, description="cost of an inadmissible pair")
+    position_gate_probability: float = Field(default=_D.position_gate_probability, gt=0.0, lt=1.0,
                                              description="chi-square (2 dof) gate of position-only association")
     # --- life cycle (seed 000, III-E)
-    n_init: int = Field(default=3, ge=1, le=100, description="consecutive associated frames to confirm")
-    max_misses: int = Field(default=5, ge=1, le=1000, description="frames without association to delete")
+    n_init: int = Field(default=_D.n_init, ge=1, le=100, description="consecutive associated frames to confirm")
+    max_misses: int = Field(default=_D.max_misses, ge=1, le=1000, description="frames without association to delete")
     # --- bounded memory (seed 001)
-    gallery_size: int = Field(default=500, ge=1, le=100_000, description="max descriptors per track gallery")
-    memory_size: int = Field(default=500, ge=1, le=100_000, description="max descriptors per remembered ID")
+    gallery_size: int = Field(default=_D.gallery_size, ge=1, le=100_000,
+                              description="max descriptors per track gallery")
+    memory_size: int = Field(default=_D.memory_size, ge=1, le=100_000, description="max descriptors per remembered ID")
     # --- service
     camera: str = Field(default="head", min_length=1, description="camera whose streams to track ('*' for all)")
     frame_id: str = Field(default="map", min_length=1, description="tracking frame; inputs in another frame are dropped")
@@ -135,7 +145,12 @@ class TrackerConfig(BaseModel):
         return AppearanceGate(th.t_lower, th.t_upper, self.s_max if th.s_max is None else th.s_max, self.infinite_cost)
 
     def params(self, thresholds: AppearanceConfig | None) -> TrackerParams:
-        """The core's parameters; ``thresholds`` None means position-only association."""
+        """The core's parameters; ``thresholds`` None means position-only association.
+
+        ``gate`` and ``t_recover`` come from the embedding model's thresholds, not from the
+        core's defaults (the core's ``t_recover`` 400 is TriNet's): position-only, there is
+        no gate and ``t_recover`` is 0 (unused: no descriptor is ever compared).
+        """
         return TrackerParams(
             sigma0=self.sigma0, sigma_q=self.sigma_q, sigma_r=self.sigma_r,
             gate=self.gate(thresholds) if thresholds is not None else None,

@@ -11,54 +11,19 @@ file, no GPU: this is the detector a CPU-only robot runs at frame rate.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
-
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from services.detector.core.boxes import DetectorError, as_rgb, clip_boxes, empty_result
-from services.detector.core.ground import GroundParams, acquire_plane, initial_plane, refine_plane
+from services.detector.core.depth_params import DepthParams
+from services.detector.core.ground import acquire_plane, initial_plane, refine_plane
 from services.detector.core.hog import HogDetector
 
 __all__ = ["DepthClusterDetector", "DepthParams", "backproject", "cluster_points", "voxel_grid"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class DepthParams:
-    """Settings of :class:`DepthClusterDetector` (seed 002 defaults)."""
-
-    camera_height_m: float = 1.2
-    tilt_deg: float = 0.0
-    voxel_m: float = 0.06
-    pixel_step: int = 2
-    min_depth_m: float = 0.3
-    max_depth_m: float = 8.0
-    ground: GroundParams = field(default_factory=GroundParams)
-    floor_clearance_m: float = 0.12
-    max_point_height_m: float = 2.6
-    cluster_tolerance_m: float = 0.13
-    min_cluster_points: int = 15
-    min_height_m: float = 1.4
-    max_height_m: float = 2.3
-    max_width_m: float = 1.5
-    max_bottom_m: float = 0.6
-    #: A cluster wider than ``max_width_m`` (a person merged with a chair, a table or
-    #: another person) is split by its parts above this height, one person per part.
-    split_height_m: float = 1.05
-    #: Radius on the ground plane around a split part's centre that belongs to that person.
-    person_radius_m: float = 0.4
-    hog_confirm: bool = False
-    hog_min_score: float = 0.5
-
-    def __post_init__(self) -> None:
-        if not 0 < self.min_height_m < self.max_height_m:
-            raise DetectorError(f"depth: need 0 < min_height_m < max_height_m, got {self.min_height_m}, {self.max_height_m}")
-        if self.voxel_m <= 0 or self.cluster_tolerance_m <= 0 or self.pixel_step < 1:
-            raise DetectorError("depth: voxel_m and cluster_tolerance_m must be > 0 and pixel_step >= 1")
 
 
 def backproject(depth: np.ndarray, K: np.ndarray, step: int, min_m: float, max_m: float) -> np.ndarray:

@@ -115,6 +115,8 @@ def test_transforms_to_a_target_frame(setup: dict[str, Path], capsys: pytest.Cap
     [
         ("--depth", "{dir}/missing.png", "does not exist"),
         ("--camera-info", "{dir}/bad.json", "cannot be parsed"),
+        ("--camera-info", "{dir}/missing.json", "does not exist"),
+        ("--camera-info", "{dir}/list.json", "must hold a mapping"),
         ("--transform", "base_link:camera", "PARENT:CHILD"),
         ("--transform", MOUNT, "no transform chain"),  # the camera frame is head_optical: no chain to map
         ("--detections", "{dir}/garbage.jsonl", "not JSON"),
@@ -126,6 +128,7 @@ def test_bad_inputs_exit_2_with_a_message(
     setup: dict[str, Path], capsys: pytest.CaptureFixture[str], flag: str, value: str, message: str
 ) -> None:
     (setup["dir"] / "bad.json").write_text("{not json")
+    (setup["dir"] / "list.json").write_text("[640, 480]")
     (setup["dir"] / "garbage.jsonl").write_text('{"detections": []}\nnope\n')
     cv2.imwrite(str(setup["dir"] / "small.png"), np.zeros((240, 320), np.uint16))
     args = {"--depth": str(setup["depth"]), "--camera-info": str(setup["cam"]), "--detections": str(setup["dets"])}

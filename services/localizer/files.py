@@ -1,7 +1,7 @@
 """Reading the offline tool's inputs: depth images, camera info and transform files.
 
 Every function raises :class:`common.cli_util.CliError` with a message naming the file
-and what is wrong with it.
+and what is wrong with it. JSON/YAML files are read by :mod:`common.config`.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import numpy as np
 import yaml
 
 from common.cli_util import CliError
+from common.config import ConfigError, read_config_file
 from common.geometry import PinholeCamera, RigidTransform
 
 __all__ = ["parse_transform", "read_camera_info", "read_depth", "read_transforms"]
@@ -44,6 +45,15 @@ def read_depth(path: Path) -> np.ndarray:
     return depth.astype(np.uint16, copy=False) if depth.dtype != np.uint16 else depth
 
 
+def _read_mapping(path: Path, what: str) -> dict[str, Any]:
+    """The mapping a JSON (``.json``) or YAML file holds; a CliError naming ``what`` if it
+    is missing, cannot be parsed or is not a mapping."""
+    try:
+        return read_config_file(path)
+    except ConfigError as exc:
+        raise CliError(f"{what}: {exc}") from exc
+
+
 def _matrix(value: Any, rows: int, cols: int, what: str) -> np.ndarray:
     if isinstance(value, dict) and "data" in value:  # camera_calibration YAML: {rows, cols, data}
         value = value["data"]
@@ -61,14 +71,7 @@ def read_camera_info(path: Path) -> tuple[PinholeCamera, str]:
     ``distortion_coefficients``), ``distortion_model`` (default plumb_bob) and
     ``frame_id`` (or ``header.frame_id``, default ``camera``).
     """
-    if not path.is_file():
-        raise CliError(f"camera info {path} does not exist")
-    try:
-        data = json.loads(path.read_text()) if path.suffix == ".json" else yaml.safe_load(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:
-        raise CliError(f"camera info {path} cannot be parsed: {exc}") from exc
-    if not isinstance(data, dict):
-        raise CliError(f"camera info {path} must hold an object with width, height, K, D")
+    data = _read_mapping(path, "--camera-info")
 
     def pick(*names: str, default: Any = None) -> Any:
         for n in names:
@@ -123,6 +126,8 @@ def parse_transform(spec: str) -> tuple[str, str, RigidTransform]:
 def read_transforms(path: Path) -> list[tuple[str, str, RigidTransform]]:
     """Transforms of a JSON/YAML file: a list of ``{parent_frame, child_frame, translation, rotation_xyzw}``
     or an object with such a list under ``transforms`` (a TransformBatch as JSON)."""
+    # common.config.read_config_file reads mappings only, and the list is this file's
+    # documented form: only the mapping form ({"transforms": [...]}) could go through it.
     if not path.is_file():
         raise CliError(f"transforms file {path} does not exist")
     try:

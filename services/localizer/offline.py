@@ -88,17 +88,47 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--camera-frame", default=None, help="camera frame id (default: the camera info's frame_id, else 'camera')"
     )
-    parser.add_argument("--percentile", type=float, default=25.0, help="depth percentile inside each box (default 25)")
-    parser.add_argument("--min-depth", type=float, default=0.3, metavar="M", help="nearest valid depth (default 0.3)")
-    parser.add_argument("--max-depth", type=float, default=10.0, metavar="M", help="farthest valid depth (default 10)")
+    d = LocalizerParams()  # the defaults are the core's
     parser.add_argument(
-        "--min-valid-pixels", type=int, default=20, metavar="N", help="fewer valid pixels rejects a box (default 20)"
+        "--percentile",
+        type=float,
+        default=d.percentile,
+        help=f"depth percentile inside each box (default {d.percentile:g})",
     )
     parser.add_argument(
-        "--depth-unit", type=float, default=0.001, metavar="M", help="metres per unit of integer depth (default 0.001)"
+        "--min-depth",
+        type=float,
+        default=d.min_depth_m,
+        metavar="M",
+        help=f"nearest valid depth (default {d.min_depth_m:g})",
     )
     parser.add_argument(
-        "--pixel-sigma", type=float, default=2.0, metavar="PX", help="box-centre pixel sigma (default 2)"
+        "--max-depth",
+        type=float,
+        default=d.max_depth_m,
+        metavar="M",
+        help=f"farthest valid depth (default {d.max_depth_m:g})",
+    )
+    parser.add_argument(
+        "--min-valid-pixels",
+        type=int,
+        default=d.min_valid_pixels,
+        metavar="N",
+        help=f"fewer valid pixels rejects a box (default {d.min_valid_pixels})",
+    )
+    parser.add_argument(
+        "--depth-unit",
+        type=float,
+        default=d.depth_unit_m,
+        metavar="M",
+        help=f"metres per unit of integer depth (default {d.depth_unit_m:g})",
+    )
+    parser.add_argument(
+        "--pixel-sigma",
+        type=float,
+        default=d.noise.pixel_sigma_px,
+        metavar="PX",
+        help=f"box-centre pixel sigma (default {d.noise.pixel_sigma_px:g})",
     )
     parser.add_argument("--output", "-o", type=Path, default=None, help="write here instead of stdout")
 

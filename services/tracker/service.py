@@ -33,8 +33,9 @@ from common.schemas import Embeddings, Header, LocalizedDetections, ModelCard, T
 from common.transport import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of, track_state, tracks_message
-from services.tracker.core import IdentityMemory, Tracker
+from services.tracker.core import Tracker
 from services.tracker.core.tracker import FrameResult, TrackerState
+from services.tracker.memory_file import load_memory, save_memory
 from services.tracker.reorder import InputKey, ReorderBuffer
 
 __all__ = ["TrackerService", "load_memory"]
@@ -56,22 +57,6 @@ def _complete(items: Mapping[str, Any]) -> bool:
 class _Frame:
     loc: LocalizedDetections
     emb: Embeddings | None
-
-
-def load_memory(config: TrackerConfig) -> tuple[IdentityMemory, str | None]:
-    """The ID memory from ``config.memory_path`` (empty if the file does not exist).
-
-    Raises ``ValueError`` for an unreadable file or one written for another model.
-    """
-    path = config.memory_path
-    if path is None or not path.exists():
-        return IdentityMemory(config.memory_size), None
-    memory, model = IdentityMemory.load(path, capacity=config.memory_size)
-    if config.embedding_model and model and model != config.embedding_model:
-        raise ValueError(f"{path} holds identities of embedding model {model!r}, the tracker is configured for "
-                         f"{config.embedding_model!r}; move the file away or set memory_path to another file")
-    log.info("loaded %d identities from %s (next id %d)", len(memory), path, memory.next_id)
-    return memory, model or None
 
 
 class TrackerService(Node):
@@ -252,7 +237,7 @@ class TrackerService(Node):
         if not (changed or periodic or (force and self._dirty)):
             return
         try:
-            self.tracker.memory.save(path, self.model or "", extra=self.tracker.live_galleries())
+            save_memory(path, self.tracker.memory, self.model or "", extra=self.tracker.live_galleries())
         except (OSError, ValueError) as exc:
             self.counters.count("memory_save_errors")
             log.error("could not write the ID memory to %s: %s", path, exc)

@@ -90,7 +90,7 @@ def bench_offline(people: int, frames: int, config: TrackerConfig, tmp: Path) ->
     start = time.perf_counter()
     dets = read_detections(src)
     t_track = time.perf_counter()
-    rows = track(dets, config.params(config.thresholds("colour")))
+    rows = track(dets, config.build_tracker(config.thresholds("colour")))
     t_done = time.perf_counter()
     write_tracks(out, rows)
     end = time.perf_counter()

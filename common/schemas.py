@@ -442,7 +442,7 @@ class TrackState(_Model):
     """One track. ``covariance`` is over the state (x, y, z, vx, vy, vz)."""
 
     id: int = Field(ge=0)
-    status: Literal["tentative", "confirmed", "deleted"]
+    status: Literal["tentative", "confirmed", "coasting", "deleted"]
     position: NDArray(np.float64, (3,))  # type: ignore[valid-type]
     velocity: NDArray(np.float64, (3,))  # type: ignore[valid-type]
     covariance: NDArray(np.float64, (6, 6))  # type: ignore[valid-type]

@@ -76,6 +76,8 @@ class Rig:
 
 
 def config(tmp_path: Path, **kw: object) -> TrackerConfig:
+    """The thesis profile unless ``profile`` says otherwise (these tests pin its timings)."""
+    kw.setdefault("profile", "thesis")
     return TrackerConfig(memory_path=tmp_path / "memory.npz", **kw)  # type: ignore[arg-type]
 
 
@@ -296,3 +298,30 @@ def test_shipped_colour_thresholds_match_the_embedder_card() -> None:
 
     shipped = DEFAULT_APPEARANCE["colour"]
     assert (shipped["t_lower"], shipped["t_upper"], shipped["t_recover"]) == COLOUR_THRESHOLDS
+
+
+# ------------------------------------------------------------------ robust profile
+def test_robust_profile_publishes_coasting_tracks_then_recovers_the_id_after_a_restart(tmp_path: Path) -> None:
+    cfg = config(tmp_path, profile="robust")
+    rig = Rig(MemoryBus(), cfg)
+    for k in range(5):
+        rig.send(k, [(0, (2.0, 0.0, 1.0)), (1, (5.0, 0.0, 1.0))])
+        rig.poll()
+    [last] = rig.outputs()[-1:]
+    assert {t.status for t in last.tracks} == {"confirmed"} and len(last.tracks) == 2
+    person0 = next(t.id for t in last.tracks if t.position[0] < 3)
+    rig.send(5, [(1, (5.0, 0.0, 1.0))])  # person 0 is missed once: reported as coasting, with its prediction
+    rig.poll()
+    [msg] = rig.outputs()
+    assert {t.id: t.status for t in msg.tracks}[person0] == "coasting"
+    for k in range(6, 80):  # 2.5 s later its track is deleted and archived
+        rig.send(k, [(1, (5.0, 0.0, 1.0))])
+        rig.poll()
+    assert person0 not in {t.id for t in rig.outputs()[-1].tracks}
+    rig.service.close()
+    rig2 = Rig(MemoryBus(), config(tmp_path, profile="robust"))
+    for k in range(100, 104):  # person 0 comes back to a restarted tracker
+        rig2.send(k, [(0, (2.0, 0.0, 1.0))])
+        rig2.poll()
+    assert [t.id for t in rig2.outputs()[-1].tracks] == [person0]
+    assert rig2.service.counters.extra["ids_recovered"] == 1

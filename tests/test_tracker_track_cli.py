@@ -39,10 +39,10 @@ def read_output(path: Path) -> tuple[str, np.ndarray]:
 
 
 @pytest.mark.parametrize("embeddings", [True, False])
-def test_track_writes_confirmed_tracks_with_stable_ids(tmp_path: Path, embeddings: bool) -> None:
+def test_thesis_profile_writes_confirmed_tracks_with_stable_ids(tmp_path: Path, embeddings: bool) -> None:
     dets, out = tmp_path / "dets.csv", tmp_path / "tracks.csv"
     write_detections(dets, embeddings)
-    assert main(["track", "--detections", str(dets), "--output", str(out)]) == 0
+    assert main(["track", "--detections", str(dets), "--output", str(out), "--profile", "thesis"]) == 0
     header, rows = read_output(out)
     assert header == "frame,stamp,id,x,y,z"
     frames = rows[:, 0].astype(int)
@@ -53,6 +53,34 @@ def test_track_writes_confirmed_tracks_with_stable_ids(tmp_path: Path, embedding
     k = rows[:, 0] - 100
     np.testing.assert_allclose(rows[:, 1], 1000.0 + k / 30, atol=1e-5)
     assert np.all(np.bincount(frames)[[f for f in range(102, 160) if f not in (130, 131, 132, 133)]] == 2)
+
+
+@pytest.mark.parametrize("embeddings", [True, False])
+def test_robust_profile_coasts_through_a_short_miss_with_its_status(tmp_path: Path, embeddings: bool) -> None:
+    dets, out = tmp_path / "dets.csv", tmp_path / "tracks.csv"
+    write_detections(dets, embeddings)
+    assert main(["track", "--detections", str(dets), "--output", str(out), "--status"]) == 0  # robust: the default
+    text = out.read_text().splitlines()
+    assert text[0] == "frame,stamp,id,x,y,z,status"
+    rows = [line.split(",") for line in text[1:]]
+    frames = np.array([int(r[0]) for r in rows])
+    status = {(int(r[0]), int(r[2])): r[6] for r in rows}
+    assert frames.min() == 102  # three confident hits confirm, as in the thesis
+    # frames 130 and 131 have no detections: both people are reported, predicted, as coasting
+    assert {status[(f, i)] for f in (130, 131) for i in (1, 2)} == {"coasting"}
+    assert {v for (f, _), v in status.items() if f not in (130, 131)} == {"confirmed"}
+    lanes = {int(r[2]): round(float(r[4]) / 2.0) for r in rows}
+    assert lanes == {1: 0, 2: 1}  # the same two IDs throughout, and never swapped
+    assert np.all(np.bincount(frames)[102:160] == 2)
+
+
+def test_unknown_profile_is_refused_with_the_allowed_names(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    dets, cfg = tmp_path / "dets.csv", tmp_path / "tracker.yaml"
+    write_detections(dets)
+    cfg.write_text("profile: fast\n")
+    code = main(["track", "--detections", str(dets), "--output", str(tmp_path / "o.csv"), "--config", str(cfg)])
+    assert code == 2
+    assert "'robust' or 'thesis'" in capsys.readouterr().err
 
 
 def test_frame_stamps_are_interpolated_for_missing_frames(tmp_path: Path) -> None:

@@ -16,8 +16,16 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from services.tracker.core import AppearanceGate, TrackerParams
+from services.tracker.core.identity import IdentityMemory
+from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker, ScoreModel
+from services.tracker.core.tracker import Tracker
 
-__all__ = ["DEFAULT_APPEARANCE", "DEFAULT_EMBEDDING_MODEL", "AppearanceConfig", "TrackerConfig", "default_memory_path"]
+__all__ = ["DEFAULT_APPEARANCE", "DEFAULT_EMBEDDING_MODEL", "PROFILES", "AppearanceConfig", "RobustConfig",
+           "ScoreConfig", "TrackerConfig", "default_memory_path"]
+
+#: The tracker's profiles: ``robust`` (the default, built from all four seeds) and
+#: ``thesis`` (seed 000 exactly, for comparison and reproduction).
+PROFILES = ("robust", "thesis")
 
 #: The project's default embedder (services/embedder): an L2-normalised colour histogram.
 DEFAULT_EMBEDDING_MODEL = "colour"
@@ -32,6 +40,8 @@ class AppearanceConfig(BaseModel):
     t_upper: float = Field(gt=0.0, description="at or above: the pair is never admitted")
     t_recover: float = Field(gt=0.0, description="Algorithm 2: reuse a remembered ID closer than this")
     s_max: float | None = Field(default=None, ge=0.0, description="per-model S_max; None uses TrackerConfig.s_max")
+    metric: Literal["euclidean", "cosine"] | None = Field(
+        default=None, description="how the model's descriptors compare; None: as its model card says (euclidean if none)")
 
     @model_validator(mode="after")
     def _ordered(self) -> AppearanceConfig:
@@ -68,6 +78,58 @@ def _default_appearance() -> dict[str, AppearanceConfig]:
 #: so it is written once, in the core (tests/test_config_defaults.py checks they agree).
 _D = TrackerParams()
 _S_MAX = next(f.default for f in dataclasses.fields(AppearanceGate) if f.name == "s_max")
+_R = RobustParams()
+_SC = ScoreModel()
+
+
+class ScoreConfig(BaseModel):
+    """How the detector's scores read as P(true person): ``sigmoid((score - center) / scale)``."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    center: float | None = Field(default=_SC.center, description="score of P = 0.5; null: scores are not calibrated")
+    scale: float = Field(default=_SC.scale, gt=0.0, description="score units per unit of log-odds")
+    default_p: float = Field(default=_SC.default_p, gt=0.0, lt=1.0, description="P(true person) when center is null")
+    birth_score: float | None = Field(
+        default=_SC.birth_score, description="detections below it update tracks but never start one; null: all may")
+
+    def model(self) -> ScoreModel:
+        return ScoreModel(self.center, self.scale, self.default_p, self.birth_score)
+
+
+class RobustConfig(BaseModel):
+    """The ``robust`` profile's settings (services/tracker/README.md explains each)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    q_accel: float = Field(default=_R.q_accel, gt=0.0, description="white acceleration noise on x, y (m^2/s^3)")
+    q_z: float = Field(default=_R.q_z, gt=0.0, description="random-walk noise of z (m^2/s)")
+    sigma0_position: float = Field(default=_R.sigma0_position, gt=0.0, description="a new track's position std (m)")
+    sigma0_velocity: float = Field(default=_R.sigma0_velocity, gt=0.0, description="a new track's velocity std (m/s)")
+    sigma_r: tuple[float, float, float] = Field(default=_R.sigma_r, description="measurement std without a covariance (m)")
+    use_detection_covariance: bool = Field(default=True, description="use each detection's covariance when it has one")
+    new_density: float = Field(default=_R.new_density, gt=0.0,
+                               description="density (per m^2) of others or clutter competing with a prediction")
+    gate_sq: float = Field(default=_R.gate_sq, gt=0.0, description="squared Mahalanobis bound on (x, y)")
+    appearance_weight: float = Field(default=_R.appearance_weight, ge=0.0, description="weight of the appearance cue")
+    scores: ScoreConfig = Field(default_factory=ScoreConfig)
+    n_init: int = Field(default=_R.n_init, ge=1, le=100, description="confident hits that confirm a track")
+    confirm_is_person: float = Field(default=_R.confirm_is_person, ge=0.5, lt=1.0,
+                                     description="IsPerson probability a track needs to be confirmed")
+    is_person_tau_s: float = Field(default=_R.is_person_tau_s, gt=0.0,
+                                   description="time constant of IsPerson's drift back to 0.5 (s)")
+    tentative_timeout_s: float = Field(default=_R.tentative_timeout_s, gt=0.0,
+                                       description="a tentative track without a hit for this long is dropped (s)")
+    report_coast_s: float = Field(default=_R.report_coast_s, ge=0.0,
+                                  description="coasting tracks are reported this long after their last hit (s)")
+    max_coast_s: float = Field(default=_R.max_coast_s, gt=0.0, description="coasting longer deletes the track (s)")
+    max_position_var: float = Field(default=_R.max_position_var, gt=0.0,
+                                    description="a track whose (x, y) variance trace passes this is deleted (m^2)")
+    gallery_size: int = Field(default=_R.gallery_size, ge=1, le=100_000, description="max descriptors per track")
+
+    def params(self, appearance: AppearanceModel | None, memory_size: int) -> RobustParams:
+        fields = self.model_dump(exclude={"scores", "use_detection_covariance"})
+        return RobustParams(**fields, appearance=appearance, scores=self.scores.model(), memory_size=memory_size)
 
 
 class TrackerConfig(BaseModel):
@@ -75,7 +137,10 @@ class TrackerConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    # --- Kalman filter (seed 000, III-C)
+    profile: Literal["robust", "thesis"] = Field(
+        default="robust", description="'robust': all four seeds (default); 'thesis': seed 000 exactly")
+    robust: RobustConfig = Field(default_factory=RobustConfig, description="the robust profile's settings")
+    # --- thesis profile: Kalman filter (seed 000, III-C)
     sigma0: tuple[float, float, float, float, float, float] = Field(
         default=_D.sigma0, description="initial std of (x, y, z, vx, vy, vz); P0 = diag(sigma0^2)")
     sigma_q: tuple[float, float, float, float, float, float] = Field(
@@ -159,3 +224,23 @@ class TrackerConfig(BaseModel):
             frame_period_s=self.frame_period_s, gallery_size=self.gallery_size, memory_size=self.memory_size,
             position_gate_probability=self.position_gate_probability, inf=self.infinite_cost,
         )
+
+    def appearance_model(self, thresholds: AppearanceConfig | None, metric: str | None = None) -> AppearanceModel | None:
+        """The robust profile's view of a model's thresholds; ``metric`` from its model card."""
+        if thresholds is None:
+            return None
+        chosen = thresholds.metric or metric or "euclidean"
+        if chosen not in ("euclidean", "cosine"):
+            raise ValueError(f"unknown descriptor metric {chosen!r}; the tracker knows euclidean and cosine")
+        return AppearanceModel(thresholds.t_lower, thresholds.t_upper, thresholds.t_recover, chosen)  # type: ignore[arg-type]
+
+    def build_tracker(self, thresholds: AppearanceConfig | None, memory: IdentityMemory | None = None,
+                      metric: str | None = None) -> Tracker | RobustTracker:
+        """The core tracker of the configured profile."""
+        if self.profile == "thesis":
+            return Tracker(self.params(thresholds), memory)
+        return RobustTracker(self.robust.params(self.appearance_model(thresholds, metric), self.memory_size), memory)
+
+    @property
+    def uses_detection_covariance(self) -> bool:
+        return self.robust.use_detection_covariance if self.profile == "robust" else self.use_detection_covariance

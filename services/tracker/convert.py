@@ -50,7 +50,9 @@ def track_state(view: TrackView, appearance: bool, epoch_ns: int = 0) -> TrackSt
     )
 
 
-def tracks_message(result: FrameResult, header: Header, model: str, epoch_ns: int) -> Tracks:
-    """The Confirmed tracks of ``result`` as a Tracks message. Core stamps are seconds since ``epoch_ns``."""
-    states = [track_state(v, result.appearance_available, epoch_ns) for v in result.confirmed]
+def tracks_message(result: FrameResult, reported: list[TrackView], header: Header, model: str,
+                   epoch_ns: int) -> Tracks:
+    """The ``reported`` tracks of ``result`` (the tracker's output: Confirmed, and coasting for
+    the robust profile) as a Tracks message. Core stamps are seconds since ``epoch_ns``."""
+    states = [track_state(v, result.appearance_available, epoch_ns) for v in reported]
     return Tracks(header=header, tracks=states, appearance_available=result.appearance_available, embedding_model=model)

@@ -5,7 +5,9 @@ positions in the map frame in metres (z up), stamp in seconds, rows sorted by fr
 row per detection. Every frame from the first to the last is processed; a frame without
 rows has no detections and its stamp is interpolated from the frame numbers.
 
-Output: ``frame,stamp,id,x,y,z``, one row per Confirmed track per frame.
+Output: ``frame,stamp,id,x,y,z`` (and ``status`` with ``--status``), one row per
+reported track per frame: Confirmed, and with the robust profile also tracks that
+coast through a short miss (status ``coasting``).
 """
 
 from __future__ import annotations
@@ -18,12 +20,13 @@ import numpy as np
 
 from services.tracker.config import TrackerConfig
 from services.tracker.core import Tracker, TrackerParams
+from services.tracker.core.robust import RobustTracker
 
 __all__ = ["Detections", "OUTPUT_HEADER", "Row", "read_detections", "track", "track_config", "write_tracks"]
 
 INPUT_COLUMNS = ("frame", "stamp", "x", "y", "z", "score")
-#: One output row: (frame, stamp, id, x, y, z).
-Row = tuple[int, float, int, float, float, float]
+#: One output row: (frame, stamp, id, x, y, z, status), status "confirmed" or "coasting".
+Row = tuple[int, float, int, float, float, float, str]
 OUTPUT_HEADER = "frame,stamp,id,x,y,z"
 
 
@@ -87,24 +90,34 @@ def frame_stamps(dets: Detections) -> tuple[np.ndarray, np.ndarray]:
     return all_frames, np.interp(all_frames, known, dets.stamps[first_row])
 
 
-def track(dets: Detections, params: TrackerParams) -> list[tuple[int, float, int, float, float, float]]:
-    """Run the tracker over every frame; rows ``(frame, stamp, id, x, y, z)`` of Confirmed tracks."""
-    tracker = Tracker(params)
+def track(dets: Detections, tracker: Tracker | RobustTracker | TrackerParams) -> list[Row]:
+    """Run ``tracker`` over every frame; one row ``(frame, stamp, id, x, y, z, status)`` per
+    reported track per frame (Confirmed, and for the robust profile recently coasting ones).
+
+    ``TrackerParams`` builds the thesis's tracker. The robust tracker also gets each
+    detection's score.
+    """
+    if isinstance(tracker, TrackerParams):
+        tracker = Tracker(tracker)
     frames, stamps = frame_stamps(dets)
     starts = np.searchsorted(dets.frames, frames, side="left")
     ends = np.searchsorted(dets.frames, frames, side="right")
-    rows: list[tuple[int, float, int, float, float, float]] = []
+    robust = isinstance(tracker, RobustTracker)
+    rows: list[Row] = []
     for frame, stamp, a, b in zip(frames.tolist(), stamps.tolist(), starts.tolist(), ends.tolist()):
         desc = dets.descriptors[a:b] if dets.descriptors is not None else None
-        result = tracker.update(stamp, dets.positions[a:b], desc)
-        for view in result.confirmed:
+        if robust:
+            result = tracker.update(stamp, dets.positions[a:b], desc, None, dets.scores[a:b])
+        else:
+            result = tracker.update(stamp, dets.positions[a:b], desc)
+        for view in tracker.reported(result):
             x, y, z = view.mean[:3].tolist()
-            rows.append((frame, stamp, view.id, x, y, z))
+            rows.append((frame, stamp, view.id, x, y, z, view.status.value))
     return rows
 
 
 def track_config(dets: Detections, config: TrackerConfig, embedding_model: str | None = None) -> list[Row]:
-    """Track ``dets`` as ``perception track`` does with ``config``.
+    """Track ``dets`` as ``perception track`` does with ``config`` (its profile included).
 
     The descriptors, if any, are compared with ``embedding_model``'s thresholds from the
     config; ValueError if it has none. Without descriptors the tracking is position-only.
@@ -115,10 +128,14 @@ def track_config(dets: Detections, config: TrackerConfig, embedding_model: str |
         if thresholds is None:
             known = ", ".join(sorted(config.appearance)) or "none"
             raise ValueError(f"no appearance thresholds for embedding model {embedding_model!r} (configured: {known})")
-    return track(dets, config.params(thresholds))
+    return track(dets, config.build_tracker(thresholds))
 
 
-def write_tracks(path: str | Path, rows: list[tuple[int, float, int, float, float, float]]) -> None:
-    """Write ``frame,stamp,id,x,y,z`` rows (stamps and positions to the microsecond / micrometre)."""
-    lines = [OUTPUT_HEADER] + [f"{f},{s:.6f},{i},{x:.6f},{y:.6f},{z:.6f}" for f, s, i, x, y, z in rows]
+def write_tracks(path: str | Path, rows: list[Row], status: bool = False) -> None:
+    """Write ``frame,stamp,id,x,y,z[,status]`` rows (stamps and positions to the microsecond / micrometre)."""
+    if status:
+        lines = [OUTPUT_HEADER + ",status"] + [f"{f},{s:.6f},{i},{x:.6f},{y:.6f},{z:.6f},{st}"
+                                               for f, s, i, x, y, z, st in rows]
+    else:
+        lines = [OUTPUT_HEADER] + [f"{f},{s:.6f},{i},{x:.6f},{y:.6f},{z:.6f}" for f, s, i, x, y, z, _ in rows]
     Path(path).write_text("\n".join(lines) + "\n")

@@ -33,7 +33,7 @@ from common.schemas import Embeddings, Header, LocalizedDetections, ModelCard, T
 from common.transport import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of, track_state, tracks_message
-from services.tracker.core import Tracker
+from services.tracker.core.robust import RobustTracker
 from services.tracker.core.tracker import FrameResult, TrackerState
 from services.tracker.memory_file import load_memory, save_memory
 from services.tracker.reorder import InputKey, ReorderBuffer
@@ -73,7 +73,7 @@ class TrackerService(Node):
         self.model: str | None = config.embedding_model or stored_model
         self._dim: int | None = None
         th = config.thresholds(self.model) if self.model else None
-        self.tracker = Tracker(config.params(th), memory)
+        self.tracker = config.build_tracker(th, memory)
         self._have_thresholds = th is not None
         self._epoch_ns: int | None = None
         self.join: Joiner[LocalizedDetections] = Joiner(
@@ -116,7 +116,10 @@ class TrackerService(Node):
                             card.name, card.thresholds.model_dump())
                 th = AppearanceConfig(**card.thresholds.model_dump())
             if th is not None:
-                self.tracker.set_gate(self.config.gate(th), th.t_recover)
+                if isinstance(self.tracker, RobustTracker):
+                    self.tracker.set_gate(self.config.appearance_model(th, card.metric))
+                else:
+                    self.tracker.set_gate(self.config.gate(th), th.t_recover)
                 self._have_thresholds = True
         return True
 
@@ -164,8 +167,13 @@ class TrackerService(Node):
             descriptors = np.zeros((0, 1), np.float32)
         elif loc.detections and frame.emb is not None:
             self.counters.count("no_thresholds")
-        result = self.tracker.update((loc.header.stamp_ns - self._epoch_ns) / 1e9, positions, descriptors,
-                                     covs if self.config.use_detection_covariance else None)
+        stamp = (loc.header.stamp_ns - self._epoch_ns) / 1e9
+        covs_used = covs if self.config.uses_detection_covariance else None
+        if isinstance(self.tracker, RobustTracker):
+            scores = np.array([d.score for d in loc.detections], np.float64)
+            result = self.tracker.update(stamp, positions, descriptors, covs_used, scores)
+        else:
+            result = self.tracker.update(stamp, positions, descriptors, covs_used)
         self._ever_confirmed.update(v.id for v in result.confirmed)
         self.counters.count("updates")
         if not result.appearance_available and loc.detections:
@@ -174,9 +182,10 @@ class TrackerService(Node):
             self.counters.count("ids_recovered", len(result.recovered_ids))
         with self._state_lock:
             for view in result.tracks + result.deleted:
-                self._last_state[view.id] = track_state(view, result.appearance_available, self._epoch_ns)
+                if view.id:  # a robust tentative track has no ID yet
+                    self._last_state[view.id] = track_state(view, result.appearance_available, self._epoch_ns)
             for view in result.deleted:
-                if not view.ever_confirmed and not self._confirmed_before(view.id):
+                if view.id and not view.ever_confirmed and not self._confirmed_before(view.id):
                     del self._last_state[view.id]  # never output (a false positive): nothing to answer
         self._dirty = True
         return result
@@ -189,7 +198,7 @@ class TrackerService(Node):
         assert self._epoch_ns is not None
         h = frame.loc.header
         header = Header(stamp_ns=h.stamp_ns, frame_id=self.config.frame_id, seq=h.seq, source=h.source)
-        msg = tracks_message(result, header, self.model or "", self._epoch_ns)
+        msg = tracks_message(result, self.tracker.reported(result), header, self.model or "", self._epoch_ns)
         self.publisher.put(msg)
         self.counters.gauge("tracks_confirmed", len(result.confirmed))
         self.counters.gauge("tracks_live", len(result.tracks))

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from common.cli_util import CliError
 from common.node import load_node_config
-from services.tracker.config import DEFAULT_EMBEDDING_MODEL, TrackerConfig
+from services.tracker.config import DEFAULT_EMBEDDING_MODEL, PROFILES, TrackerConfig
 from services.tracker.offline import FormatError, read_detections, track, write_tracks
 
 log = logging.getLogger(__name__)
@@ -34,11 +34,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--embedding-model", default=DEFAULT_EMBEDDING_MODEL, metavar="NAME",
                         help=f"model that made the e-columns; picks its thresholds (default {DEFAULT_EMBEDDING_MODEL})")
     parser.add_argument("--time-step", choices=("time", "frame"), default=None,
-                        help="'time': dt from stamps (default); 'frame': dt = 1 per frame, as the thesis")
+                        help="thesis profile: 'time': dt from stamps (default); 'frame': dt = 1 per frame, as the thesis")
+    parser.add_argument("--profile", choices=PROFILES, default=None,
+                        help="'robust' (default): all four seeds; 'thesis': seed 000 exactly")
+    parser.add_argument("--birth-score", type=float, default=None, metavar="S",
+                        help="robust: detections scoring below S update tracks but never start one")
+    parser.add_argument("--status", action="store_true",
+                        help="add a status column: confirmed, or coasting (robust: reported through a short miss)")
 
 
 def main(args: argparse.Namespace) -> int:
-    config = load_node_config(TrackerConfig, "tracker", args.config, {"time_step": args.time_step})
+    config = load_node_config(TrackerConfig, "tracker", args.config, {
+        "time_step": args.time_step, "profile": args.profile, "robust": {"scores": {"birth_score": args.birth_score}}})
     if not args.detections.is_file():
         raise CliError(f"detections file {args.detections} does not exist")
     try:
@@ -57,10 +64,10 @@ def main(args: argparse.Namespace) -> int:
     else:
         log.info("no embedding columns: tracking position-only")
     start = time.perf_counter()
-    rows = track(dets, config.params(thresholds))
+    rows = track(dets, config.build_tracker(thresholds))
     elapsed = time.perf_counter() - start
     try:
-        write_tracks(args.output, rows)
+        write_tracks(args.output, rows, status=args.status)
     except OSError as exc:
         raise CliError(f"cannot write {args.output}: {exc}") from exc
     n_frames = int(dets.frames[-1] - dets.frames[0] + 1) if len(dets.frames) else 0

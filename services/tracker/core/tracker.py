@@ -50,6 +50,7 @@ _F3 = tuple[float, float, float]
 class TrackStatus(str, Enum):
     TENTATIVE = "tentative"
     CONFIRMED = "confirmed"
+    COASTING = "coasting"  # confirmed, missed lately: reported with its prediction (robust profile)
     DELETED = "deleted"
 
 
@@ -361,6 +362,10 @@ class Tracker:
         self.memory = state.memory.copy()
         self._pending = [(i, g.copy()) for i, g in state.pending]
         self.last_stamp = state.last_stamp
+
+    def reported(self, result: FrameResult) -> list[TrackView]:
+        """The tracker's output for ``result``: the Confirmed tracks (seed 000)."""
+        return result.confirmed
 
     def live_galleries(self) -> list[tuple[int, np.ndarray]]:
         """(ID, descriptors (M, D)) of every live track and every pending archive."""

@@ -1,0 +1,443 @@
+"""The ``robust`` tracker profile: the thesis's tracker rebuilt from all four seeds.
+
+One call of :meth:`RobustTracker.update` processes one frame, in time (seconds), not in
+nominal frames, so the same settings hold at 5, 10 or 30 Hz:
+
+1. **Predict** every track with a constant-velocity model whose process noise is white
+   acceleration (``q_accel``, m^2/s^3) on (x, y) and a random walk on z.
+2. **Score every (detection, track) pair** by seed 001's cue fusion: each cue gives a
+   probability that the pair is the same person, 0.5 meaning "no information", and the
+   cues combine by the Bayesian product (Eq 1), i.e. their log-odds add:
+
+   * *position*: the log-likelihood ratio of the detection under the track's predicted
+     Gaussian (innovation covariance ``S = HPH^T + R``) against a uniform density
+     ``new_density`` (people per m^2) of someone else or clutter. A track that has coasted
+     long has a wide ``S`` and scores lower everywhere (seed 001's |Sigma_h| penalty);
+   * *appearance*: the descriptor distance to the track's gallery through a Fermi
+     function placed by the embedding model's calibrated thresholds (0.9 at ``t_lower``,
+     0.1 at ``t_upper``). No descriptor, or a track without one yet, gives 0.5, so a
+     track born while the embedder was down gains appearance later without an ID switch;
+   * *confidence*: the detector's score as P(true person).
+
+   A detection may also be explained as **clutter or a new person** (seed 003's clutter
+   class), at log-odds 0: a pair is only accepted when its combined log-odds are positive.
+3. **Associate in stages** (ByteTrack's second stage, seed 002's confirmation):
+   confident detections with the confirmed and coasting tracks (Hungarian on the
+   log-odds), then low-score detections with the confirmed tracks still free (they may
+   keep a track alive, never start one), then the remaining confident detections with
+   the tentative tracks.
+4. **Update** the matched tracks with each detection's own covariance when it has one
+   (the localizer's, which grows with distance^2 as in seed 002), else ``sigma_r``.
+5. **Life cycle, in time.** A confident detection nobody explains starts a *tentative*
+   track: a birth candidate (seed 003: unexplained detections that move like one
+   person over several frames). It is confirmed after ``n_init`` confident hits if its
+   IsPerson probability reaches ``confirm_is_person``, and dropped when it goes
+   ``tentative_timeout_s`` without one. A confirmed track that misses is *coasting*: it
+   keeps its prediction, is reported for ``report_coast_s`` (with its status, so a
+   consumer can tell), and is deleted after ``max_coast_s`` without a detection or when
+   its position variance passes ``max_position_var``.
+6. **IsPerson** (seed 001): each track's probability of being a person, a binary Bayes
+   filter over its detections' confidences that fades back to 0.5 with ``is_person_tau_s``.
+7. **Identity memory** (Algorithm 2): a tentative track takes its ID when confirmed. If it
+   has appearance and a remembered (deleted) person's gallery is nearer than the model's
+   ``t_recover``, it takes that person's ID back; otherwise a new one. A deleted track's
+   gallery goes to the memory.
+
+Pure numpy and scipy; no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from services.tracker.core import kalman
+from services.tracker.core.gallery import Gallery
+from services.tracker.core.identity import IdentityMemory
+from services.tracker.core.tracker import FrameResult, TrackStatus, TrackView
+
+__all__ = ["AppearanceModel", "RobustParams", "RobustTracker", "RobustTrackerState", "ScoreModel"]
+
+_F3 = tuple[float, float, float]
+_LOG_2PI = math.log(2.0 * math.pi)
+
+
+@dataclass(frozen=True)
+class AppearanceModel:
+    """An embedding model's calibrated distances: 0.9 same-person probability at
+    ``t_lower``, 0.1 at ``t_upper``; ``t_recover`` for the ID memory. ``metric`` says how
+    descriptors compare (``euclidean``, or ``cosine``: 1 - cos on unit vectors)."""
+
+    t_lower: float
+    t_upper: float
+    t_recover: float
+    metric: Literal["euclidean", "cosine"] = "euclidean"
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.t_lower < self.t_upper:
+            raise ValueError(f"need 0 <= t_lower < t_upper, got {self.t_lower}, {self.t_upper}")
+
+    def log_odds(self, distance: np.ndarray) -> np.ndarray:
+        """Log-odds that a pair at ``distance`` is the same person (0 where ``nan``)."""
+        mid = 0.5 * (self.t_lower + self.t_upper)
+        # logistic through (t_lower, 0.9) and (t_upper, 0.1): slope ln(9) / half-width
+        slope = math.log(9.0) / (0.5 * (self.t_upper - self.t_lower))
+        out = slope * (mid - distance)
+        return np.where(np.isnan(out), 0.0, out)
+
+    def from_euclidean(self, d: np.ndarray) -> np.ndarray:
+        """The model's distance from the Euclidean distance of unit vectors."""
+        return 0.5 * d * d if self.metric == "cosine" else d
+
+
+@dataclass(frozen=True)
+class ScoreModel:
+    """Detector score -> P(true person): ``sigmoid((score - center) / scale)``.
+
+    ``center`` None means the scores carry no calibrated meaning: every detection is
+    confident with probability ``default_p``. ``birth_score``: detections below it may
+    update tracks but never start one (None: every detection may).
+    """
+
+    center: float | None = None
+    scale: float = 1.0
+    default_p: float = 0.7
+    birth_score: float | None = None
+
+    def probability(self, scores: np.ndarray) -> np.ndarray:
+        if self.center is None:
+            return np.full(len(scores), self.default_p)
+        return 1.0 / (1.0 + np.exp(-(np.asarray(scores, float) - self.center) / self.scale))
+
+    def confident(self, scores: np.ndarray) -> np.ndarray:
+        if self.birth_score is None:
+            return np.ones(len(scores), bool)
+        return np.asarray(scores, float) >= self.birth_score
+
+
+@dataclass(frozen=True)
+class RobustParams:
+    """The robust profile's settings (README of the tracker: what each one does)."""
+
+    q_accel: float = 3.0  # m^2/s^3, white acceleration on x and y
+    q_z: float = 0.05  # m^2/s, random walk of z
+    sigma0_position: float = 0.3  # m, a new track's position std
+    sigma0_velocity: float = 2.0  # m/s, a new track's velocity std (people walk at ~1.4 m/s; the frame may move)
+    sigma_r: _F3 = (0.2, 0.2, 0.3)  # m, measurement std when a detection has no covariance
+    new_density: float = 0.02  # people (or clutter) per m^2 that compete with a track's prediction
+    gate_sq: float = 13.8  # squared Mahalanobis bound on (x, y): chi2(0.999, 2)
+    appearance_weight: float = 1.0
+    appearance: AppearanceModel | None = None
+    scores: ScoreModel = field(default_factory=ScoreModel)
+    n_init: int = 3
+    confirm_is_person: float = 0.75
+    is_person_tau_s: float = 2.0
+    tentative_timeout_s: float = 0.25
+    report_coast_s: float = 0.3
+    max_coast_s: float = 2.0
+    max_position_var: float = 4.0  # m^2, trace of the (x, y) covariance
+    gallery_size: int = 100
+    memory_size: int = 500
+
+    def __post_init__(self) -> None:
+        if self.n_init < 1:
+            raise ValueError("n_init must be at least 1")
+        for name in ("q_accel", "q_z", "sigma0_position", "sigma0_velocity", "new_density", "gate_sq",
+                     "is_person_tau_s", "max_position_var"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if not (0 < self.tentative_timeout_s and 0 <= self.report_coast_s <= self.max_coast_s):
+            raise ValueError("need tentative_timeout_s > 0 and 0 <= report_coast_s <= max_coast_s")
+        if not 0.5 <= self.confirm_is_person < 1:
+            raise ValueError("confirm_is_person must be in [0.5, 1)")
+
+
+@dataclass
+class _Track:
+    id: int  # 0 while tentative: the ID is given at confirmation
+    mean: np.ndarray
+    cov: np.ndarray
+    gallery: Gallery | None
+    first_stamp: float
+    last_update: float
+    status: TrackStatus = TrackStatus.TENTATIVE
+    confident_hits: int = 1
+    total_hits: int = 1
+    is_person: float = 0.5  # probability
+    ever_confirmed: bool = False
+
+    def copy(self) -> _Track:
+        return replace(self, mean=self.mean.copy(), cov=self.cov.copy(),
+                       gallery=self.gallery.copy() if self.gallery is not None else None)
+
+
+@dataclass
+class RobustTrackerState:
+    tracks: list[_Track]
+    memory: IdentityMemory
+    last_stamp: float | None
+
+
+def _logit(p: np.ndarray | float) -> np.ndarray:
+    p = np.clip(p, 1e-6, 1 - 1e-6)
+    return np.log(p / (1.0 - p))
+
+
+class RobustTracker:
+    """The robust profile; same ``update`` contract as :class:`~services.tracker.core.tracker.Tracker`."""
+
+    def __init__(self, params: RobustParams, memory: IdentityMemory | None = None) -> None:
+        self.params = params
+        self.memory = memory if memory is not None else IdentityMemory(params.memory_size)
+        self.tracks: list[_Track] = []
+        self.last_stamp: float | None = None
+        self._r = np.diag(np.asarray(params.sigma_r, float) ** 2)
+        self._p0 = np.diag([params.sigma0_position ** 2] * 3 + [params.sigma0_velocity ** 2] * 2 + [0.0])
+
+    # ------------------------------------------------------------------ helpers
+    def set_gate(self, appearance: AppearanceModel | None) -> None:
+        """Set the embedding model's calibration (e.g. once its model card is known)."""
+        self.params = replace(self.params, appearance=appearance)
+
+    def _q(self, dt: float) -> np.ndarray:
+        q = np.zeros((6, 6))
+        a = self.params.q_accel
+        for i in (0, 1):
+            q[i, i] = a * dt ** 3 / 3.0
+            q[i, i + 3] = q[i + 3, i] = a * dt ** 2 / 2.0
+            q[i + 3, i + 3] = a * dt
+        q[2, 2] = self.params.q_z * dt
+        return q
+
+    def live_ids(self) -> set[int]:
+        return {t.id for t in self.tracks if t.id}
+
+    # ------------------------------------------------------------------ update
+    def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
+               measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None) -> FrameResult:
+        """Process one frame: ``stamp`` in seconds, ``positions`` (N, 3), ``descriptors``
+        (N, D) or None (a NaN row: no descriptor), ``measurement_cov`` (N, 3, 3) or None,
+        ``scores`` (N,) or None (the detector's confidences)."""
+        p = self.params
+        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        n = len(positions)
+        if descriptors is not None:
+            descriptors = np.asarray(descriptors, dtype=np.float32)
+            if descriptors.ndim != 2 or len(descriptors) != n:
+                raise ValueError(f"descriptors must be (N, D) with N = {n} detections, got shape {descriptors.shape}")
+        if self.last_stamp is not None and stamp < self.last_stamp:
+            raise ValueError(f"stamp {stamp} is older than the last update {self.last_stamp}; apply frames in order")
+        scores = np.zeros(n) if scores is None else np.asarray(scores, float).reshape(n)
+        r = self._measurement_cov(measurement_cov, n)
+        self._predict(stamp)
+        self.last_stamp = stamp
+        appearance = descriptors is not None and p.appearance is not None and descriptors.shape[1] > 0
+        has_desc = np.all(np.isfinite(descriptors), axis=1) if appearance else np.zeros(n, bool)  # type: ignore[arg-type]
+        p_det = p.scores.probability(scores)
+        confident = p.scores.confident(scores)
+        log_odds = self._pair_log_odds(positions, r, descriptors if appearance else None, has_desc, p_det)
+        result = FrameResult(stamp=stamp, appearance_available=appearance)
+        matches = self._associate(log_odds, confident)
+        self._update_matched(matches, positions, r, descriptors, has_desc, p_det, confident, stamp)
+        matched_d = {d for d, _ in matches}
+        self._age(stamp, result, appearance)
+        self._birth([d for d in range(n) if d not in matched_d and confident[d]], positions, descriptors, has_desc,
+                    p_det, stamp)
+        self._confirm(result)
+        result.matches = len(matches)
+        result.tracks = [self._view(t, stamp) for t in self.tracks]
+        return result
+
+    def _measurement_cov(self, cov: np.ndarray | None, n: int) -> np.ndarray:
+        if cov is None:
+            return np.broadcast_to(self._r, (n, 3, 3))
+        cov = np.asarray(cov, float).reshape(n, 3, 3)
+        return cov + np.eye(3) * 1e-6
+
+    def _predict(self, stamp: float) -> None:
+        if not self.tracks or self.last_stamp is None:
+            return
+        dt = stamp - self.last_stamp
+        if dt <= 0:
+            return
+        means = np.stack([t.mean for t in self.tracks])
+        covs = np.stack([t.cov for t in self.tracks])
+        means, covs = kalman.predict(means, covs, dt, self._q(dt))
+        fade = math.exp(-dt / self.params.is_person_tau_s)  # IsPerson drifts back to "unknown"
+        for t, m, c in zip(self.tracks, means, covs):
+            t.mean, t.cov = m, c
+            t.is_person = 0.5 + (t.is_person - 0.5) * fade
+
+    def _pair_log_odds(self, positions: np.ndarray, r: np.ndarray, descriptors: np.ndarray | None,
+                       has_desc: np.ndarray, p_det: np.ndarray) -> np.ndarray:
+        """(N, T) combined log-odds that detection d is track t; ``-inf`` outside the gate."""
+        p = self.params
+        n, nt = len(positions), len(self.tracks)
+        if n == 0 or nt == 0:
+            return np.zeros((n, nt))
+        means = np.stack([t.mean[:2] for t in self.tracks])  # (T, 2)
+        covs = np.stack([t.cov[:2, :2] for t in self.tracks])  # (T, 2, 2)
+        s = covs[None, :, :, :] + r[:, None, :2, :2]  # (N, T, 2, 2)
+        diff = positions[:, None, :2] - means[None, :, :]  # (N, T, 2)
+        a, b, c = s[..., 0, 0], s[..., 0, 1], s[..., 1, 1]
+        det = a * c - b * b
+        dx, dy = diff[..., 0], diff[..., 1]
+        d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / det
+        log_n = -0.5 * d2 - _LOG_2PI - 0.5 * np.log(det)
+        total = log_n - math.log(p.new_density)
+        if descriptors is not None and has_desc.any() and p.appearance is not None:
+            total = total + p.appearance_weight * self._appearance_log_odds(descriptors, has_desc)
+        total = total + _logit(p_det)[:, None]
+        return np.where(d2 > p.gate_sq, -np.inf, total)
+
+    def _appearance_log_odds(self, descriptors: np.ndarray, has_desc: np.ndarray) -> np.ndarray:
+        model = self.params.appearance
+        assert model is not None
+        dist = np.full((len(descriptors), len(self.tracks)), np.nan)
+        x = descriptors[has_desc]
+        for j, t in enumerate(self.tracks):
+            if t.gallery is not None and len(t.gallery):
+                dist[has_desc, j] = model.from_euclidean(t.gallery.min_distances(x))
+        return model.log_odds(dist)
+
+    def _associate(self, log_odds: np.ndarray, confident: np.ndarray) -> list[tuple[int, int]]:
+        """Stages: confident detections x established tracks, low-score detections x the
+        established tracks left, remaining confident detections x tentative tracks."""
+        established = [j for j, t in enumerate(self.tracks) if t.status is not TrackStatus.TENTATIVE]
+        tentative = [j for j, t in enumerate(self.tracks) if t.status is TrackStatus.TENTATIVE]
+        high = np.flatnonzero(confident).tolist()
+        low = np.flatnonzero(~confident).tolist()
+        matches: list[tuple[int, int]] = []
+        for dets, tracks in ((high, established), (low, None), (None, tentative)):
+            if dets is None:  # confident detections not yet matched
+                used = {d for d, _ in matches}
+                dets = [d for d in high if d not in used]
+            if tracks is None:  # established tracks not yet matched
+                used_t = {t for _, t in matches}
+                tracks = [j for j in established if j not in used_t]
+            matches += _hungarian(log_odds, dets, tracks)
+        return matches
+
+    def _update_matched(self, matches: list[tuple[int, int]], positions: np.ndarray, r: np.ndarray,
+                        descriptors: np.ndarray | None, has_desc: np.ndarray, p_det: np.ndarray,
+                        confident: np.ndarray, stamp: float) -> None:
+        if not matches:
+            return
+        d_idx = np.array([d for d, _ in matches])
+        t_idx = [j for _, j in matches]
+        means = np.stack([self.tracks[j].mean for j in t_idx])
+        covs = np.stack([self.tracks[j].cov for j in t_idx])
+        new_means, new_covs = kalman.update(means, covs, positions[d_idx], r[d_idx])
+        for k, (d, j) in enumerate(matches):
+            t = self.tracks[j]
+            t.mean, t.cov = new_means[k], new_covs[k]
+            t.last_update = stamp
+            t.total_hits += 1
+            t.is_person = _bayes(t.is_person, p_det[d])
+            if confident[d]:
+                t.confident_hits += 1
+            if t.status is TrackStatus.COASTING:
+                t.status = TrackStatus.CONFIRMED
+            if has_desc[d] and descriptors is not None and confident[d]:
+                self._add_descriptor(t, descriptors[d])
+
+    def _age(self, stamp: float, result: FrameResult, appearance: bool) -> None:
+        p = self.params
+        keep = []
+        for t in self.tracks:
+            gap = stamp - t.last_update
+            if gap > 0 and t.status is TrackStatus.CONFIRMED:
+                t.status = TrackStatus.COASTING
+            if t.status is TrackStatus.TENTATIVE:
+                if gap > p.tentative_timeout_s:
+                    continue  # a birth candidate that did not go on: clutter
+            elif gap > p.max_coast_s or t.cov[0, 0] + t.cov[1, 1] > p.max_position_var:
+                t.status = TrackStatus.DELETED
+                result.deleted.append(self._view(t, stamp))
+                if t.gallery is not None and len(t.gallery):
+                    self.memory.archive(t.id, t.gallery.descriptors)
+                continue
+            keep.append(t)
+        self.tracks = keep
+
+    def _birth(self, dets: list[int], positions: np.ndarray, descriptors: np.ndarray | None, has_desc: np.ndarray,
+               p_det: np.ndarray, stamp: float) -> None:
+        for d in dets:
+            mean, _ = kalman.initiate(positions[d], np.zeros(6))
+            t = _Track(0, mean, self._p0.copy(), None, stamp, stamp, is_person=_bayes(0.5, p_det[d]))
+            if has_desc[d] and descriptors is not None:
+                self._add_descriptor(t, descriptors[d])
+            self.tracks.append(t)
+
+    def _confirm(self, result: FrameResult) -> None:
+        p = self.params
+        for t in self.tracks:
+            if t.status is TrackStatus.TENTATIVE and t.confident_hits >= p.n_init and t.is_person >= p.confirm_is_person:
+                t.status, t.ever_confirmed = TrackStatus.CONFIRMED, True
+                t.id, recovered = self._identity(t)
+                result.new_ids.append(t.id)
+                if recovered:
+                    result.recovered_ids.append(t.id)
+
+    def _identity(self, t: _Track) -> tuple[int, bool]:
+        """Algorithm 2 through the calibrated model: a remembered person nearer than ``t_recover``."""
+        model = self.params.appearance
+        if model is None or t.gallery is None or not len(t.gallery) or not self.memory.entries:
+            return self.memory.new_id(), False
+        ids, dist = self.memory.distances(t.gallery.descriptors.mean(axis=0), exclude=self.live_ids())
+        if len(ids):
+            dist = model.from_euclidean(dist)
+            best = int(np.argmin(dist))
+            if dist[best] < model.t_recover:
+                return int(ids[best]), True
+        return self.memory.new_id(), False
+
+    def _add_descriptor(self, t: _Track, desc: np.ndarray) -> None:
+        if t.gallery is None:
+            t.gallery = Gallery(len(desc), self.params.gallery_size)
+        t.gallery.add(desc)
+
+    def _view(self, t: _Track, stamp: float) -> TrackView:
+        return TrackView(t.id, t.status, t.mean.copy(), t.cov.copy(), t.total_hits, 0, max(0.0, stamp - t.first_stamp),
+                         t.last_update, len(t.gallery) if t.gallery else 0, t.ever_confirmed)
+
+    def reported(self, result: FrameResult) -> list[TrackView]:
+        """What to output: confirmed tracks, and coasting ones missed for at most ``report_coast_s``."""
+        limit = self.params.report_coast_s
+        return [v for v in result.tracks if v.status is TrackStatus.CONFIRMED or
+                (v.status is TrackStatus.COASTING and result.stamp - v.last_update <= limit)]
+
+    # ---------------------------------------------------------------- snapshots
+    def snapshot(self) -> RobustTrackerState:
+        return RobustTrackerState([t.copy() for t in self.tracks], self.memory.copy(), self.last_stamp)
+
+    def restore(self, state: RobustTrackerState) -> None:
+        self.tracks = [t.copy() for t in state.tracks]
+        self.memory = state.memory.copy()
+        self.last_stamp = state.last_stamp
+
+    def live_galleries(self) -> list[tuple[int, np.ndarray]]:
+        return [(t.id, t.gallery.descriptors) for t in self.tracks if t.id and t.gallery is not None and len(t.gallery)]
+
+
+def _bayes(p: float, q: float) -> float:
+    """Binary Bayes update of ``p`` with evidence ``q`` (both probabilities)."""
+    num = p * q
+    return float(num / (num + (1 - p) * (1 - q)))
+
+
+def _hungarian(log_odds: np.ndarray, dets: list[int], tracks: list[int]) -> list[tuple[int, int]]:
+    """Maximum total log-odds over the pairs with positive log-odds (others: clutter/new)."""
+    if not dets or not tracks:
+        return []
+    sub = log_odds[np.ix_(dets, tracks)]
+    allowed = sub > 0
+    if not allowed.any():
+        return []
+    cost = np.where(allowed, -sub, 0.0)  # a disallowed pair is worth as much as no pair
+    rows, cols = linear_sum_assignment(cost)
+    return [(dets[i], tracks[j]) for i, j in zip(rows.tolist(), cols.tolist()) if allowed[i, j]]

@@ -54,7 +54,7 @@ class EmbedderService(Node):
         super().__init__(transport, keys, counters)
         self.config = config
         self.backend = backend if backend is not None else build_backend(config)
-        self.card = model_card(backend.card)
+        self.card = model_card(self.backend.card)
         cam = config.camera
         self.frames_sub = self.io.subscribe(keys.frames(cam), RGBDFrame, FRAMES)
         self.dets_sub = self.io.subscribe(keys.detections(cam), Detections, RELIABLE)

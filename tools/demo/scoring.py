@@ -20,7 +20,7 @@ from tools.demo.monitor import Monitor
 from tools.evaluation.evaluate import evaluate_tables, format_table, make_report
 from tools.evaluation.readers import TrackTable
 
-__all__ = ["GroundTruthLog", "score"]
+__all__ = ["GroundTruthLog", "score", "score_rows"]
 
 
 class GroundTruthLog:
@@ -53,6 +53,12 @@ def score(gt: GroundTruthLog, monitor: Monitor, name: str) -> tuple[dict[str, An
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.frames.items() for p in msg.counted()]
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in monitor.all_tracks for tr in t.tracks
                 if t.header.seq in gt.frames]
+    return score_rows(gt_rows, hyp_rows, name)
+
+
+def score_rows(gt_rows: list[tuple[int, int, np.ndarray]], hyp_rows: list[tuple[int, int, np.ndarray]],
+               name: str) -> tuple[dict[str, Any], str]:
+    """(metrics as a dict, Table II as text) of (frame, id, position) rows."""
     mot = evaluate_tables(_table(gt_rows), _table(hyp_rows))
     report = make_report([(name, mot)])
     return report.to_dict(), format_table(report)

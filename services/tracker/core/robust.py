@@ -197,6 +197,8 @@ class RobustTracker:
         self.last_stamp: float | None = None
         self._r = np.diag(np.asarray(params.sigma_r, float) ** 2)
         self._p0 = np.diag([params.sigma0_position ** 2] * 3 + [params.sigma0_velocity ** 2] * 2 + [0.0])
+        #: detections whose covariance was unusable (NaN, asymmetric, not positive definite)
+        self.bad_covariances = 0
 
     # ------------------------------------------------------------------ helpers
     def set_gate(self, appearance: AppearanceModel | None) -> None:
@@ -253,10 +255,22 @@ class RobustTracker:
         return result
 
     def _measurement_cov(self, cov: np.ndarray | None, n: int) -> np.ndarray:
+        """Each detection's R: its own covariance when usable, else ``sigma_r``. A covariance
+        that is not finite, not symmetric or not positive definite is replaced (and counted
+        in ``bad_covariances``)."""
         if cov is None:
             return np.broadcast_to(self._r, (n, 3, 3))
         cov = np.asarray(cov, float).reshape(n, 3, 3)
-        return cov + np.eye(3) * 1e-6
+        sym = 0.5 * (cov + np.swapaxes(cov, 1, 2))
+        ok = np.all(np.isfinite(cov), axis=(1, 2)) & np.all(np.abs(cov - sym) <= 1e-9 + 1e-6 * np.abs(sym), axis=(1, 2))
+        good = np.zeros(n, bool)
+        if ok.any():
+            good[ok] = np.all(np.linalg.eigvalsh(np.where(ok[:, None, None], sym, np.eye(3))[ok]) > 0, axis=1)
+        # seed 002's sigma^2 = sigma_v^2 + sigma_d^2: a fixed part (here the body's extent
+        # around the point the sensor saw) plus the sensor's own, which grows with distance^2
+        out = np.where(good[:, None, None], sym + self._r, self._r)
+        self.bad_covariances += int(n - good.sum())
+        return out
 
     def _predict(self, stamp: float) -> None:
         if not self.tracks or self.last_stamp is None:

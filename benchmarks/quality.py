@@ -113,10 +113,27 @@ def has_profiles() -> bool:
     return "profile" in TrackerConfig.model_fields
 
 
-def project_configs() -> list[tuple[str, TrackerConfig]]:
-    """(label, config) per profile of TrackerConfig, or [("default", TrackerConfig())] without profiles."""
+#: What KITTI's detector scores mean (the data README: a log-odds confidence, "about 2.7
+#: and above is a confident detection"), told to the robust profile as a user tells it
+#: their detector's calibration: P(person) = sigmoid(score), and detections below the
+#: confident level may keep a track alive but never start one. The thesis profile and
+#: the baselines have no such setting.
+KITTI_SCORES = {"center": 0.0, "scale": 1.0, "birth_score": 2.683}
+
+
+def project_configs(scores: dict[str, float] | None = None) -> list[tuple[str, TrackerConfig]]:
+    """(label, config) per profile of TrackerConfig, or [("default", TrackerConfig())] without profiles.
+
+    ``scores``: the detector's score calibration for the robust profile (``robust.scores``).
+    """
     if has_profiles():
-        return [(name, TrackerConfig.model_validate({"profile": name, "memory_path": None})) for name in PROFILES]
+        out = []
+        for name in PROFILES:
+            settings: dict[str, object] = {"profile": name, "memory_path": None}
+            if name == "robust" and scores is not None:
+                settings["robust"] = {"scores": scores}
+            out.append((name, TrackerConfig.model_validate(settings)))
+        return out
     return [("default", TrackerConfig(memory_path=None))]
 
 
@@ -129,8 +146,8 @@ def project_adapter(label: str, config: TrackerConfig, embedding_model: str | No
     return TrackerAdapter(label, run, uses_appearance=True)
 
 
-def project_adapters() -> list[TrackerAdapter]:
-    return [project_adapter(label, cfg) for label, cfg in project_configs()]
+def project_adapters(scores: dict[str, float] | None = None) -> list[TrackerAdapter]:
+    return [project_adapter(label, cfg) for label, cfg in project_configs(scores)]
 
 
 def _positions_only(dets: Detections) -> Detections:
@@ -524,7 +541,8 @@ def main(argv: list[str] | None = None) -> int:
     if kitti.is_dir():
         for label, cut in ((f"score >= {KITTI_SCORE_CUT}", KITTI_SCORE_CUT), ("no score cut", None)):
             title = f"KITTI pedestrians dev (7 sequences, summed), {label}"
-            tables[title] = run_dataset(load_kitti(kitti, cut), trackers)
+            calibrated = project_adapters(KITTI_SCORES) + [t for t in trackers if t.name not in PROFILES]
+            tables[title] = run_dataset(load_kitti(kitti, cut), calibrated)
             print(format_scores(title, tables[title]) + "\n")
     else:
         print(f"KITTI skipped: {kitti} not found\n")

@@ -1,4 +1,4 @@
-"""``perception evaluate``: CLEAR MOT, IDF1, recall errors and ID consistency of a tracker's output."""
+"""``perception evaluate``: CLEAR MOT, IDF1, HOTA, recall errors and ID consistency of a tracker's output."""
 
 from __future__ import annotations
 
@@ -21,20 +21,36 @@ Formats:
   motchallenge  frame,id,left,top,width,height,conf,... (no header); GT rows with conf < 1
                 dropped; a pair matches when 1 - IoU <= 0.5 (IoU >= 0.5).
 
-GT and TRACKS are two files, or two directories holding same-named files (SEQ.csv or
-SEQ.txt; a GT directory may also use MOTChallenge's SEQ/gt/gt.txt): one row per
-sequence and an overall row.
+GT and TRACKS are two files, or two directories holding the sequences' files: one row
+per sequence and an overall row. In a directory, sequence SEQ is SEQ.csv or SEQ.txt
+(a GT directory may also use MOTChallenge's SEQ/gt/gt.txt); a prefix names the file's
+role: gt_SEQ for --gt, tracks_SEQ for --tracks, gt_ignore_SEQ for --gt-ignore (dets_SEQ
+is never read), so one folder can hold them side by side.
+
+Ignore regions (--gt-ignore, tracks format; KITTI's rule): people a tracker is neither
+required nor penalised for, in the GT's columns frame,id,x,y,z. After the matching, a
+track still unmatched but within the gate of an ignored person of that frame is dropped
+from the frame: no hit, no false positive, and left out of IDF1, MT/PT/ML and HOTA.
+The KITTI pedestrian dev set in one go:
+  perception evaluate --gt kitti_ped_dev/ --gt-ignore kitti_ped_dev/ --tracks out/
+  (out/ holding 0000.csv or tracks_0000.csv, ... from perception track)
 
 Prints seed 000's Table II (objects, matches, misses, FP, IDSW, recall errors, MOTP,
-MOTA), then IDF1/IDP/IDR, MT/PT/ML, fragmentations and seed 001's ID consistency.
-A recall error is an ID switch to a hypothesis ID that had earlier been matched to a
-different ground-truth person.
+MOTA), then IDF1/IDP/IDR, MT/PT/ML, fragmentations and seed 001's ID consistency, then
+HOTA, DetA and AssA (Luiten et al. 2021, as TrackEval computes them: the mean over
+alpha = 0.05..0.95 of a per-alpha score). HOTA's similarity is IoU for motchallenge and
+max(0, 1 - d / (2 * threshold)) for tracks (TrackEval's for points: 2 m for the 1 m
+gate, so alpha = 0.5 is the gate). A recall error is an ID switch to a hypothesis ID
+that had earlier been matched to a different ground-truth person.
 """
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gt", required=True, metavar="GT", help="ground-truth file or directory")
     parser.add_argument("--tracks", required=True, metavar="TRACKS", help="tracker output file or directory")
+    parser.add_argument("--gt-ignore", metavar="IGNORE", default=None,
+                        help="tracks format: people neither required nor penalised (frame,id,x,y,z): a file, "
+                             "or a directory holding gt_ignore_SEQ.csv or SEQ.csv per sequence")
     parser.add_argument("--format", dest="fmt", choices=sorted(FORMATS), default="tracks",
                         help="input format (default: tracks)")
     parser.add_argument("--threshold", type=float, default=None,
@@ -47,11 +63,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     if args.fmt == "motchallenge" and args.dims is not None:
         raise CliError("--dims applies to --format tracks only (MOTChallenge files are 2-D boxes)")
+    if args.fmt == "motchallenge" and args.gt_ignore is not None:
+        raise CliError("--gt-ignore applies to --format tracks only (MOTChallenge GT rows with conf < 1 are dropped)")
     if args.threshold is not None and not args.threshold > 0:
         raise CliError(f"--threshold must be a positive number, got {args.threshold}")
     try:
         report = evaluate_sequences(args.gt, args.tracks, fmt=args.fmt, threshold=args.threshold,
-                                    dims=args.dims or 2)
+                                    dims=args.dims or 2, ignore=args.gt_ignore)
     except EvaluationInputError as exc:
         raise CliError(str(exc)) from exc
     if args.json:

@@ -7,17 +7,17 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from tools.evaluation.distances import euclidean_distances, iou_distances
-from tools.evaluation.metrics import ClearMot, ClearMotAccumulator
+from tools.evaluation.distances import distance_similarity, euclidean_distances, iou_distances, iou_similarity
+from tools.evaluation.metrics import ClearMot, ClearMotAccumulator, HotaAccumulator
 from tools.evaluation.readers import EvaluationInputError, TrackTable, read_table
 
-__all__ = ["FORMATS", "Report", "default_threshold", "evaluate_sequences", "evaluate_tables", "format_table",
-           "make_report", "pair_sequences"]
+__all__ = ["FORMATS", "Report", "SequenceFiles", "default_threshold", "evaluate_sequences", "evaluate_tables",
+           "find_sequences", "format_table", "hota_zero_distance", "make_report", "pair_sequences"]
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +44,7 @@ class Report:
     dims: int
     sequences: list[tuple[str, ClearMot]]
     overall: ClearMot
+    ignore: bool = False
 
     @property
     def inclusive(self) -> bool:
@@ -61,40 +62,106 @@ class Report:
         space = "ground plane (x, y)" if self.dims == 2 else "3-D (x, y, z)"
         return f"{space} distance < {self.threshold:g} m"
 
+    @property
+    def hota_similarity(self) -> str:
+        """HOTA's similarity of a pair, in words."""
+        if self.fmt == "motchallenge":
+            return "IoU"
+        return f"max(0, 1 - d / {hota_zero_distance(self.threshold):g} m)"
+
     def to_dict(self) -> dict[str, object]:
         return {
             "format": self.fmt,
             "threshold": self.threshold,
             "match_rule": self.match_rule,
+            "hota_similarity": self.hota_similarity,
+            "ignore_regions": self.ignore,
             "dims": self.dims if self.fmt == "tracks" else 2,
             "sequences": {name: result.to_dict() for name, result in self.sequences},
             "overall": self.overall.to_dict(),
         }
 
 
-def evaluate_tables(gt: TrackTable, hyp: TrackTable, fmt: str = "tracks", threshold: float | None = None) -> ClearMot:
-    """CLEAR MOT of one sequence over the union of the frames of both tables."""
+def hota_zero_distance(threshold: float) -> float:
+    """Distance at which the tracks format's HOTA similarity reaches 0: twice the match threshold.
+
+    With the 1 m gate this is TrackEval's 2 m for points, so alpha = 0.5 is the gate.
+    """
+    return 2.0 * threshold
+
+
+def evaluate_tables(gt: TrackTable, hyp: TrackTable, fmt: str = "tracks", threshold: float | None = None,
+                    ignore: TrackTable | None = None) -> ClearMot:
+    """CLEAR MOT, IDF1 and HOTA of one sequence over the union of the frames of ``gt`` and ``hyp``.
+
+    ``ignore`` (optional): people neither required nor penalised, same columns as ``gt``.
+    A hypothesis left unmatched by the CLEAR MOT matching but within the gate of one of
+    them in the same frame is removed from that frame before any metric counts it.
+    HOTA's similarity is IoU for ``motchallenge`` and ``max(0, 1 - d / (2 * threshold))``
+    for ``tracks`` (:func:`hota_zero_distance`).
+    """
     threshold = default_threshold(fmt) if threshold is None else threshold
     distance = iou_distances if fmt == "motchallenge" else euclidean_distances
     if len(gt) and len(hyp) and gt.values.shape[1] != hyp.values.shape[1]:
         raise ValueError(f"ground truth has {gt.values.shape[1]} values per row, tracks {hyp.values.shape[1]}")
+    if ignore is not None and len(ignore) and len(hyp) and ignore.values.shape[1] != hyp.values.shape[1]:
+        raise ValueError(f"ignore regions have {ignore.values.shape[1]} values per row, tracks {hyp.values.shape[1]}")
     acc = ClearMotAccumulator(threshold, inclusive=FORMATS[fmt][1])
+    hota = HotaAccumulator()
+    zero_distance = hota_zero_distance(threshold)
     gt_rows, hyp_rows = gt.frame_slices(), hyp.frame_slices()
+    ignore_rows = ignore.frame_slices() if ignore is not None else {}
     none = slice(0, 0)
     for frame in sorted(gt_rows.keys() | hyp_rows.keys()):
         g, h = gt_rows.get(frame, none), hyp_rows.get(frame, none)
         gt_ids, hyp_ids = gt.ids[g], hyp.ids[h]
         dist = distance(gt.values[g], hyp.values[h]) if gt_ids.size and hyp_ids.size else None
-        acc.update(gt_ids, hyp_ids, dist)
-    return acc.result()
+        ignore_dist = None
+        if ignore is not None and frame in ignore_rows and hyp_ids.size:
+            ignore_dist = distance(hyp.values[h], ignore.values[ignore_rows[frame]])
+        events = acc.update(gt_ids, hyp_ids, dist, ignore_dist)
+        hyp_values = hyp.values[h]
+        if events.ignored:  # HOTA sees the frame without the dropped hypotheses
+            keep = ~np.isin(hyp_ids, events.ignored)
+            hyp_ids, hyp_values = hyp_ids[keep], hyp_values[keep]
+            dist = dist[:, keep] if dist is not None and keep.any() else None
+        similarity = None
+        if dist is not None:
+            if fmt == "motchallenge":
+                similarity = iou_similarity(gt.values[g], hyp_values)
+            else:
+                similarity = distance_similarity(dist, zero_distance)
+        hota.update(gt_ids, hyp_ids, similarity)
+    return replace(acc.result(), hota_counts=hota.result())
 
 
-def _sequence_files(directory: Path) -> dict[str, Path]:
-    """Sequence name -> file: ``NAME.csv``/``NAME.txt``, or MOTChallenge's ``NAME/gt/gt.txt``."""
+#: File-name prefixes that say which role a file plays in a directory (KITTI dev set:
+#: gt_SEQ.csv, gt_ignore_SEQ.csv, dets_SEQ.csv side by side). Longest first.
+_ROLE_PREFIXES: tuple[tuple[str, str], ...] = (("gt_ignore_", "ignore"), ("gt_", "gt"), ("tracks_", "tracks"),
+                                               ("dets_", "dets"))
+
+
+def _split_role(stem: str) -> tuple[str | None, str]:
+    """(role, sequence name) of a file stem: ``gt_ignore_0000`` -> ("ignore", "0000"); ``still`` -> (None, "still")."""
+    for prefix, role in _ROLE_PREFIXES:
+        if stem.startswith(prefix) and len(stem) > len(prefix):
+            return role, stem[len(prefix):]
+    return None, stem
+
+
+def _sequence_files(directory: Path, role: str = "gt") -> dict[str, Path]:
+    """Sequence name -> file of ``role`` in ``directory``.
+
+    ``NAME.csv``/``NAME.txt`` or MOTChallenge's ``NAME/gt/gt.txt`` is sequence NAME for any
+    role; ``gt_NAME``, ``gt_ignore_NAME`` and ``tracks_NAME`` are sequence NAME for the
+    ground truth, the ignore regions and the tracks only; ``dets_NAME`` (detections) for none.
+    """
     found: dict[str, Path] = {}
     for p in sorted(directory.iterdir()):
         if p.is_file() and p.suffix.lower() in _SUFFIXES:
-            name = p.stem
+            file_role, name = _split_role(p.stem)
+            if file_role is not None and file_role != role:
+                continue
         elif p.is_dir() and (p / "gt" / "gt.txt").is_file():
             name, p = p.name, p / "gt" / "gt.txt"
         else:
@@ -106,55 +173,104 @@ def _sequence_files(directory: Path) -> dict[str, Path]:
 
 
 def _sequence_name(path: Path) -> str:
-    """A file's sequence name; ``SEQ/gt.txt`` and ``SEQ/gt/gt.txt`` are named SEQ."""
+    """A file's sequence name; ``SEQ/gt.txt`` and ``SEQ/gt/gt.txt`` are named SEQ, ``gt_SEQ.csv`` too."""
     parts = [path.stem, *(p.name for p in path.parents)]
-    return next((n for n in parts if n and n != "gt"), path.stem)
+    name = next((n for n in parts if n and n != "gt"), path.stem)
+    return _split_role(name)[1]
 
 
-def pair_sequences(gt: Path, tracks: Path) -> list[tuple[str, Path, Path]]:
-    """(name, gt file, tracks file) for two files, or for two directories of same-named files."""
-    if not gt.exists():
-        raise EvaluationInputError(f"{gt}: no such file or directory")
-    if not tracks.exists():
-        raise EvaluationInputError(f"{tracks}: no such file or directory")
+@dataclass(frozen=True)
+class SequenceFiles:
+    """The files of one sequence; ``ignore`` is None when it has no ignore regions."""
+
+    name: str
+    gt: Path
+    tracks: Path
+    ignore: Path | None = None
+
+
+def find_sequences(gt: Path, tracks: Path, ignore: Path | None = None) -> list[SequenceFiles]:
+    """The sequences to evaluate: two files, or two directories matched on sequence names.
+
+    ``ignore`` (optional) is a file with file inputs, or a directory: a sequence's ignore
+    file there is ``gt_ignore_SEQ`` or ``SEQ`` (.csv/.txt). With directories, a sequence
+    without one has no ignore regions (a warning), but a directory matching none is an error.
+    """
+    for path in (gt, tracks, ignore):
+        if path is not None and not path.exists():
+            raise EvaluationInputError(f"{path}: no such file or directory")
     if gt.is_file() and tracks.is_file():
-        return [(_sequence_name(gt), gt, tracks)]
+        name = _sequence_name(gt)
+        if ignore is None or ignore.is_file():
+            return [SequenceFiles(name, gt, tracks, ignore)]
+        found = _sequence_files(ignore, "ignore").get(name)
+        if found is None:
+            raise EvaluationInputError(f"{ignore}: no ignore file for sequence {name!r} "
+                                       f"(expected e.g. {ignore / ('gt_ignore_' + name + '.csv')})")
+        return [SequenceFiles(name, gt, tracks, found)]
     if gt.is_file() or tracks.is_file():
         raise EvaluationInputError(f"give two files or two directories, not {gt} and {tracks}")
-    gt_files, track_files = _sequence_files(gt), _sequence_files(tracks)
+    if ignore is not None and ignore.is_file():
+        raise EvaluationInputError(
+            f"--gt and --tracks are directories, so the ignore regions must be one too, not {ignore}")
+    gt_files, track_files = _sequence_files(gt, "gt"), _sequence_files(tracks, "tracks")
     if not gt_files:
-        raise EvaluationInputError(f"{gt}: no ground-truth files (*.csv, *.txt or SEQ/gt/gt.txt)")
+        raise EvaluationInputError(f"{gt}: no ground-truth files (*.csv, *.txt, gt_SEQ.csv or SEQ/gt/gt.txt)")
     lacking = sorted(gt_files.keys() - track_files.keys())
     if lacking:
         raise EvaluationInputError(
             f"{tracks}: no tracks file for sequence(s) {', '.join(lacking)} (expected e.g. {tracks / (lacking[0] + '.csv')})")
     for extra in sorted(track_files.keys() - gt_files.keys()):
         log.warning("%s has no ground truth in %s; not evaluated", track_files[extra], gt)
-    return [(name, gt_files[name], track_files[name]) for name in sorted(gt_files)]
+    ignore_files: dict[str, Path] = {}
+    if ignore is not None:
+        ignore_files = _sequence_files(ignore, "ignore")
+        if not ignore_files.keys() & gt_files.keys():
+            raise EvaluationInputError(f"{ignore}: no ignore file for any sequence of {gt} "
+                                       f"(expected e.g. {ignore / ('gt_ignore_' + min(gt_files) + '.csv')})")
+        for name in sorted(gt_files.keys() - ignore_files.keys()):
+            log.warning("sequence %s has no ignore file in %s; evaluated without ignore regions", name, ignore)
+        for extra in sorted(ignore_files.keys() - gt_files.keys()):
+            log.warning("%s has no ground truth in %s; not used", ignore_files[extra], gt)
+    return [SequenceFiles(name, gt_files[name], track_files[name], ignore_files.get(name)) for name in sorted(gt_files)]
+
+
+def pair_sequences(gt: Path, tracks: Path) -> list[tuple[str, Path, Path]]:
+    """(name, gt file, tracks file) for two files, or for two directories of same-named files."""
+    return [(s.name, s.gt, s.tracks) for s in find_sequences(gt, tracks)]
 
 
 def evaluate_sequences(gt: Path | str, tracks: Path | str, fmt: str = "tracks", threshold: float | None = None,
-                       dims: int = 2) -> Report:
-    """Evaluate files or directories of sequences; raises :class:`EvaluationInputError` on bad input."""
+                       dims: int = 2, ignore: Path | str | None = None) -> Report:
+    """Evaluate files or directories of sequences; raises :class:`EvaluationInputError` on bad input.
+
+    ``ignore``: a file or directory of ignore regions (tracks format only), see :func:`find_sequences`.
+    """
     if fmt not in FORMATS:
         raise ValueError(f"unknown format {fmt!r}; expected one of {', '.join(FORMATS)}")
+    if ignore is not None and fmt != "tracks":
+        raise ValueError("ignore regions apply to the tracks format only (MOTChallenge drops GT rows with conf < 1)")
     threshold = default_threshold(fmt) if threshold is None else float(threshold)
     if not np.isfinite(threshold) or threshold <= 0:
         raise ValueError(f"threshold must be a positive number, got {threshold}")
     results: list[tuple[str, ClearMot]] = []
-    for name, gt_path, tracks_path in pair_sequences(Path(gt), Path(tracks)):
-        gt_table = read_table(gt_path, fmt, ground_truth=True, dims=dims)
-        hyp_table = read_table(tracks_path, fmt, ground_truth=False, dims=dims)
-        results.append((name, evaluate_tables(gt_table, hyp_table, fmt, threshold)))
-    return make_report(results, fmt, threshold, dims)
+    for seq in find_sequences(Path(gt), Path(tracks), None if ignore is None else Path(ignore)):
+        gt_table = read_table(seq.gt, fmt, ground_truth=True, dims=dims)
+        hyp_table = read_table(seq.tracks, fmt, ground_truth=False, dims=dims)
+        ignore_table = read_table(seq.ignore, fmt, ground_truth=True, dims=dims) if seq.ignore is not None else None
+        results.append((seq.name, evaluate_tables(gt_table, hyp_table, fmt, threshold, ignore=ignore_table)))
+    return make_report(results, fmt, threshold, dims, ignore=ignore is not None)
 
 
 def make_report(results: list[tuple[str, ClearMot]], fmt: str = "tracks", threshold: float | None = None,
-                dims: int = 2) -> Report:
-    """A :class:`Report` from per-sequence results computed elsewhere (e.g. by :func:`evaluate_tables`)."""
+                dims: int = 2, ignore: bool = False) -> Report:
+    """A :class:`Report` from per-sequence results computed elsewhere (e.g. by :func:`evaluate_tables`).
+
+    ``ignore``: whether ignore regions were used (the table then shows the dropped tracks).
+    """
     threshold = default_threshold(fmt) if threshold is None else float(threshold)
     return Report(fmt=fmt, threshold=threshold, dims=dims, sequences=list(results),
-                  overall=ClearMot.combine(r for _, r in results))
+                  overall=ClearMot.combine(r for _, r in results), ignore=ignore)
 
 
 def _pct(x: float) -> str:
@@ -176,13 +292,25 @@ def format_table(report: Report) -> str:
               str(r.false_positives), _num(r.percent(r.false_positives), 2), str(r.id_switches),
               _num(r.percent(r.id_switches), 2), str(r.recall_errors), _num(r.motp), _pct(r.mota)]
              for name, r in rows]
+    if report.ignore:  # the tracks dropped by ignore regions, after FP%
+        clear_head.insert(7, "ignored")
+        for row, (_, r) in zip(clear, rows):
+            row.insert(7, str(r.ignored))
     id_head = ["sequence", "IDF1%", "IDP%", "IDR%", "MT", "PT", "ML", "frag", "consistency%", "ID histogram (top 5, %)"]
     ident = [[name, _pct(r.idf1), _pct(r.idp), _pct(r.idr), str(r.mostly_tracked), str(r.partially_tracked),
               str(r.mostly_lost), str(r.fragmentations), _pct(r.consistency),
               " ".join(f"{100 * b:.1f}" for b in r.consistency_histogram[:5]) or "-"]
              for name, r in rows]
+    hota_head = ["sequence", "HOTA%", "DetA%", "AssA%", "DetRe%", "DetPr%", "AssRe%", "AssPr%", "LocA%"]
+    hota = [[name, *(_pct(getattr(r.hota_counts, k)) if r.hota_counts is not None else "-"
+                     for k in ("hota", "deta", "assa", "detre", "detpr", "assre", "asspr", "loca"))]
+            for name, r in rows]
     title = f"CLEAR MOT ({report.fmt}; a pair matches when {report.match_rule})"
-    return "\n".join([title, _render(clear_head, clear), "", _render(id_head, ident)])
+    if report.ignore:
+        title += "; tracks unmatched within the gate of an ignored person dropped"
+    hota_title = f"HOTA (mean over alpha = 0.05..0.95; similarity {report.hota_similarity})"
+    return "\n".join([title, _render(clear_head, clear), "", _render(id_head, ident), "", hota_title,
+                      _render(hota_head, hota)])
 
 
 def _render(head: list[str], rows: list[list[str]]) -> str:

@@ -10,11 +10,13 @@ from services.tracker.config import TrackerConfig
 from services.tracker.service import TrackerService
 
 DESCRIPTION = """\
-Track people in 3-D with the thesis's Re-ID tracker (seed 000): Kalman filters,
-appearance association gated by position (Algorithm 1), an ID memory that gives a
-returning person their old ID (Algorithm 2). Subscribes to the localizer's
-LocalizedDetections and the embedder's Embeddings, publishes the Confirmed tracks
-after every frame, and answers `?id=K` queries on the track query key.
+Track people in 3-D: Kalman filters, association by position, appearance and detector
+confidence, an ID memory that gives a returning person their old ID (the thesis's
+Algorithm 2). Profile 'robust' (default) fuses the cues of all four seeds and publishes
+confirmed and briefly coasting tracks; 'thesis' is seed 000 exactly (Algorithm 1,
+Confirmed tracks only). Subscribes to the localizer's LocalizedDetections and the
+embedder's Embeddings, publishes Tracks after every frame, and answers `?id=K`
+queries on the track query key.
 
 Settings come from defaults (the paper's values) <- --service-config FILE (section
 'tracker' if present) <- PERCEPTION_TRACKER__FIELD environment variables <- flags.

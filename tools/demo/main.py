@@ -36,7 +36,7 @@ from tools.launcher.supervisor import ProcessSpec, Supervisor
 DESCRIPTION = """\
 Run the whole system on a simulated RGB-D apartment with the embedded defaults: a local
 Zenoh router, the detector (depth clusters), localizer, embedder (colour descriptor) and
-tracker (the thesis's tracker with the colour descriptor's thresholds), and the simulator,
+tracker (the robust profile with the colour descriptor's thresholds), and the simulator,
 each as a separate process. A live view shows the confirmed tracks, the frame rate and the
 latency per stage; at the end the tracks are scored against the simulator's ground truth
 (objects, misses, FP, ID switches, recall errors, MOTP, MOTA). Ctrl-C ends the run early

@@ -24,7 +24,7 @@ from services.embedder.core.onnx_model import OnnxParams
 from services.localizer.config import LocalizerConfig
 from services.localizer.core import DepthNoiseModel, LocalizerParams
 from services.tracker.config import TrackerConfig
-from services.tracker.core import AppearanceGate, TrackerParams
+from services.tracker.core import AppearanceGate
 
 
 def core_defaults(cls: type) -> dict[str, Any]:

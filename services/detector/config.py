@@ -155,7 +155,6 @@ class DetectorConfig(_Section):
     camera: str = Field(default="head", min_length=1, description="camera name in the frame and detection keys")
     backend: Backend = "hog"
     depth_available: bool = Field(default=True, description="whether the camera publishes registered depth")
-    recv_timeout_s: float = Field(default=0.5, gt=0.0, description="how long one wait for a frame lasts")
     hog: HogConfig = Field(default_factory=HogConfig)
     depth: DepthConfig = Field(default_factory=DepthConfig)
     yolo: YoloOnnxConfig = Field(default_factory=YoloOnnxConfig)

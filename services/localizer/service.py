@@ -68,8 +68,7 @@ class _DepthFrame:
 
 
 #: What the localizer calls each of the joiner's drop reasons (``dropped_<name>``).
-_DROP_NAMES = {"timeout": "no_depth_frame", "lost": "no_depth_frame", "overflow": "pending_overflow",
-               "duplicate": "duplicate", "late": "duplicate"}
+_DROP_NAMES = {"overflow": "pending_overflow", "duplicate": "duplicate", "late": "duplicate"}
 
 
 class LocalizerService(Node):

@@ -241,6 +241,14 @@ class TrackerConfig(BaseModel):
             return Tracker(self.params(thresholds), memory)
         return RobustTracker(self.robust.params(self.appearance_model(thresholds, metric), self.memory_size), memory)
 
+    def apply_thresholds(self, tracker: Tracker | RobustTracker, thresholds: AppearanceConfig,
+                         metric: str | None = None) -> None:
+        """Give ``tracker`` a model's thresholds (e.g. once its model card is known)."""
+        if isinstance(tracker, RobustTracker):
+            tracker.set_gate(self.appearance_model(thresholds, metric))
+        else:
+            tracker.set_gate(self.gate(thresholds), thresholds.t_recover)
+
     @property
     def uses_detection_covariance(self) -> bool:
         return self.robust.use_detection_covariance if self.profile == "robust" else self.use_detection_covariance

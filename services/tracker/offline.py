@@ -94,22 +94,18 @@ def track(dets: Detections, tracker: Tracker | RobustTracker | TrackerParams) ->
     """Run ``tracker`` over every frame; one row ``(frame, stamp, id, x, y, z, status)`` per
     reported track per frame (Confirmed, and for the robust profile recently coasting ones).
 
-    ``TrackerParams`` builds the thesis's tracker. The robust tracker also gets each
-    detection's score.
+    ``TrackerParams`` builds the thesis's tracker. Each detection's score is passed on
+    (the robust profile uses it).
     """
     if isinstance(tracker, TrackerParams):
         tracker = Tracker(tracker)
     frames, stamps = frame_stamps(dets)
     starts = np.searchsorted(dets.frames, frames, side="left")
     ends = np.searchsorted(dets.frames, frames, side="right")
-    robust = isinstance(tracker, RobustTracker)
     rows: list[Row] = []
     for frame, stamp, a, b in zip(frames.tolist(), stamps.tolist(), starts.tolist(), ends.tolist()):
         desc = dets.descriptors[a:b] if dets.descriptors is not None else None
-        if robust:
-            result = tracker.update(stamp, dets.positions[a:b], desc, None, dets.scores[a:b])
-        else:
-            result = tracker.update(stamp, dets.positions[a:b], desc)
+        result = tracker.update(stamp, dets.positions[a:b], desc, None, dets.scores[a:b])
         for view in tracker.reported(result):
             x, y, z = view.mean[:3].tolist()
             rows.append((frame, stamp, view.id, x, y, z, view.status.value))

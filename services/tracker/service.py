@@ -7,7 +7,8 @@
   make their frame wait.
 * Joined frames go through a :class:`ReorderBuffer`: applied in sensor-time order,
   rewinding for late ones within ``reorder_window_s``, dropping (and counting) older ones.
-* After every update the Confirmed tracks are published. ``keys.track_query()`` answers
+* After every update the tracker's output is published: the Confirmed tracks, and
+  with the robust profile tracks coasting through a short miss (status ``coasting``). ``keys.track_query()`` answers
   ``?id=K`` with a Tracks message holding that ID's last known state (empty if unknown).
 * The ID memory is loaded at start and written atomically when it changes, and every
   ``memory_save_period_s`` with the galleries of the live tracks, so a restarted tracker
@@ -33,7 +34,6 @@ from common.schemas import Embeddings, Header, LocalizedDetections, ModelCard, T
 from common.transport import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of, track_state, tracks_message
-from services.tracker.core.robust import RobustTracker
 from services.tracker.core.tracker import FrameResult, TrackerState
 from services.tracker.memory_file import load_memory, save_memory
 from services.tracker.reorder import InputKey, ReorderBuffer
@@ -75,6 +75,7 @@ class TrackerService(Node):
         th = config.thresholds(self.model) if self.model else None
         self.tracker = config.build_tracker(th, memory)
         self._have_thresholds = th is not None
+        self._card_applied = False
         self._epoch_ns: int | None = None
         self.join: Joiner[LocalizedDetections] = Joiner(
             ("localized", "embeddings"), wait_s=config.join_wait_s, on_timeout="release",
@@ -109,17 +110,15 @@ class TrackerService(Node):
         if card.name != self.model or (self._dim is not None and card.dim != self._dim):
             return False
         self._dim = card.dim
-        if not self._have_thresholds:
+        if not self._card_applied:  # the first card: its thresholds if needed, and its metric
+            self._card_applied = True
             th = self.config.thresholds(card.name)
             if th is None and card.thresholds is not None:
                 log.warning("no thresholds for embedding model %r in the tracker config; using the model card's %s",
                             card.name, card.thresholds.model_dump())
                 th = AppearanceConfig(**card.thresholds.model_dump())
             if th is not None:
-                if isinstance(self.tracker, RobustTracker):
-                    self.tracker.set_gate(self.config.appearance_model(th, card.metric))
-                else:
-                    self.tracker.set_gate(self.config.gate(th), th.t_recover)
+                self.config.apply_thresholds(self.tracker, th, card.metric)
                 self._have_thresholds = True
         return True
 
@@ -169,11 +168,8 @@ class TrackerService(Node):
             self.counters.count("no_thresholds")
         stamp = (loc.header.stamp_ns - self._epoch_ns) / 1e9
         covs_used = covs if self.config.uses_detection_covariance else None
-        if isinstance(self.tracker, RobustTracker):
-            scores = np.array([d.score for d in loc.detections], np.float64)
-            result = self.tracker.update(stamp, positions, descriptors, covs_used, scores)
-        else:
-            result = self.tracker.update(stamp, positions, descriptors, covs_used)
+        scores = np.array([d.score for d in loc.detections], np.float64)
+        result = self.tracker.update(stamp, positions, descriptors, covs_used, scores)
         self._ever_confirmed.update(v.id for v in result.confirmed)
         self.counters.count("updates")
         if not result.appearance_available and loc.detections:

@@ -65,7 +65,6 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         # a second round lets the tracker see the embeddings the embedder just published
         for node in nodes[2:]:
             node.poll(clock)
-        nodes[-1].poll(clock + 1.0)  # past the join wait: nothing is left pending
         while (g := gt_sub.try_recv()) is not None:
             gt[g.msg.header.seq] = g.msg
         while (t := tracks_sub.try_recv()) is not None:

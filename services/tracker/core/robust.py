@@ -325,15 +325,10 @@ class RobustTracker:
         tentative = [j for j, t in enumerate(self.tracks) if t.status is TrackStatus.TENTATIVE]
         high = np.flatnonzero(confident).tolist()
         low = np.flatnonzero(~confident).tolist()
-        matches: list[tuple[int, int]] = []
-        for dets, tracks in ((high, established), (low, None), (None, tentative)):
-            if dets is None:  # confident detections not yet matched
-                used = {d for d, _ in matches}
-                dets = [d for d in high if d not in used]
-            if tracks is None:  # established tracks not yet matched
-                used_t = {t for _, t in matches}
-                tracks = [j for j in established if j not in used_t]
-            matches += _hungarian(log_odds, dets, tracks)
+        matches = _hungarian(log_odds, high, established)
+        taken_d, taken_t = {d for d, _ in matches}, {j for _, j in matches}
+        matches += _hungarian(log_odds, low, [j for j in established if j not in taken_t])
+        matches += _hungarian(log_odds, [d for d in high if d not in taken_d], tentative)
         return matches
 
     def _update_matched(self, matches: list[tuple[int, int]], positions: np.ndarray, r: np.ndarray,

@@ -27,8 +27,8 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from services.tracker.config import TrackerConfig  # noqa: E402
-from services.tracker.core import Gallery, Tracker  # noqa: E402
+from services.tracker.config import PROFILES, TrackerConfig  # noqa: E402
+from services.tracker.core import Gallery  # noqa: E402
 from services.tracker.offline import read_detections, track, write_tracks  # noqa: E402
 
 DIM = 128
@@ -53,11 +53,12 @@ def observe(looks: np.ndarray, pos: np.ndarray, rng: np.random.Generator) -> tup
 def bench_update(people: int, gallery: int, reps: int, config: TrackerConfig) -> tuple[float, float]:
     """(median, p95) in ms of one update with ``people`` tracks holding full galleries."""
     rng = np.random.default_rng(people * 1000 + gallery)
-    params = config.model_copy(update={"gallery_size": gallery}).params(config.thresholds("colour"))
-    tracker = Tracker(params)
+    sized = config.model_copy(update={"gallery_size": gallery,
+                                      "robust": config.robust.model_copy(update={"gallery_size": gallery})})
+    tracker = sized.build_tracker(config.thresholds("colour"))
     looks, pos = make_people(people, rng)
     t = 0.0
-    for _ in range(params.n_init):
+    for _ in range(tracker.params.n_init):
         tracker.update(t, *observe(looks, pos, rng))
         t += 1 / FPS
     for track_ in tracker.tracks:  # fill every gallery to capacity with views of its person
@@ -103,27 +104,29 @@ def main() -> None:
     parser.add_argument("--people", type=int, nargs="+", default=[1, 5, 10, 20, 50])
     parser.add_argument("--gallery", type=int, nargs="+", default=[10, 100, 500])
     parser.add_argument("--offline-frames", type=int, default=600, help="frames of the `track` throughput file")
+    parser.add_argument("--profiles", nargs="+", default=list(PROFILES), choices=PROFILES, help="tracker profiles to time")
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
-    config = TrackerConfig(memory_path=None)
     print(f"tracker update, ms (median / p95), {DIM}-D descriptors, {args.reps} updates per case")
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, python {platform.python_version()}, numpy {np.__version__}, "
           f"BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}")
-    print()
-    print("| people | " + " | ".join(f"gallery {g}" for g in args.gallery) + " |")
-    print("|---:|" + "---:|" * len(args.gallery))
-    for n in args.people:
-        cells = []
-        for g in args.gallery:
-            med, p95 = bench_update(n, g, args.reps, config)
-            cells.append(f"{med:.3f} / {p95:.3f}")
-        print(f"| {n} | " + " | ".join(cells) + " |", flush=True)
-    print()
-    with tempfile.TemporaryDirectory() as tmp:
-        for people in (3, 10):
-            core_fps, total_fps = bench_offline(people, args.offline_frames, config, Path(tmp))
-            print(f"perception track, {people} people, {args.offline_frames} frames with {DIM}-D embeddings: "
-                  f"{core_fps:.0f} frames/s tracking, {total_fps:.0f} frames/s including CSV read/write")
+    for profile in args.profiles:
+        config = TrackerConfig(memory_path=None, profile=profile)
+        print(f"\nprofile {profile}\n")
+        print("| people | " + " | ".join(f"gallery {g}" for g in args.gallery) + " |")
+        print("|---:|" + "---:|" * len(args.gallery))
+        for n in args.people:
+            cells = []
+            for g in args.gallery:
+                med, p95 = bench_update(n, g, args.reps, config)
+                cells.append(f"{med:.3f} / {p95:.3f}")
+            print(f"| {n} | " + " | ".join(cells) + " |", flush=True)
+        print()
+        with tempfile.TemporaryDirectory() as tmp:
+            for people in (3, 10):
+                core_fps, total_fps = bench_offline(people, args.offline_frames, config, Path(tmp))
+                print(f"perception track ({profile}), {people} people, {args.offline_frames} frames with {DIM}-D "
+                      f"embeddings: {core_fps:.0f} frames/s tracking, {total_fps:.0f} frames/s including CSV read/write")
 
 
 if __name__ == "__main__":

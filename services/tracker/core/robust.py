@@ -414,6 +414,19 @@ class RobustTracker:
         return TrackView(t.id, t.status, t.mean.copy(), t.cov.copy(), t.total_hits, 0, max(0.0, stamp - t.first_stamp),
                          t.last_update, len(t.gallery) if t.gallery else 0, t.ever_confirmed)
 
+    def restart_clock(self) -> list[int]:
+        """End every live track and forget the clock, keeping the ID memory (a clock jump:
+        a replay that loops, a sensor clock reset). Each confirmed track's gallery goes to
+        the memory, so a person seen again after the jump gets their ID back; returns the
+        ended IDs (tentative tracks have none and are dropped)."""
+        ended = [t.id for t in self.tracks if t.id]
+        for t in self.tracks:
+            if t.id and t.gallery is not None and len(t.gallery):
+                self.memory.archive(t.id, t.gallery.descriptors)
+        self.tracks = []
+        self.last_stamp = None
+        return ended
+
     def reported(self, result: FrameResult) -> list[TrackView]:
         """What to output: confirmed tracks, and coasting ones missed for at most ``report_coast_s``."""
         limit = self.params.report_coast_s

@@ -364,6 +364,19 @@ class Tracker:
         self._pending = [(i, g.copy()) for i, g in state.pending]
         self.last_stamp = state.last_stamp
 
+    def restart_clock(self) -> list[int]:
+        """End every live track and forget the clock, keeping the ID memory (a clock jump:
+        a replay that loops, a sensor clock reset). Each track's gallery goes to the memory,
+        so a person seen again after the jump gets their ID back; returns the ended IDs."""
+        ended = [t.id for t in self.tracks]
+        for t in self.tracks:
+            if t.gallery is not None and len(t.gallery):
+                self.memory.archive(t.id, t.gallery.descriptors)
+        self._flush_pending()
+        self.tracks = []
+        self.last_stamp = None
+        return ended
+
     def reported(self, result: FrameResult) -> list[TrackView]:
         """The tracker's output for ``result``: the Confirmed tracks (seed 000)."""
         return result.confirmed

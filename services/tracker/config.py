@@ -16,8 +16,14 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from services.tracker.core import AppearanceGate, TrackerParams
+from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.identity import IdentityMemory
-from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker, ScoreModel
+from services.tracker.core.robust import (
+    AppearanceModel,
+    RobustParams,
+    RobustTracker,
+    ScoreModel,
+)
 from services.tracker.core.tracker import Tracker
 
 __all__ = ["DEFAULT_APPEARANCE", "DEFAULT_EMBEDDING_MODEL", "PROFILES", "AppearanceConfig", "RobustConfig",
@@ -97,6 +103,26 @@ class ScoreConfig(BaseModel):
         return ScoreModel(self.center, self.scale, self.default_p, self.birth_score)
 
 
+_CL = ClassifierParams()
+
+
+class ClassifierConfig(BaseModel):
+    """Seed 002's online per-track appearance classifiers (services/tracker/core/classifier.py)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    enabled: bool = Field(default=True, description="train one classifier per track and use it")
+    rate: float = Field(default=_CL.rate, gt=0.0, description="SGD step")
+    l2: float = Field(default=_CL.l2, ge=0.0, lt=1.0, description="weight decay per step")
+    clip: float = Field(default=_CL.clip, gt=0.0, description="bound on a classifier's log-odds")
+    weight: float = Field(default=_CL.weight, ge=0.0, description="weight of its log-odds in the association")
+    recover_score: float = Field(default=_CL.recover_score,
+                                 description="mean log-odds that gives a remembered person's ID back")
+
+    def params(self) -> ClassifierParams | None:
+        return ClassifierParams(self.rate, self.l2, self.clip, self.weight, self.recover_score) if self.enabled else None
+
+
 class RobustConfig(BaseModel):
     """The ``robust`` profile's settings (services/tracker/README.md explains each)."""
 
@@ -126,10 +152,12 @@ class RobustConfig(BaseModel):
     max_position_var: float = Field(default=_R.max_position_var, gt=0.0,
                                     description="a track whose (x, y) variance trace passes this is deleted (m^2)")
     gallery_size: int = Field(default=_R.gallery_size, ge=1, le=100_000, description="max descriptors per track")
+    classifier: ClassifierConfig = Field(default_factory=ClassifierConfig)
 
     def params(self, appearance: AppearanceModel | None, memory_size: int) -> RobustParams:
-        fields = self.model_dump(exclude={"scores", "use_detection_covariance"})
-        return RobustParams(**fields, appearance=appearance, scores=self.scores.model(), memory_size=memory_size)
+        fields = self.model_dump(exclude={"scores", "use_detection_covariance", "classifier"})
+        return RobustParams(**fields, appearance=appearance, scores=self.scores.model(), memory_size=memory_size,
+                            classifier=self.classifier.params())
 
 
 class TrackerConfig(BaseModel):

@@ -55,7 +55,9 @@ from typing import Literal
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from services.tracker.core import classifier as clf
 from services.tracker.core import kalman
+from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.gallery import Gallery
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.tracker import FrameResult, TrackStatus, TrackView
@@ -142,6 +144,8 @@ class RobustParams:
     max_position_var: float = 4.0  # m^2, trace of the (x, y) covariance
     gallery_size: int = 100
     memory_size: int = 500
+    #: seed 002's online per-track appearance classifiers; None: off
+    classifier: ClassifierParams | None = field(default_factory=ClassifierParams)
 
     def __post_init__(self) -> None:
         if self.n_init < 1:
@@ -169,6 +173,8 @@ class _Track:
     total_hits: int = 1
     is_person: float = 0.5  # probability
     ever_confirmed: bool = False
+    clf: np.ndarray | None = None  # online classifier weights (D + 1), once trained
+    clf_steps: int = 0
 
     def copy(self) -> _Track:
         return replace(self, mean=self.mean.copy(), cov=self.cov.copy(),
@@ -180,6 +186,7 @@ class RobustTrackerState:
     tracks: list[_Track]
     memory: IdentityMemory
     last_stamp: float | None
+    classifiers: dict[int, np.ndarray] = field(default_factory=dict)
 
 
 def _logit(p: np.ndarray | float) -> np.ndarray:
@@ -199,6 +206,8 @@ class RobustTracker:
         self._p0 = np.diag([params.sigma0_position ** 2] * 3 + [params.sigma0_velocity ** 2] * 2 + [0.0])
         #: detections whose covariance was unusable (NaN, asymmetric, not positive definite)
         self.bad_covariances = 0
+        #: the trained classifiers of remembered (deleted) people, by ID
+        self.classifiers: dict[int, np.ndarray] = {}
 
     # ------------------------------------------------------------------ helpers
     def set_gate(self, appearance: AppearanceModel | None) -> None:
@@ -245,6 +254,7 @@ class RobustTracker:
         result = FrameResult(stamp=stamp, appearance_available=appearance)
         matches = self._associate(log_odds, confident)
         self._update_matched(matches, positions, r, descriptors, has_desc, p_det, confident, stamp)
+        self._train_classifiers(matches, descriptors, has_desc, confident)
         matched_d = {d for d, _ in matches}
         self._age(stamp, result, appearance)
         self._birth([d for d in range(n) if d not in matched_d and confident[d]], positions, descriptors, has_desc,
@@ -305,6 +315,8 @@ class RobustTracker:
         total = log_n - math.log(p.new_density)
         if descriptors is not None and has_desc.any() and p.appearance is not None:
             total = total + p.appearance_weight * self._appearance_log_odds(descriptors, has_desc)
+            if p.classifier is not None and p.classifier.weight > 0:
+                total = total + p.classifier.weight * self._classifier_log_odds(descriptors, has_desc)
         total = total + _logit(p_det)[:, None]
         return np.where(d2 > p.gate_sq, -np.inf, total)
 
@@ -317,6 +329,35 @@ class RobustTracker:
             if t.gallery is not None and len(t.gallery):
                 dist[has_desc, j] = model.from_euclidean(t.gallery.min_distances(x))
         return model.log_odds(dist)
+
+    def _classifier_log_odds(self, descriptors: np.ndarray, has_desc: np.ndarray) -> np.ndarray:
+        """(N, T) the tracks' classifiers' log-odds (0 for an untrained one or no descriptor)."""
+        cp = self.params.classifier
+        assert cp is not None
+        out = np.zeros((len(descriptors), len(self.tracks)))
+        cols = [j for j, t in enumerate(self.tracks) if t.clf_steps > 0]
+        if cols:
+            w = np.stack([self.tracks[j].clf for j in cols])  # type: ignore[misc]
+            out[np.ix_(np.flatnonzero(has_desc), cols)] = clf.scores(w, clf.normalise(descriptors[has_desc]), cp.clip)
+        return out
+
+    def _train_classifiers(self, matches: list[tuple[int, int]], descriptors: np.ndarray | None,
+                           has_desc: np.ndarray, confident: np.ndarray) -> None:
+        """One step for every track matched with a confident descriptor while others are in view."""
+        cp = self.params.classifier
+        if cp is None or descriptors is None or self.params.appearance is None or has_desc.sum() < 2:
+            return
+        rows = np.flatnonzero(has_desc)
+        row_of = {int(d): i for i, d in enumerate(rows)}
+        pairs = [(row_of[d], self.tracks[j]) for d, j in matches if has_desc[d] and confident[d]]
+        if not pairs:
+            return
+        u = clf.normalise(descriptors[rows])
+        dim = u.shape[1]
+        w = np.stack([t.clf if t.clf is not None and len(t.clf) == dim + 1 else np.zeros(dim + 1) for _, t in pairs])
+        w = clf.train(w, u, np.array([r for r, _ in pairs]), cp)
+        for (_, t), wk in zip(pairs, w):
+            t.clf, t.clf_steps = wk, t.clf_steps + 1
 
     def _associate(self, log_odds: np.ndarray, confident: np.ndarray) -> list[tuple[int, int]]:
         """Stages: confident detections x established tracks, low-score detections x the
@@ -367,11 +408,19 @@ class RobustTracker:
             elif gap > p.max_coast_s or t.cov[0, 0] + t.cov[1, 1] > p.max_position_var:
                 t.status = TrackStatus.DELETED
                 result.deleted.append(self._view(t, stamp))
-                if t.gallery is not None and len(t.gallery):
-                    self.memory.archive(t.id, t.gallery.descriptors)
+                self._archive(t)
                 continue
             keep.append(t)
         self.tracks = keep
+
+    def _archive(self, t: _Track) -> None:
+        """A deleted person's gallery and classifier go to the ID memory."""
+        if t.gallery is not None and len(t.gallery):
+            self.memory.archive(t.id, t.gallery.descriptors)
+        if t.clf_steps and t.clf is not None:
+            self.classifiers[t.id] = t.clf
+        if len(self.classifiers) > self.params.memory_size:  # follow the memory's evictions
+            self.classifiers = {i: w for i, w in self.classifiers.items() if i in self.memory}
 
     def _birth(self, dets: list[int], positions: np.ndarray, descriptors: np.ndarray | None, has_desc: np.ndarray,
                p_det: np.ndarray, stamp: float) -> None:
@@ -397,13 +446,31 @@ class RobustTracker:
         model = self.params.appearance
         if model is None or t.gallery is None or not len(t.gallery) or not self.memory.entries:
             return self.memory.new_id(), False
-        ids, dist = self.memory.distances(t.gallery.descriptors.mean(axis=0), exclude=self.live_ids())
+        live = self.live_ids()
+        ids, dist = self.memory.distances(t.gallery.descriptors.mean(axis=0), exclude=live)
         if len(ids):
             dist = model.from_euclidean(dist)
             best = int(np.argmin(dist))
             if dist[best] < model.t_recover:
                 return int(ids[best]), True
+        recovered = self._recover_by_classifier(t, live)
+        if recovered is not None:
+            return recovered, True
         return self.memory.new_id(), False
+
+    def _recover_by_classifier(self, t: _Track, live: set[int]) -> int | None:
+        """Seed 002's recovery: the remembered people's classifiers score the new track's views;
+        the best mean log-odds above ``recover_score`` gives its ID back."""
+        cp = self.params.classifier
+        assert t.gallery is not None
+        u = clf.normalise(t.gallery.descriptors)
+        cands = [(i, w) for i, w in self.classifiers.items()
+                 if i not in live and i in self.memory and len(w) == u.shape[1] + 1]
+        if cp is None or not cands:
+            return None
+        s = clf.scores(np.stack([w for _, w in cands]), u, cp.clip).mean(axis=0)
+        best = int(np.argmax(s))
+        return int(cands[best][0]) if s[best] >= cp.recover_score else None
 
     def _add_descriptor(self, t: _Track, desc: np.ndarray) -> None:
         if t.gallery is None:
@@ -421,8 +488,8 @@ class RobustTracker:
         ended IDs (tentative tracks have none and are dropped)."""
         ended = [t.id for t in self.tracks if t.id]
         for t in self.tracks:
-            if t.id and t.gallery is not None and len(t.gallery):
-                self.memory.archive(t.id, t.gallery.descriptors)
+            if t.id:
+                self._archive(t)
         self.tracks = []
         self.last_stamp = None
         return ended
@@ -435,12 +502,14 @@ class RobustTracker:
 
     # ---------------------------------------------------------------- snapshots
     def snapshot(self) -> RobustTrackerState:
-        return RobustTrackerState([t.copy() for t in self.tracks], self.memory.copy(), self.last_stamp)
+        return RobustTrackerState([t.copy() for t in self.tracks], self.memory.copy(), self.last_stamp,
+                                  dict(self.classifiers))
 
     def restore(self, state: RobustTrackerState) -> None:
         self.tracks = [t.copy() for t in state.tracks]
         self.memory = state.memory.copy()
         self.last_stamp = state.last_stamp
+        self.classifiers = dict(state.classifiers)
 
     def live_galleries(self) -> list[tuple[int, np.ndarray]]:
         return [(t.id, t.gallery.descriptors) for t in self.tracks if t.id and t.gallery is not None and len(t.gallery)]

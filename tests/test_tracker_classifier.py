@@ -1,0 +1,106 @@
+"""Seed 002's online per-track classifiers: learning, the association cue, ID recovery
+after a full occlusion, and what a person alone in view does not teach."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from services.tracker.config import TrackerConfig
+from services.tracker.core import classifier as clf
+from services.tracker.core.classifier import ClassifierParams
+from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
+
+COLOUR = AppearanceModel(0.35, 0.85, 0.40)
+
+
+def unit(*v: float) -> np.ndarray:
+    a = np.asarray(v, np.float32)
+    return a / np.linalg.norm(a)
+
+
+# Two people in similar clothes: they share feature 0, and differ in features 1 and 2.
+A = unit(1, 1, 0, 0, 0, 0, 0, 0)
+B = unit(1, 0, 1, 0, 0, 0, 0, 0)
+# A again under other light: far from A's gallery (0.77 > t_recover), yet still "not B".
+A_RELIT = unit(1, 1, 0, 0, 1, 1, 0, 0)
+
+
+def test_untrained_classifier_says_nothing_and_one_descriptor_teaches_nothing() -> None:
+    w = np.zeros((1, 9))
+    assert np.all(clf.scores(w, clf.normalise(A[None]), 4.0) == 0.0)
+    assert np.array_equal(clf.train(w, clf.normalise(A[None]), np.array([0]), ClassifierParams()), w)
+
+
+def test_training_separates_a_person_from_the_others_in_view() -> None:
+    rng = np.random.default_rng(0)
+    w = np.zeros((2, 9))  # classifier 0 is A's, classifier 1 is B's
+    for _ in range(30):
+        u = clf.normalise(np.stack([A, B]) + rng.normal(scale=0.02, size=(2, 8)))
+        w = clf.train(w, u, np.array([0, 1]), ClassifierParams())
+    s = clf.scores(w, clf.normalise(np.stack([A, B, A_RELIT])), 4.0)
+    assert s[0, 0] > 2 and s[1, 0] < -2 and s[0, 1] < -2 and s[1, 1] > 2
+    assert s[2, 0] > 1 > -1 > s[2, 1]  # the relit view still reads as A, not B
+    # the L2 decay keeps the weights bounded however long they train
+    for _ in range(2000):
+        w = clf.train(w, clf.normalise(np.stack([A, B])), np.array([0, 1]), ClassifierParams())
+    assert np.all(np.abs(w) < 50)
+
+
+def _frames(trk: RobustTracker, t0: float, t1: float, people: list[tuple[np.ndarray, float]]) -> float:
+    t = t0
+    while t < t1:
+        pos = np.array([[x, 0.0, 1.0] for _, x in people]).reshape(-1, 3)
+        d = np.stack([v for v, _ in people]) if people else None
+        trk.update(t, pos, d)
+        t = round(t + 0.1, 6)
+    return t
+
+
+def _id_at(trk: RobustTracker, x: float) -> int:
+    return next(t.id for t in trk.tracks if abs(t.mean[0] - x) < 0.5)
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_a_person_who_returns_relit_after_a_full_occlusion_gets_their_id_back(enabled: bool) -> None:
+    params = RobustParams(appearance=COLOUR, classifier=ClassifierParams() if enabled else None, max_coast_s=1.0)
+    trk = RobustTracker(params)
+    t = _frames(trk, 0.0, 5.0, [(A, 0.0), (B, 3.0)])
+    a_id, b_id = _id_at(trk, 0.0), _id_at(trk, 3.0)
+    assert trk.tracks[0].clf_steps > 40 if enabled else trk.tracks[0].clf is None
+    t = _frames(trk, t, t + 2.0, [(B, 3.0)])  # A leaves: their track ends, its classifier is remembered
+    assert a_id not in trk.live_ids() and (a_id in trk.classifiers) == enabled
+    _frames(trk, t, t + 1.0, [(A_RELIT, -2.0), (B, 3.0)])  # A comes back elsewhere, under other light
+    back = _id_at(trk, -2.0)
+    assert _id_at(trk, 3.0) == b_id
+    if enabled:
+        assert back == a_id  # the classifier recognised what the gallery's distance could not
+    else:
+        assert back not in (a_id, b_id)  # the gallery alone gives a new ID
+
+
+def test_a_person_alone_in_view_trains_no_classifier() -> None:
+    trk = RobustTracker(RobustParams(appearance=COLOUR))
+    _frames(trk, 0.0, 2.0, [(A, 0.0)])
+    assert [t.clf_steps for t in trk.tracks] == [0]
+
+
+def test_snapshot_and_restore_keep_the_remembered_classifiers() -> None:
+    trk = RobustTracker(RobustParams(appearance=COLOUR, max_coast_s=1.0))
+    t = _frames(trk, 0.0, 3.0, [(A, 0.0), (B, 3.0)])
+    _frames(trk, t, t + 2.0, [])
+    state = trk.snapshot()
+    remembered = dict(trk.classifiers)
+    assert remembered
+    trk.classifiers.clear()
+    trk.restore(state)
+    assert trk.classifiers.keys() == remembered.keys()
+
+
+def test_config_turns_the_classifiers_off_and_validates() -> None:
+    on = TrackerConfig().robust.params(COLOUR, 500)
+    assert on.classifier == ClassifierParams()
+    off = TrackerConfig.model_validate({"robust": {"classifier": {"enabled": False}}}).robust.params(COLOUR, 500)
+    assert off.classifier is None
+    with pytest.raises(ValueError):
+        TrackerConfig.model_validate({"robust": {"classifier": {"rate": 0}}})

@@ -64,7 +64,8 @@ def bench_update(people: int, gallery: int, reps: int, config: TrackerConfig) ->
     for track_ in tracker.tracks:  # fill every gallery to capacity with views of its person
         i = int(np.argmin(np.linalg.norm(pos[:, :2] - track_.mean[:2], axis=1)))
         views = looks[i] + rng.normal(scale=0.01, size=(gallery, DIM))
-        track_.gallery = Gallery.from_descriptors(views / np.linalg.norm(views, axis=1, keepdims=True), gallery)
+        prune = track_.gallery.prune if track_.gallery is not None else "closest_pair"  # each profile's own policy
+        track_.gallery = Gallery.from_descriptors(views / np.linalg.norm(views, axis=1, keepdims=True), gallery, prune)
     times = []
     for _ in range(reps):
         frame = observe(looks, pos, rng)

@@ -180,6 +180,28 @@ def test_gallery_neighbour_bookkeeping_matches_brute_force() -> None:
     assert len(g) == 20
 
 
+def test_gallery_nearest_policy_replaces_the_view_nearest_to_the_new_one() -> None:
+    a, b, c = np.array([0.0, 0.0]), np.array([0.1, 0.0]), np.array([5.0, 0.0])
+    g = Gallery.from_descriptors(np.stack([a, b, c]), capacity=3, prune="nearest")
+    g.add(np.array([4.9, 0.0]))  # nearest stored view is c, though (a, b) is the closest pair
+    np.testing.assert_allclose(g.descriptors, [a, b, [4.9, 0.0]])
+    with pytest.raises(ValueError, match="prune"):
+        Gallery(2, prune="oldest")
+
+
+@pytest.mark.parametrize("prune", ["closest_pair", "nearest"])
+def test_gallery_add_with_known_distances_equals_add(prune: str) -> None:
+    rng = np.random.default_rng(4)
+    xs = rng.normal(size=(60, 8)).astype(np.float32)
+    plain, reused = Gallery(8, 10, prune), Gallery(8, 10, prune)
+    for x in xs:
+        plain.add(x)
+        d2 = reused.sq_distances(x[None])[0] if len(reused) else None
+        reused.add(x, d2)
+        np.testing.assert_allclose(reused.min_distances(xs[:5]), plain.min_distances(xs[:5]), rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(reused.descriptors, plain.descriptors)
+
+
 def test_gallery_copy_on_write() -> None:
     g = Gallery.from_descriptors(np.eye(3), capacity=3)
     snap = g.copy()

@@ -35,11 +35,17 @@ def pairwise_sq_distances(a: np.ndarray, b: np.ndarray, b_sq: np.ndarray | None 
 class Gallery:
     """At most ``capacity`` descriptors of dimension ``dim`` (float32)."""
 
-    def __init__(self, dim: int, capacity: int = 500) -> None:
+    def __init__(self, dim: int, capacity: int = 500, prune: str = "closest_pair") -> None:
         if dim <= 0 or capacity <= 0:
             raise ValueError(f"dim and capacity must be positive, got {dim}, {capacity}")
+        if prune not in ("closest_pair", "nearest"):
+            raise ValueError(f"prune must be 'closest_pair' or 'nearest', got {prune!r}")
         self.dim = dim
         self.capacity = capacity
+        #: which descriptor a full gallery drops for a new one: the older of the closest
+        #: pair among the stored and the new one (seed 000/001), or the stored one nearest
+        #: to the new one (no neighbour bookkeeping: one matrix-vector product per insertion)
+        self.prune = prune
         self.n = 0
         self._counter = 0
         size = min(capacity, 16)
@@ -59,6 +65,13 @@ class Gallery:
         """The stored descriptors, oldest first: (n, dim) float32 (a copy)."""
         order = np.argsort(self._age[: self.n], kind="stable")
         return self._data[: self.n][order].copy()
+
+    def sq_distances(self, x: np.ndarray) -> np.ndarray:
+        """Squared Euclidean distances (N, n) from each row of ``x`` (N, dim) to every stored
+        descriptor, in storage order (what :meth:`add` takes as ``d2``)."""
+        x = np.asarray(x, dtype=np.float32)
+        d2 = (self._sq[: self.n, None] - 2.0 * (self._data[: self.n] @ x.T)).T + np.einsum("ij,ij->i", x, x)[:, None]
+        return np.maximum(d2, 0.0, out=d2)
 
     def min_distances(self, x: np.ndarray) -> np.ndarray:
         """Smallest Euclidean distance from each row of ``x`` (N, dim) to the gallery: (N,).
@@ -91,8 +104,12 @@ class Gallery:
         self._nn_j = np.concatenate([self._nn_j, np.empty(extra, np.int64)])
         self._shared = False
 
-    def add(self, x: np.ndarray) -> None:
-        """Insert one descriptor ``x`` (dim,), pruning one of the closest pair when full."""
+    def add(self, x: np.ndarray, d2: np.ndarray | None = None) -> None:
+        """Insert one descriptor ``x`` (dim,), pruning one descriptor when full.
+
+        ``d2``: its squared distances to the stored descriptors (:meth:`sq_distances`), if
+        already known; it saves the one matrix-vector product an insertion costs.
+        """
         x = np.asarray(x, dtype=np.float32).reshape(self.dim)
         xx = float(x @ x)
         if not np.isfinite(xx):
@@ -105,12 +122,17 @@ class Gallery:
                 self._grow()
             self._write(n, x, xx)
             self.n = n + 1
-            if self.n == self.capacity:
+            if self.n == self.capacity and self.prune == "closest_pair":
                 self._build_neighbours()
             return
         # full: squared distances from x to every stored descriptor (one matrix-vector product)
-        d2 = self._sq[:n] + np.float32(xx) - 2.0 * (self._data[:n] @ x)
-        np.maximum(d2, 0.0, out=d2)
+        if d2 is None or len(d2) != n:
+            d2 = self._sq[:n] + np.float32(xx) - 2.0 * (self._data[:n] @ x)
+            np.maximum(d2, 0.0, out=d2)
+        if self.prune == "nearest":
+            self._write(int(np.argmin(d2)), x, xx)
+            return
+        d2 = np.array(d2, np.float32)
         slot = self._prune_slot(d2)
         d2[slot] = np.inf
         self._write(slot, x, xx)
@@ -173,15 +195,15 @@ class Gallery:
 
     def copy(self) -> Gallery:
         """A copy that shares storage until either side is modified."""
-        other = Gallery.__new__(Gallery)
+        other = Gallery.__new__(Gallery)  # (prune and every other attribute come along)
         other.__dict__.update(self.__dict__)
         self._shared = other._shared = True
         return other
 
     @classmethod
-    def from_descriptors(cls, xs: np.ndarray, capacity: int = 500) -> Gallery:
+    def from_descriptors(cls, xs: np.ndarray, capacity: int = 500, prune: str = "closest_pair") -> Gallery:
         """A gallery filled with the rows of ``xs`` (M, D), oldest first."""
         xs = np.asarray(xs, dtype=np.float32)
-        g = cls(xs.shape[1], capacity)
+        g = cls(xs.shape[1], capacity, prune)
         g.extend(xs)
         return g

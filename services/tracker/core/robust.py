@@ -208,6 +208,9 @@ class RobustTracker:
         self.bad_covariances = 0
         #: the trained classifiers of remembered (deleted) people, by ID
         self.classifiers: dict[int, np.ndarray] = {}
+        self._d2: dict[tuple[int, int], np.ndarray] = {}  # this frame's pair distances to galleries
+        self._q_dt, self._q_last = -1.0, np.zeros((6, 6))  # the last step's process noise
+        self._r_cache: dict[int, np.ndarray] = {}
 
     # ------------------------------------------------------------------ helpers
     def set_gate(self, appearance: AppearanceModel | None) -> None:
@@ -215,6 +218,8 @@ class RobustTracker:
         self.params = replace(self.params, appearance=appearance)
 
     def _q(self, dt: float) -> np.ndarray:
+        if dt == self._q_dt:
+            return self._q_last
         q = np.zeros((6, 6))
         a = self.params.q_accel
         for i in (0, 1):
@@ -222,6 +227,7 @@ class RobustTracker:
             q[i, i + 3] = q[i + 3, i] = a * dt ** 2 / 2.0
             q[i + 3, i + 3] = a * dt
         q[2, 2] = self.params.q_z * dt
+        self._q_dt, self._q_last = dt, q
         return q
 
     def live_ids(self) -> set[int]:
@@ -236,6 +242,10 @@ class RobustTracker:
         p = self.params
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         n = len(positions)
+        if n == 0 and not self.tracks and (self.last_stamp is None or stamp >= self.last_stamp):
+            self.last_stamp = stamp  # nothing to track, nothing to predict
+            return FrameResult(stamp=stamp, appearance_available=descriptors is not None and p.appearance is not None
+                               and np.ndim(descriptors) == 2 and np.shape(descriptors)[1] > 0)
         if descriptors is not None:
             descriptors = np.asarray(descriptors, dtype=np.float32)
             if descriptors.ndim != 2 or len(descriptors) != n:
@@ -250,6 +260,7 @@ class RobustTracker:
         has_desc = np.all(np.isfinite(descriptors), axis=1) if appearance else np.zeros(n, bool)  # type: ignore[arg-type]
         p_det = p.scores.probability(scores)
         confident = p.scores.confident(scores)
+        self._d2: dict[tuple[int, int], np.ndarray] = {}
         log_odds = self._pair_log_odds(positions, r, descriptors if appearance else None, has_desc, p_det)
         result = FrameResult(stamp=stamp, appearance_available=appearance)
         matches = self._associate(log_odds, confident)
@@ -269,7 +280,10 @@ class RobustTracker:
         that is not finite, not symmetric or not positive definite is replaced (and counted
         in ``bad_covariances``)."""
         if cov is None:
-            return np.broadcast_to(self._r, (n, 3, 3))
+            r = self._r_cache.get(n)
+            if r is None:
+                r = self._r_cache[n] = np.broadcast_to(self._r, (n, 3, 3))
+            return r
         cov = np.asarray(cov, float).reshape(n, 3, 3)
         sym = 0.5 * (cov + np.swapaxes(cov, 1, 2))
         ok = np.all(np.isfinite(cov), axis=(1, 2)) & np.all(np.abs(cov - sym) <= 1e-9 + 1e-6 * np.abs(sym), axis=(1, 2))
@@ -288,8 +302,8 @@ class RobustTracker:
         dt = stamp - self.last_stamp
         if dt <= 0:
             return
-        means = np.stack([t.mean for t in self.tracks])
-        covs = np.stack([t.cov for t in self.tracks])
+        means = np.array([t.mean for t in self.tracks])
+        covs = np.array([t.cov for t in self.tracks])
         means, covs = kalman.predict(means, covs, dt, self._q(dt))
         fade = math.exp(-dt / self.params.is_person_tau_s)  # IsPerson drifts back to "unknown"
         for t, m, c in zip(self.tracks, means, covs):
@@ -303,8 +317,8 @@ class RobustTracker:
         n, nt = len(positions), len(self.tracks)
         if n == 0 or nt == 0:
             return np.zeros((n, nt))
-        means = np.stack([t.mean[:2] for t in self.tracks])  # (T, 2)
-        covs = np.stack([t.cov[:2, :2] for t in self.tracks])  # (T, 2, 2)
+        means = np.array([t.mean[:2] for t in self.tracks])  # (T, 2)
+        covs = np.array([t.cov[:2, :2] for t in self.tracks])  # (T, 2, 2)
         s = covs[None, :, :, :] + r[:, None, :2, :2]  # (N, T, 2, 2)
         diff = positions[:, None, :2] - means[None, :, :]  # (N, T, 2)
         a, b, c = s[..., 0, 0], s[..., 0, 1], s[..., 1, 1]
@@ -313,21 +327,28 @@ class RobustTracker:
         d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / det
         log_n = -0.5 * d2 - _LOG_2PI - 0.5 * np.log(det)
         total = log_n - math.log(p.new_density)
+        gated = d2 <= p.gate_sq
         if descriptors is not None and has_desc.any() and p.appearance is not None:
-            total = total + p.appearance_weight * self._appearance_log_odds(descriptors, has_desc)
+            total = total + p.appearance_weight * self._appearance_log_odds(descriptors, has_desc & gated.T)
             if p.classifier is not None and p.classifier.weight > 0:
                 total = total + p.classifier.weight * self._classifier_log_odds(descriptors, has_desc)
         total = total + _logit(p_det)[:, None]
-        return np.where(d2 > p.gate_sq, -np.inf, total)
+        return np.where(gated, total, -np.inf)
 
-    def _appearance_log_odds(self, descriptors: np.ndarray, has_desc: np.ndarray) -> np.ndarray:
+    def _appearance_log_odds(self, descriptors: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+        """(N, T) appearance log-odds of the pairs in ``pairs`` (T, N) (0 elsewhere: only pairs
+        inside the position gate are compared). Keeps each pair's squared distances to the
+        track's gallery for the insertion that follows a match (``self._d2``)."""
         model = self.params.appearance
         assert model is not None
         dist = np.full((len(descriptors), len(self.tracks)), np.nan)
-        x = descriptors[has_desc]
         for j, t in enumerate(self.tracks):
-            if t.gallery is not None and len(t.gallery):
-                dist[has_desc, j] = model.from_euclidean(t.gallery.min_distances(x))
+            if t.gallery is not None and len(t.gallery) and pairs[j].any():
+                rows = np.flatnonzero(pairs[j])
+                d2 = t.gallery.sq_distances(descriptors[rows])
+                dist[rows, j] = model.from_euclidean(np.sqrt(d2.min(axis=1)))
+                for k, d in enumerate(rows.tolist()):
+                    self._d2[(d, j)] = d2[k]
         return model.log_odds(dist)
 
     def _classifier_log_odds(self, descriptors: np.ndarray, has_desc: np.ndarray) -> np.ndarray:
@@ -379,8 +400,8 @@ class RobustTracker:
             return
         d_idx = np.array([d for d, _ in matches])
         t_idx = [j for _, j in matches]
-        means = np.stack([self.tracks[j].mean for j in t_idx])
-        covs = np.stack([self.tracks[j].cov for j in t_idx])
+        means = np.array([self.tracks[j].mean for j in t_idx])
+        covs = np.array([self.tracks[j].cov for j in t_idx])
         new_means, new_covs = kalman.update(means, covs, positions[d_idx], r[d_idx])
         for k, (d, j) in enumerate(matches):
             t = self.tracks[j]
@@ -393,7 +414,7 @@ class RobustTracker:
             if t.status is TrackStatus.COASTING:
                 t.status = TrackStatus.CONFIRMED
             if has_desc[d] and descriptors is not None and confident[d]:
-                self._add_descriptor(t, descriptors[d])
+                self._add_descriptor(t, descriptors[d], self._d2.get((d, j)))
 
     def _age(self, stamp: float, result: FrameResult, appearance: bool) -> None:
         p = self.params
@@ -425,8 +446,8 @@ class RobustTracker:
     def _birth(self, dets: list[int], positions: np.ndarray, descriptors: np.ndarray | None, has_desc: np.ndarray,
                p_det: np.ndarray, stamp: float) -> None:
         for d in dets:
-            mean, _ = kalman.initiate(positions[d], np.zeros(6))
-            t = _Track(0, mean, self._p0.copy(), None, stamp, stamp, is_person=_bayes(0.5, p_det[d]))
+            mean = np.concatenate([positions[d], np.zeros(3)])  # at rest: kalman.initiate
+            t = _Track(0, mean, self._p0, None, stamp, stamp, is_person=_bayes(0.5, p_det[d]))
             if has_desc[d] and descriptors is not None:
                 self._add_descriptor(t, descriptors[d])
             self.tracks.append(t)
@@ -472,13 +493,15 @@ class RobustTracker:
         best = int(np.argmax(s))
         return int(cands[best][0]) if s[best] >= cp.recover_score else None
 
-    def _add_descriptor(self, t: _Track, desc: np.ndarray) -> None:
+    def _add_descriptor(self, t: _Track, desc: np.ndarray, d2: np.ndarray | None = None) -> None:
         if t.gallery is None:
-            t.gallery = Gallery(len(desc), self.params.gallery_size)
-        t.gallery.add(desc)
+            t.gallery = Gallery(len(desc), self.params.gallery_size, prune="nearest")
+        t.gallery.add(desc, d2)
 
     def _view(self, t: _Track, stamp: float) -> TrackView:
-        return TrackView(t.id, t.status, t.mean.copy(), t.cov.copy(), t.total_hits, 0, max(0.0, stamp - t.first_stamp),
+        # the arrays are shared: the tracker never writes into a track's mean or cov, every
+        # predict and update makes new ones
+        return TrackView(t.id, t.status, t.mean, t.cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp),
                          t.last_update, len(t.gallery) if t.gallery else 0, t.ever_confirmed)
 
     def restart_clock(self) -> list[int]:
@@ -525,7 +548,10 @@ def _hungarian(log_odds: np.ndarray, dets: list[int], tracks: list[int]) -> list
     """Maximum total log-odds over the pairs with positive log-odds (others: clutter/new)."""
     if not dets or not tracks:
         return []
-    sub = log_odds[np.ix_(dets, tracks)]
+    sub = log_odds[dets][:, tracks]
+    if len(dets) == 1 or len(tracks) == 1:  # no assignment problem: the best positive pair
+        i, j = divmod(int(np.argmax(sub)), len(tracks))
+        return [(dets[i], tracks[j])] if sub[i, j] > 0 else []
     allowed = sub > 0
     if not allowed.any():
         return []

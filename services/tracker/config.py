@@ -128,7 +128,11 @@ class RobustConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
+    motion: Literal["cv", "ukf"] = Field(
+        default=_R.motion, description="'cv': constant-velocity Kalman; 'ukf': unscented filter, coordinated turn")
     q_accel: float = Field(default=_R.q_accel, gt=0.0, description="white acceleration noise on x, y (m^2/s^3)")
+    q_turn: float = Field(default=_R.q_turn, ge=0.0, description="random walk of the turn rate, 'ukf' (rad^2/s^3)")
+    sigma0_turn: float = Field(default=_R.sigma0_turn, ge=0.0, description="a new track's turn-rate std, 'ukf' (rad/s)")
     q_z: float = Field(default=_R.q_z, gt=0.0, description="random-walk noise of z (m^2/s)")
     sigma0_position: float = Field(default=_R.sigma0_position, gt=0.0, description="a new track's position std (m)")
     sigma0_velocity: float = Field(default=_R.sigma0_velocity, gt=0.0, description="a new track's velocity std (m/s)")

@@ -4,7 +4,9 @@ One call of :meth:`RobustTracker.update` processes one frame, in time (seconds),
 nominal frames, so the same settings hold at 5, 10 or 30 Hz:
 
 1. **Predict** every track with a constant-velocity model whose process noise is white
-   acceleration (``q_accel``, m^2/s^3) on (x, y) and a random walk on z.
+   acceleration (``q_accel``, m^2/s^3) on (x, y) and a random walk on z; or, with
+   ``motion="ukf"``, seed 002's unscented filter with a coordinated-turn model (a person
+   walks arcs of constant turn rate, :mod:`services.tracker.core.ukf`).
 2. **Score every (detection, track) pair** by seed 001's cue fusion: each cue gives a
    probability that the pair is the same person, 0.5 meaning "no information", and the
    cues combine by the Bayesian product (Eq 1), i.e. their log-odds add:
@@ -56,7 +58,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from services.tracker.core import classifier as clf
-from services.tracker.core import kalman
+from services.tracker.core import kalman, ukf
 from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.gallery import Gallery
 from services.tracker.core.identity import IdentityMemory
@@ -125,7 +127,11 @@ class ScoreModel:
 class RobustParams:
     """The robust profile's settings (README of the tracker: what each one does)."""
 
+    #: "cv": constant-velocity Kalman filter; "ukf": unscented filter, coordinated turn (seed 002)
+    motion: Literal["cv", "ukf"] = "cv"
     q_accel: float = 3.0  # m^2/s^3, white acceleration on x and y
+    q_turn: float = 0.1  # rad^2/s^3, random walk of the turn rate ("ukf")
+    sigma0_turn: float = 0.3  # rad/s, a new track's turn-rate std ("ukf")
     q_z: float = 0.05  # m^2/s, random walk of z
     sigma0_position: float = 0.3  # m, a new track's position std
     sigma0_velocity: float = 2.0  # m/s, a new track's velocity std (people walk at ~1.4 m/s; the frame may move)
@@ -150,6 +156,10 @@ class RobustParams:
     def __post_init__(self) -> None:
         if self.n_init < 1:
             raise ValueError("n_init must be at least 1")
+        if self.motion not in ("cv", "ukf"):
+            raise ValueError(f"motion must be 'cv' or 'ukf', got {self.motion!r}")
+        if not (self.q_turn >= 0 and self.sigma0_turn >= 0):
+            raise ValueError("q_turn and sigma0_turn must not be negative")
         for name in ("q_accel", "q_z", "sigma0_position", "sigma0_velocity", "new_density", "gate_sq",
                      "is_person_tau_s", "max_position_var"):
             if not getattr(self, name) > 0:
@@ -204,6 +214,9 @@ class RobustTracker:
         self.last_stamp: float | None = None
         self._r = np.diag(np.asarray(params.sigma_r, float) ** 2)
         self._p0 = np.diag([params.sigma0_position ** 2] * 3 + [params.sigma0_velocity ** 2] * 2 + [0.0])
+        self._ukf = params.motion == "ukf"
+        if self._ukf:
+            self._p0 = ukf.initiate(np.zeros(3), params.sigma0_position, params.sigma0_velocity, params.sigma0_turn)[1]
         #: detections whose covariance was unusable (NaN, asymmetric, not positive definite)
         self.bad_covariances = 0
         #: the trained classifiers of remembered (deleted) people, by ID
@@ -304,7 +317,10 @@ class RobustTracker:
             return
         means = np.array([t.mean for t in self.tracks])
         covs = np.array([t.cov for t in self.tracks])
-        means, covs = kalman.predict(means, covs, dt, self._q(dt))
+        if self._ukf:
+            means, covs = ukf.predict(means, covs, dt, self.params.q_accel, self.params.q_z, self.params.q_turn)
+        else:
+            means, covs = kalman.predict(means, covs, dt, self._q(dt))
         fade = math.exp(-dt / self.params.is_person_tau_s)  # IsPerson drifts back to "unknown"
         for t, m, c in zip(self.tracks, means, covs):
             t.mean, t.cov = m, c
@@ -446,7 +462,7 @@ class RobustTracker:
     def _birth(self, dets: list[int], positions: np.ndarray, descriptors: np.ndarray | None, has_desc: np.ndarray,
                p_det: np.ndarray, stamp: float) -> None:
         for d in dets:
-            mean = np.concatenate([positions[d], np.zeros(3)])  # at rest: kalman.initiate
+            mean = np.concatenate([positions[d], np.zeros(4 if self._ukf else 3)])  # at rest, not turning
             t = _Track(0, mean, self._p0, None, stamp, stamp, is_person=_bayes(0.5, p_det[d]))
             if has_desc[d] and descriptors is not None:
                 self._add_descriptor(t, descriptors[d])
@@ -501,7 +517,8 @@ class RobustTracker:
     def _view(self, t: _Track, stamp: float) -> TrackView:
         # the arrays are shared: the tracker never writes into a track's mean or cov, every
         # predict and update makes new ones
-        return TrackView(t.id, t.status, t.mean, t.cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp),
+        mean, cov = (t.mean[:6], t.cov[:6, :6]) if self._ukf else (t.mean, t.cov)  # (x, y, z, vx, vy, vz)
+        return TrackView(t.id, t.status, mean, cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp),
                          t.last_update, len(t.gallery) if t.gallery else 0, t.ever_confirmed)
 
     def restart_clock(self) -> list[int]:

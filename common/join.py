@@ -23,7 +23,8 @@ each key in named *slots* until an entry is ready, then releases it once:
   consumer that must apply inputs in sensor-time order gets them so.
 * A key released recently (the last ``remember`` keys) is not opened again: a late or
   repeated input for it is dropped as ``late`` (or ``duplicate`` for a second anchor).
-  A slot filled twice also counts as ``duplicate``.
+  A slot filled twice also counts as ``duplicate``. :meth:`Joiner.forget_released`
+  forgets them when the stamps start over.
 
 Filling a slot with ``None`` means "known not to come" (e.g. a rejected input): the
 entry no longer waits for it. Every drop is returned to the caller with its reason, so
@@ -203,6 +204,14 @@ class Joiner(Generic[A]):
             elif self.ordered:
                 blocked = True
         return released, dropped
+
+    def forget_released(self) -> None:
+        """Forget the keys released so far and the newest stamps seen, so that keys can come
+        again (a clock jump: a replay that loops sends the same keys a second time). The
+        entries still held are kept."""
+        self._released.clear()
+        self._newest_by_slot.clear()
+        self.newest_ns = None
 
     def next_deadline(self, now: float) -> float | None:
         """Seconds until the earliest waiting entry times out (None if none waits)."""

@@ -23,7 +23,7 @@ import numpy as np
 from services.tracker.config import TrackerConfig
 from services.tracker.core import IdentityMemory
 
-__all__ = ["FORMAT_VERSION", "load_memory", "read_memory", "save_memory"]
+__all__ = ["FORMAT_VERSION", "descriptor_dim", "load_memory", "read_memory", "save_memory"]
 
 log = logging.getLogger(__name__)
 
@@ -91,3 +91,8 @@ def load_memory(config: TrackerConfig) -> tuple[IdentityMemory, str | None]:
                          f"{config.embedding_model!r}; move the file away or set memory_path to another file")
     log.info("loaded %d identities from %s (next id %d)", len(memory), path, memory.next_id)
     return memory, model or None
+
+
+def descriptor_dim(memory: IdentityMemory) -> int | None:
+    """The dimension D of the remembered descriptors; None while the memory is empty."""
+    return next((g.dim for g in memory.entries.values()), None)

@@ -9,6 +9,9 @@ is counted and dropped, never applied out of order.
 Snapshots are taken at most every ``snapshot_period_s`` of sensor time (tracker snapshots
 share descriptor storage copy-on-write, so they are cheap), and the log keeps every input
 back to the oldest snapshot still needed.
+
+A stamp far older than its source's newest is no late input but a new clock (a replay
+that loops): :class:`ClockJumps` tells one, and :meth:`ReorderBuffer.reset` starts over.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import bisect
 from dataclasses import dataclass, field
 from typing import Callable, Generic, TypeVar
 
-__all__ = ["InputKey", "ReorderBuffer"]
+__all__ = ["ClockJumps", "InputKey", "ReorderBuffer"]
 
 In = TypeVar("In")  # an input
 S = TypeVar("S")  # a snapshot of the consumer's state
@@ -70,6 +73,14 @@ class ReorderBuffer(Generic[In, S, R]):
         self._prune()
         return results
 
+    def reset(self) -> None:
+        """Forget every input and snapshot, and the newest stamp (a clock jump: stamps start
+        over). The consumer's state now is the new starting point; the counts stay."""
+        self._log.clear()
+        self._snaps.clear()
+        self.newest_ns = None
+        self._snaps.append((_BEFORE_ALL, self.snapshot()))
+
     def latest(self) -> tuple[InputKey, In] | None:
         """The newest input applied (key, input), or None."""
         return self._log[-1] if self._log else None
@@ -118,3 +129,26 @@ class ReorderBuffer(Generic[In, S, R]):
         split = bisect.bisect_left([k for k, _ in self._log], oldest)
         if split:
             del self._log[:split]
+
+
+@dataclass
+class ClockJumps:
+    """Watches each source's stamps for a jump back by more than ``jump_ns`` (a replay that
+    loops, a sensor clock reset). Stamps that leap ahead are taken as they come: a long
+    gap looks the same."""
+
+    jump_ns: int
+    newest: dict[str, int] = field(default_factory=dict)
+
+    def check(self, source: str, stamp_ns: int) -> int:
+        """How far (ns) ``stamp_ns`` is behind its source's newest stamp if that is a jump, else 0.
+
+        After a jump the source's newest stamp is ``stamp_ns`` and the other sources are
+        forgotten (everything starts over).
+        """
+        newest = self.newest.get(source)
+        if newest is not None and stamp_ns < newest - self.jump_ns:
+            self.newest = {source: stamp_ns}
+            return newest - stamp_ns
+        self.newest[source] = stamp_ns if newest is None else max(newest, stamp_ns)
+        return 0

@@ -130,8 +130,8 @@ class RobustParams:
     #: "cv": constant-velocity Kalman filter; "ukf": unscented filter, coordinated turn (seed 002)
     motion: Literal["cv", "ukf"] = "cv"
     q_accel: float = 3.0  # m^2/s^3, white acceleration on x and y
-    q_turn: float = 0.1  # rad^2/s^3, random walk of the turn rate ("ukf")
-    sigma0_turn: float = 0.3  # rad/s, a new track's turn-rate std ("ukf")
+    q_turn: float = 0.01  # rad^2/s^3, random walk of the turn rate ("ukf")
+    sigma0_turn: float = 0.5  # rad/s, a new track's turn-rate std ("ukf")
     q_z: float = 0.05  # m^2/s, random walk of z
     sigma0_position: float = 0.3  # m, a new track's position std
     sigma0_velocity: float = 2.0  # m/s, a new track's velocity std (people walk at ~1.4 m/s; the frame may move)

@@ -5,16 +5,21 @@ Nothing is dropped for timing (every frame is processed), so the result depends 
 the scenario, its seed and the settings: the way to compare tracker settings on the
 simulated apartment quickly and reproducibly. ``perception demo`` runs the same nodes as
 real processes over a real router, where a loaded machine may skip frames.
+
+``record`` sees the tracker's inputs (localized detections and embeddings), the ground
+truth and the tracker's output as they are published, e.g. to replay the tracker offline
+on the same inputs (``benchmarks/quality_sim.py``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 from common.keys import RELIABLE, Keys
 from common.memory import MemoryBus
-from common.schemas import PeopleGroundTruth, Tracks
+from common.schemas import Embeddings, LocalizedDetections, Message, PeopleGroundTruth, Tracks
+from common.transport import Subscription
 from services.detector.config import DetectorConfig
 from services.detector.service import DetectorService
 from services.embedder.config import EmbedderConfig
@@ -38,8 +43,14 @@ class ChainResult:
 
 
 def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, width: int = 320, height: int = 240,
-              seed: int = 0, tracker: TrackerConfig | None = None, detector: str = "depth") -> ChainResult:
-    """Run ``scenario`` through the four nodes and score the tracks (Table II)."""
+              seed: int = 0, tracker: TrackerConfig | None = None, detector: str = "depth",
+              record: Callable[[Message], None] | None = None) -> ChainResult:
+    """Run ``scenario`` through the four nodes and score the tracks (Table II).
+
+    ``record``, if given, is called with every ``PeopleGroundTruth``, ``LocalizedDetections``,
+    ``Embeddings`` and ``Tracks`` message of the run, after each simulated frame, each
+    stream in the order it was published (ground truth, localized, embeddings, tracks).
+    """
     keys = Keys(robot="inprocess")
     bus = MemoryBus()
     sim = SimulatorService(bus.transport(), keys, SimulatorConfig(
@@ -54,6 +65,9 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     watcher = bus.transport()
     gt_sub = watcher.subscribe(keys.groundtruth(), PeopleGroundTruth, RELIABLE)
     tracks_sub = watcher.subscribe(keys.tracks(), Tracks, RELIABLE)
+    taps: list[Subscription[Any]] = [] if record is None else [
+        watcher.subscribe(keys.localized(tracker_config.camera), LocalizedDetections, RELIABLE),
+        watcher.subscribe(keys.embeddings(tracker_config.camera), Embeddings, RELIABLE)]
     gt: dict[int, PeopleGroundTruth] = {}
     hyp: list[Tracks] = []
     clock = 0.0
@@ -67,10 +81,20 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
             node.poll(clock)
         while (g := gt_sub.try_recv()) is not None:
             gt[g.msg.header.seq] = g.msg
+            if record is not None:
+                record(g.msg)
+        if record is not None:
+            for tap in taps:
+                while (m := tap.try_recv()) is not None:
+                    record(m.msg)
         while (t := tracks_sub.try_recv()) is not None:
             hyp.append(t.msg)
+            if record is not None:
+                record(t.msg)
     for node in nodes:
         node.close()
+    for tap in taps:
+        tap.close()
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items() for p in msg.counted()]
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in hyp for tr in t.tracks if t.header.seq in gt]
     report, table = score_rows(gt_rows, hyp_rows, scenario)

@@ -1,6 +1,7 @@
 """Tracking quality: this project's tracker side by side with two plain trackers, on the same data.
 
-    python benchmarks/quality.py [--quick] [--json FILE] [--cache-dir DIR] [--data DIR]
+    python benchmarks/quality.py [--quick] [--only kitti,pets,sim] [--json FILE] [--cache-dir DIR] [--data DIR]
+                                 [--scenarios NAME,...] [--sim-seconds S] [--refresh-sim]
 
 Trackers (each takes a :class:`~services.tracker.offline.Detections` object and returns
 rows ``(frame, stamp, id, x, y, z)``):
@@ -41,8 +42,20 @@ Data (``../shared/data``, or ``$PERCEPTION_SHARED_DATA``; nothing is downloaded)
    positions only. Detections and descriptors are cached under ``--cache-dir``
    (default ``benchmarks/.cache/``), keyed by a hash of the detector and embedder
    settings and the frames, so only the first run pays the ~1-2 minutes of detection.
+3. ``sim``: the simulated apartment, all 7 scenarios of ``tools/simulator`` for 60 s each
+   (``--sim-seconds``; 10 s with ``--quick``) at 10 fps, 320x240, seed 0: the scenario runs
+   once through ``tools.demo.inprocess.run_chain`` (the real depth detector, localizer and
+   colour embedder) and what reaches its tracker is captured and cached under
+   ``--cache-dir`` (``benchmarks/quality_sim.py``; the first run takes ~30-40 s per
+   scenario on the 2-core VM). The project's profiles are replayed on it through the core
+   as the tracker service feeds it (covariances, descriptors, position-only frames); the
+   baselines get the positions. Judged as the demo's Table II: the simulator's counted
+   people, a match is a full (x, y, z) distance < 1 m, no ignore regions. Each scenario is
+   judged alone; the overall row sums them. The capture run's own (in-chain) tracker,
+   the robust profile, is judged too, and its MOTA is shown next to the offline replay's
+   as a check that the replay is the tracker the demo runs.
 
-Judging: ``tools/evaluation`` (CLEAR MOT as py-motmetrics, IDF1) on the ground plane
+Judging (KITTI, PETS): ``tools/evaluation`` (CLEAR MOT as py-motmetrics, IDF1) on the ground plane
 (x, y) with a 1 m gate. Ignore regions (KITTI's ``gt_ignore_SEQ.csv``, PETS's
 ``conf = 0`` rows) are passed to the evaluation when its ``evaluate_tables`` takes an
 ``ignore`` argument; otherwise they are left out of the ground truth, a track on them
@@ -68,7 +81,7 @@ import json  # noqa: E402
 import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
-from dataclasses import dataclass  # noqa: E402
+from dataclasses import dataclass, field  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Callable  # noqa: E402
 
@@ -79,6 +92,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from benchmarks import quality_sim  # noqa: E402
 from services.tracker.config import TrackerConfig  # noqa: E402
 from services.tracker.offline import Detections, Row, frame_stamps, read_detections, track_config  # noqa: E402
 from tools.evaluation.evaluate import evaluate_tables  # noqa: E402
@@ -103,9 +117,12 @@ PETS_GT_SCALE = 0.625  # gt.txt boxes are in 768x576 pixels, the frames 480x360 
 
 @dataclass(frozen=True)
 class TrackerAdapter:
+    """A tracker to compare; ``config`` is set for this project's tracker (the simulator replays it)."""
+
     name: str
     run: Callable[[Detections], list[Row]]
     uses_appearance: bool = False
+    config: TrackerConfig | None = None
 
 
 def has_profiles() -> bool:
@@ -143,7 +160,7 @@ def project_adapter(label: str, config: TrackerConfig, embedding_model: str | No
     def run(dets: Detections) -> list[Row]:
         return track_config(dets, config, embedding_model if dets.descriptors is not None else None)
 
-    return TrackerAdapter(label, run, uses_appearance=True)
+    return TrackerAdapter(label, run, uses_appearance=True, config=config)
 
 
 def project_adapters(scores: dict[str, float] | None = None) -> list[TrackerAdapter]:
@@ -314,12 +331,14 @@ class Sequence:
 
 @dataclass
 class Score:
-    """One tracker on one dataset: the summed result, the per-sequence ones, tracker time and frames."""
+    """One tracker on one dataset: the summed result, the per-sequence ones, tracker time and frames
+    (``parts``: tracker seconds and frames per sequence)."""
 
     result: ClearMot
     sequences: list[tuple[str, ClearMot]]
     seconds: float
     frames: int
+    parts: list[tuple[float, int]] = field(default_factory=list)
 
     @property
     def fps(self) -> float:
@@ -328,15 +347,15 @@ class Score:
 
 def score(tracker: TrackerAdapter, sequences: list[Sequence]) -> Score:
     """Run ``tracker`` on every sequence (timed), judge each, sum."""
-    parts, seconds, frames = [], 0.0, 0
+    parts, times = [], []
     for seq in sequences:
         dets = seq.dets if tracker.uses_appearance else _positions_only(seq.dets)
         t0 = time.perf_counter()
         rows = tracker.run(dets)
-        seconds += time.perf_counter() - t0
-        frames += len(frame_stamps(seq.dets)[0])
+        times.append((time.perf_counter() - t0, len(frame_stamps(seq.dets)[0])))
         parts.append((seq.name, judge(seq.gt, rows, seq.ignore)))
-    return Score(ClearMot.combine(r for _, r in parts), parts, seconds, frames)
+    return Score(ClearMot.combine(r for _, r in parts), parts, sum(t for t, _ in times), sum(n for _, n in times),
+                 times)
 
 
 # ------------------------------------------------------------------------------------
@@ -472,6 +491,64 @@ def load_pets(root: Path, cache_dir: Path, log: Callable[[str], None] = print) -
 
 
 # ------------------------------------------------------------------------------------
+# The simulated apartment: run_chain's inputs to the tracker, captured and cached
+# ------------------------------------------------------------------------------------
+
+def score_sim(tracker: TrackerAdapter, captures: list[quality_sim.Capture]) -> Score:
+    """``tracker`` on every captured scenario (timed), judged as the demo's Table II, summed.
+
+    This project's tracker (``config`` set) is replayed as the service runs it; the
+    others get the positions. frames/s counts every frame the tracker was given.
+    """
+    parts, times = [], []
+    for cap in captures:
+        dets = None if tracker.config is not None else _positions_only(quality_sim.detections(cap))
+        t0 = time.perf_counter()
+        rows = quality_sim.replay(cap, tracker.config) if dets is None else tracker.run(dets)  # type: ignore[arg-type]
+        times.append((time.perf_counter() - t0, cap.frames))
+        parts.append((cap.name, quality_sim.judge_demo(cap, rows)))
+    return Score(ClearMot.combine(r for _, r in parts), parts, sum(t for t, _ in times), sum(n for _, n in times),
+                 times)
+
+
+def chain_check(captures: list[quality_sim.Capture], replayed: Score | None) -> list[dict[str, object]]:
+    """Per scenario: the capture run's in-chain tracker against its offline replay (MOTA, IDF1, IDSW).
+
+    ``replayed``: the same profile's offline Score. The in-chain figures are compared only
+    while the tracker's code and settings are those of the capture run (``tracker_key``).
+    """
+    key = quality_sim.chain_tracker_key()
+    out: list[dict[str, object]] = []
+    for k, cap in enumerate(captures):
+        chain = cap.meta["chain"]
+        row: dict[str, object] = {"scenario": cap.name, "profile": chain["profile"], "chain": chain}
+        if replayed is not None and chain["tracker_key"] == key:
+            r = replayed.sequences[k][1]
+            row["replay"] = {"mota": r.mota, "idf1": r.idf1, "id_switches": r.id_switches}
+            row["same"] = bool(np.isclose(r.mota, chain["mota"]) and np.isclose(r.idf1, chain["idf1"])
+                               and r.id_switches == chain["id_switches"])
+        out.append(row)
+    return out
+
+
+def format_chain_check(rows: list[dict[str, object]]) -> str:
+    lines = ["replay check: the capture run's in-chain tracker vs the offline replay of the same profile on its inputs",
+             "", "| scenario | profile | in-chain MOTA | replay MOTA | in-chain IDF1 | replay IDF1 | same |",
+             "|---|---|---|---|---|---|---|"]
+    for row in rows:
+        chain, rep = row["chain"], row.get("replay")
+        assert isinstance(chain, dict)
+        if isinstance(rep, dict):
+            cells = [_f(chain["mota"]), _f(rep["mota"]), _f(chain["idf1"]), _f(rep["idf1"]),
+                     "yes" if row["same"] else "NO"]
+        else:
+            cells = [_f(chain["mota"]), "-", _f(chain["idf1"]), "-", "not compared: the tracker changed since the "
+                     "capture (--refresh-sim)"]
+        lines.append(f"| {row['scenario']} | {row['profile']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------------------
 # Output
 # ------------------------------------------------------------------------------------
 
@@ -508,37 +585,102 @@ def format_scores(title: str, scores: dict[str, Score]) -> str:
     return "\n".join(lines)
 
 
+def format_sequences(title: str, scores: dict[str, Score]) -> str:
+    """One row per sequence and tracker, then the overall row (sums over the sequences) of each tracker."""
+    head = ["sequence", "tracker", "objects", "MOTA", "IDF1", "IDSW", "recall err", "misses", "FP", "MOTP (m)", "HOTA",
+            "frames/s"]
+    lines = [f"### {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+
+    def cells(seq: str, name: str, r: ClearMot, seconds: float, frames: int) -> str:
+        fps = f"{frames / seconds:,.0f}" if seconds > 0 else "-"
+        row = [seq, name, str(r.objects), _f(r.mota), _f(r.idf1), str(r.id_switches), str(r.recall_errors),
+               str(r.misses), str(r.false_positives), _f(r.motp), _f(getattr(r, "hota", float("nan"))), fps]
+        return "| " + " | ".join(row) + " |"
+
+    names = [n for n, _ in next(iter(scores.values())).sequences] if scores else []
+    for k, seq in enumerate(names):
+        for name, s in scores.items():
+            seconds, frames = s.parts[k] if s.parts else (0.0, 0)
+            lines.append(cells(seq, name, s.sequences[k][1], seconds, frames))
+    for name, s in scores.items():
+        lines.append(cells("**overall**", name, s.result, s.seconds, s.frames))
+    return "\n".join(lines)
+
+
 def run_dataset(sequences: list[Sequence], trackers: list[TrackerAdapter]) -> dict[str, Score]:
     return {t.name: score(t, sequences) for t in trackers}
 
 
 def score_dict(s: Score) -> dict[str, object]:
-    return {"overall": s.result.to_dict(), "sequences": {n: r.to_dict() for n, r in s.sequences},
-            "tracker_seconds": s.seconds, "frames": s.frames, "frames_per_s": s.fps}
+    seqs: dict[str, dict[str, object]] = {n: r.to_dict() for n, r in s.sequences}
+    for (n, _), (seconds, frames) in zip(s.sequences, s.parts):
+        seqs[n].update(tracker_seconds=seconds, frames=frames, frames_per_s=frames / seconds if seconds > 0 else None)
+    return {"overall": s.result.to_dict(), "sequences": seqs, "tracker_seconds": s.seconds, "frames": s.frames,
+            "frames_per_s": s.fps}
+
+
+DATASETS = ("kitti", "pets", "sim")
+SIM_QUICK_SECONDS = 10.0
+
+
+def _names(text: str, allowed: list[str] | tuple[str, ...], what: str) -> list[str]:
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in allowed]
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(f"unknown {what} {', '.join(unknown) or repr(text)}; "
+                                         f"choose from {', '.join(allowed)}")
+    return names
+
+
+def run_sim(scenarios: list[str], seconds: float, cache_dir: Path, trackers: list[TrackerAdapter],
+            refresh: bool = False) -> tuple[str, dict[str, Score], list[dict[str, object]]]:
+    """The simulator section: (title, scores per tracker, the in-chain replay check)."""
+    captures = [quality_sim.load_capture(name, seconds, cache_dir, refresh=refresh) for name in scenarios]
+    title = (f"Simulated apartment, {len(scenarios)} scenarios x {seconds:g} s at {quality_sim.SIM_FPS:g} fps: "
+             "depth detector -> localizer -> colour embedder (run_chain), judged as the demo's Table II")
+    scores = {t.name: score_sim(t, captures) for t in trackers}
+    check = chain_check(captures, scores.get(quality_sim.CHAIN_PROFILE))
+    return title, scores, check
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="KITTI only")
+    parser.add_argument("--quick", action="store_true",
+                        help=f"no PETS; the simulator {SIM_QUICK_SECONDS:g} s per scenario")
+    parser.add_argument("--only", type=lambda t: _names(t, DATASETS, "dataset"), default=list(DATASETS),
+                        metavar="NAMES", help=f"comma-separated datasets to run, of {','.join(DATASETS)} (default all)")
+    parser.add_argument("--scenarios", type=lambda t: _names(t, quality_sim.scenario_names(), "scenario"),
+                        default=None, metavar="NAMES", help="comma-separated simulator scenarios (default all 7)")
+    parser.add_argument("--sim-seconds", type=float, default=None, metavar="S",
+                        help=f"simulated seconds per scenario (default {quality_sim.SIM_SECONDS:g}, "
+                             f"{SIM_QUICK_SECONDS:g} with --quick)")
+    parser.add_argument("--refresh-sim", action="store_true",
+                        help="run the simulator chain again instead of reading its cached capture (the in-chain "
+                             "check then compares with the tracker as it is now)")
     parser.add_argument("--json", type=Path, metavar="FILE", help="also write every figure as JSON")
     parser.add_argument("--data", type=Path, default=SHARED, help=f"shared data folder (default {SHARED})")
     parser.add_argument("--cache-dir", type=Path, default=DEFAULT_CACHE,
-                        help=f"where PETS detections are cached (default {DEFAULT_CACHE})")
+                        help=f"where PETS detections and simulator captures are cached (default {DEFAULT_CACHE})")
     args = parser.parse_args(argv)
+    if args.sim_seconds is not None and not args.sim_seconds > 0:
+        parser.error(f"--sim-seconds must be > 0, got {args.sim_seconds:g}")
 
     trackers, notes = all_trackers()
     if not ignore_supported():
         notes.append(IGNORE_NOTE)
     print("# Tracking quality\n")
     print(f"machine: {machine()}")
-    print(f"trackers: {', '.join(t.name for t in trackers)}; judged on (x, y) with a {GATE_M:g} m gate\n")
+    print(f"trackers: {', '.join(t.name for t in trackers)}; KITTI and PETS judged on (x, y) with a {GATE_M:g} m "
+          "gate, the simulator as the demo's Table II (x, y, z) < 1 m\n")
     for note in notes:
         print(f"note: {note}")
     print()
 
     tables: dict[str, dict[str, Score]] = {}
     kitti = args.data / "kitti_ped_dev"
-    if kitti.is_dir():
+    if "kitti" not in args.only:
+        print("KITTI skipped (--only)\n")
+    elif kitti.is_dir():
         for label, cut in ((f"score >= {KITTI_SCORE_CUT}", KITTI_SCORE_CUT), ("no score cut", None)):
             title = f"KITTI pedestrians dev (7 sequences, summed), {label}"
             calibrated = project_adapters(KITTI_SCORES) + [t for t in trackers if t.name not in PROFILES]
@@ -548,8 +690,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"KITTI skipped: {kitti} not found\n")
 
     pets = args.data / "pets09_dev"
-    if args.quick:
-        print("PETS09 skipped (--quick)")
+    if "pets" not in args.only:
+        print("PETS09 skipped (--only)\n")
+    elif args.quick:
+        print("PETS09 skipped (--quick)\n")
     elif pets.is_dir():
         title = "PETS09-S2L1 frames 1-400: HOG -> colour embedder -> ground plane"
         tables[title] = run_dataset(load_pets(pets, args.cache_dir), trackers)
@@ -558,10 +702,26 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(f"PETS09 skipped: {pets} not found\n")
 
+    sim: dict[str, object] = {}
+    if "sim" not in args.only:
+        print("Simulator skipped (--only)\n")
+    else:
+        seconds = args.sim_seconds or (SIM_QUICK_SECONDS if args.quick else quality_sim.SIM_SECONDS)
+        scenarios = args.scenarios or quality_sim.scenario_names()
+        t0 = time.perf_counter()
+        title, scores, check = run_sim(scenarios, seconds, args.cache_dir, trackers, args.refresh_sim)
+        tables[title] = scores
+        print(format_sequences(title, scores) + "\n")
+        print(format_chain_check(check) + "\n")
+        sim = {"scenarios": scenarios, "seconds": seconds, "fps": quality_sim.SIM_FPS, "size": quality_sim.SIM_SIZE,
+               "seed": quality_sim.SIM_SEED, "judge": "counted people, (x, y, z) distance < 1 m (the demo's Table II)",
+               "chain_check": check, "wall_seconds": time.perf_counter() - t0}
+
     if args.json:
         args.json.write_text(json.dumps({
             "machine": machine(), "gate_m": GATE_M, "ignore_applied": ignore_supported(), "notes": notes,
             "datasets": {title: {name: score_dict(s) for name, s in t.items()} for title, t in tables.items()},
+            "simulator": sim,
         }, indent=1))
         print(f"wrote {args.json}")
     return 0

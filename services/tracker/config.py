@@ -13,6 +13,7 @@ import os
 from pathlib import Path
 from typing import Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from services.tracker.core import AppearanceGate, TrackerParams
@@ -207,6 +208,10 @@ class TrackerConfig(BaseModel):
                                description="how long localized detections wait for their embeddings")
     reorder_window_s: float = Field(default=0.5, ge=0.0, le=10.0,
                                     description="inputs older than this behind the newest are dropped")
+    clock_jump_s: float = Field(
+        default=5.0, gt=0.0, le=3600.0,
+        description="a frame this much older than its source's newest is a clock jump (a replay that loops): "
+                    "every track ends, its ID remembered, and tracking starts over; must exceed reorder_window_s")
     memory_path: Path | None = Field(default_factory=default_memory_path,
                                      description="ID memory file, loaded at start and rewritten on change; null: none")
     memory_save_period_s: float = Field(default=2.0, gt=0.0, le=3600.0,
@@ -218,6 +223,13 @@ class TrackerConfig(BaseModel):
         if any(not (s > 0) for s in v):
             raise ValueError(f"every standard deviation must be positive, got {v}")
         return v
+
+    @model_validator(mode="after")
+    def _clock_jump_beyond_window(self) -> TrackerConfig:
+        if not self.clock_jump_s > self.reorder_window_s:
+            raise ValueError(f"clock_jump_s ({self.clock_jump_s}) must exceed reorder_window_s "
+                             f"({self.reorder_window_s}): a late frame within the window is reordered, not a clock jump")
+        return self
 
     @field_validator("appearance", mode="before")
     @classmethod
@@ -284,3 +296,12 @@ class TrackerConfig(BaseModel):
     @property
     def uses_detection_covariance(self) -> bool:
         return self.robust.use_detection_covariance if self.profile == "robust" else self.use_detection_covariance
+
+    @property
+    def covariance_fallback(self) -> np.ndarray:
+        """(3, 3): what replaces an unusable detection covariance, so that the profile's R is its
+        fixed one: ``diag(sigma_r^2)`` for thesis (R is the covariance), zero for robust (R is
+        its ``sigma_r^2`` plus the covariance)."""
+        if self.profile == "robust":
+            return np.zeros((3, 3))
+        return np.diag(np.asarray(self.sigma_r, float) ** 2)

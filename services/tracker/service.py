@@ -13,6 +13,11 @@
 * The ID memory is loaded at start and written atomically when it changes, and every
   ``memory_save_period_s`` with the galleries of the live tracks, so a restarted tracker
   keeps identities.
+* Bad inputs are counted, logged at most once a second per reason, and survived:
+  unusable covariances (``bad_covariances``), descriptors of another model or dimension
+  (``dropped_wrong_model``, ``dropped_wrong_dimension``), and stamps that jump back by more
+  than ``clock_jump_s`` (``clock_jumps``: every track ends, its ID stays remembered, and
+  tracking starts over on the new clock).
 """
 
 from __future__ import annotations
@@ -33,10 +38,10 @@ from common.runtime import Counters
 from common.schemas import Embeddings, Header, LocalizedDetections, ModelCard, TrackState, Tracks
 from common.transport import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
-from services.tracker.convert import descriptors_for, positions_of, track_state, tracks_message
+from services.tracker.convert import descriptors_for, positions_of, track_state, tracks_message, usable_covariances
 from services.tracker.core.tracker import FrameResult, TrackerState
-from services.tracker.memory_file import load_memory, save_memory
-from services.tracker.reorder import InputKey, ReorderBuffer
+from services.tracker.memory_file import descriptor_dim, load_memory, save_memory
+from services.tracker.reorder import ClockJumps, InputKey, ReorderBuffer
 
 __all__ = ["TrackerService", "load_memory"]
 
@@ -46,6 +51,8 @@ log = logging.getLogger(__name__)
 #: What the tracker calls each of the joiner's drop reasons (``dropped_<name>``).
 _DROP_NAMES = {"orphan": "unpaired_embeddings", "late": "late_embeddings", "duplicate": "duplicate",
                "overflow": "join_overflow"}
+#: Added to every detection covariance: keeps R invertible for degenerate (zero) ones.
+_R_EPS = np.eye(3) * 1e-6
 
 
 def _complete(items: Mapping[str, Any]) -> bool:
@@ -71,7 +78,10 @@ class TrackerService(Node):
         self.clock = clock
         memory, stored_model = load_memory(config)
         self.model: str | None = config.embedding_model or stored_model
-        self._dim: int | None = None
+        #: the descriptors' dimension: the remembered ones', else the first accepted model card's
+        self._dim = descriptor_dim(memory)
+        self._dim_why = "" if self._dim is None else (f"the ID memory in {config.memory_path} holds dimension "
+                                                      f"{self._dim} (move the file away if the model changed)")
         th = config.thresholds(self.model) if self.model else None
         self.tracker = config.build_tracker(th, memory)
         self._have_thresholds = th is not None
@@ -87,7 +97,8 @@ class TrackerService(Node):
         self._saved_version = memory.version
         self._last_save = clock()
         self._dirty = False
-        self._log = RateLimitedLog(log)
+        self._log = RateLimitedLog(log, clock=clock)
+        self._clock_jumps = ClockJumps(int(config.clock_jump_s * 1e9))
         self.buffer: ReorderBuffer[_Frame, TrackerState, FrameResult] = ReorderBuffer(
             apply=self._update, snapshot=self.tracker.snapshot, restore=self.tracker.restore,
             window_ns=int(config.reorder_window_s * 1e9))
@@ -102,14 +113,22 @@ class TrackerService(Node):
 
     # ---------------------------------------------------------------- inputs
 
-    def _accept_model(self, card: ModelCard) -> bool:
-        """Lock onto one embedding model and resolve its thresholds."""
+    def _refusal(self, card: ModelCard) -> str | None:
+        """Why descriptors of ``card`` cannot be used (None: they can). Locks onto one
+        embedding model and dimension, and resolves the model's thresholds."""
         if self.model is None:
             self.model = card.name
             log.info("tracking with descriptors of embedding model %r", card.name)
-        if card.name != self.model or (self._dim is not None and card.dim != self._dim):
-            return False
-        self._dim = card.dim
+        if card.name != self.model:
+            self._log.warning("wrong_model", "dropping descriptors of embedding model %r: the tracker uses %r; "
+                              "their frames run position-only", card.name, self.model)
+            return "wrong_model"
+        if self._dim is not None and card.dim != self._dim:
+            self._log.warning("wrong_dimension", "dropping descriptors of embedding model %r of dimension %d: %s; "
+                              "their frames run position-only", card.name, card.dim, self._dim_why)
+            return "wrong_dimension"
+        if self._dim is None:
+            self._dim, self._dim_why = card.dim, f"its first descriptors had dimension {card.dim}"
         if not self._card_applied:  # the first card: its thresholds if needed, and its metric
             self._card_applied = True
             th = self.config.thresholds(card.name)
@@ -120,9 +139,11 @@ class TrackerService(Node):
             if th is not None:
                 self.config.apply_thresholds(self.tracker, th, card.metric)
                 self._have_thresholds = True
-        return True
+        return None
 
-    def _drain(self, now: float) -> None:
+    def _drain(self, now: float) -> list[Tracks]:
+        """Take what has arrived; returns what a clock jump made publish first."""
+        published: list[Tracks] = []
         while (got := self.loc_sub.try_recv()) is not None:
             loc = got.msg
             if loc.header.frame_id and loc.header.frame_id != self.config.frame_id:
@@ -130,13 +151,52 @@ class TrackerService(Node):
                 self._log.warning("wrong_frame", "dropping localized detections in frame %r; the tracker works in %r",
                                   loc.header.frame_id, self.config.frame_id)
                 continue
+            self._check_covariances(loc)
+            if back_ns := self._clock_jumps.check(loc.header.source, loc.header.stamp_ns):
+                published += self._restart_clock(loc.header.source, back_ns, now)
             self._count(self.join.add("localized", loc.header.join_key, loc, now))
         while (got_emb := self.emb_sub.try_recv()) is not None:
             emb = got_emb.msg
-            if not self._accept_model(emb.model):
-                self.counters.drop("wrong_model")
+            if reason := self._refusal(emb.model):
+                self.counters.drop(reason)
                 emb = None  # known not to come: its frame need not wait
             self._count(self.join.add("embeddings", got_emb.msg.header.join_key, emb, now))
+        return published
+
+    def _check_covariances(self, loc: LocalizedDetections) -> None:
+        """Count (and log) detections whose covariance is not symmetric positive definite.
+
+        Non-finite ones never get here: decoding refuses them (the subscription's ``invalid``).
+        """
+        bad = len(loc.detections) - int(usable_covariances(positions_of(loc)[1] + _R_EPS).sum())
+        if bad:
+            self.counters.count("bad_covariances", bad)
+            self._log.warning("bad_covariance", "%d of %d detections of frame %s carry a covariance that is not "
+                              "symmetric positive definite; sigma_r stands for it", bad, len(loc.detections),
+                              loc.header.join_key)
+
+    def _restart_clock(self, source: str, back_ns: int, now: float) -> list[Tracks]:
+        """Stamps went back by more than ``clock_jump_s``: apply what waits from the old clock,
+        end every track (their galleries go to the ID memory) and start over."""
+        published = self._apply_ready(now + self.config.join_wait_s)  # the old clock's frames, without waiting
+        ended = self.tracker.restart_clock()
+        self.buffer.reset()
+        self.join.forget_released()  # a looping replay sends the same keys again
+        self._epoch_ns = None
+        with self._state_lock:
+            for track_id in ended:
+                if track_id not in self._last_state:
+                    continue
+                if self._confirmed_before(track_id):
+                    self._last_state[track_id] = self._last_state[track_id].model_copy(update={"status": "deleted"})
+                else:
+                    del self._last_state[track_id]
+        self._dirty = True
+        self.counters.count("clock_jumps")
+        self._log.warning("clock_jump", "stamps of %r went back %.1f s, more than clock_jump_s (%.1f s): a new clock "
+                          "(a replay that loops?); ended tracks %s, their IDs are remembered", source, back_ns / 1e9,
+                          self.config.clock_jump_s, ended)
+        return published
 
     def _count(self, dropped: list[Dropped]) -> None:
         for d in dropped:
@@ -158,7 +218,7 @@ class TrackerService(Node):
         if self._epoch_ns is None:
             self._epoch_ns = loc.header.stamp_ns
         positions, covs = positions_of(loc)
-        covs = covs + np.eye(3) * 1e-6  # keep R invertible for degenerate covariances
+        covs = covs + _R_EPS
         descriptors = None
         if frame.emb is not None and self._have_thresholds:
             descriptors = descriptors_for(loc, frame.emb)
@@ -167,7 +227,9 @@ class TrackerService(Node):
         elif loc.detections and frame.emb is not None:
             self.counters.count("no_thresholds")
         stamp = (loc.header.stamp_ns - self._epoch_ns) / 1e9
-        covs_used = covs if self.config.uses_detection_covariance else None
+        covs_used = None
+        if self.config.uses_detection_covariance:  # unusable ones: the profile's fixed R (counted on arrival)
+            covs_used = np.where(usable_covariances(covs)[:, None, None], covs, self.config.covariance_fallback + _R_EPS)
         scores = np.array([d.score for d in loc.detections], np.float64)
         result = self.tracker.update(stamp, positions, descriptors, covs_used, scores)
         self._ever_confirmed.update(v.id for v in result.confirmed)
@@ -203,7 +265,12 @@ class TrackerService(Node):
 
     def poll(self, now: float) -> list[Tracks]:
         """Take what has arrived, apply every frame that is ready; returns the Tracks published."""
-        self._drain(now)
+        published = self._drain(now)
+        published += self._apply_ready(now)
+        self._persist(now)
+        return published
+
+    def _apply_ready(self, now: float) -> list[Tracks]:
         published = []
         for key, frame in self._ready(now):
             old, dup = self.buffer.dropped_old, self.buffer.dropped_duplicate
@@ -225,7 +292,6 @@ class TrackerService(Node):
                 self.counters.count("rewinds")
             newest = self.buffer.latest() or (key, frame)
             published.append(self._publish(newest[1], results[-1]))
-        self._persist(now)
         return published
 
     def deadline(self, now: float) -> float | None:

@@ -26,6 +26,7 @@ of the full (x, y, z) positions < 1 m; the torso centre is the ground truth's po
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import logging
@@ -176,8 +177,13 @@ def _chain_config() -> TrackerConfig:
     return TrackerConfig.model_validate({"profile": CHAIN_PROFILE, "memory_path": None})
 
 
+@functools.lru_cache(maxsize=1)
 def chain_tracker_key() -> str:
-    """Hash of the tracker's code and the in-chain tracker's settings: the in-chain figures hold while it matches."""
+    """Hash of the tracker's code and the in-chain tracker's settings: the in-chain figures hold while it matches.
+
+    Computed once per process (call it before tracking): the code this process runs is
+    the code it imported, even if the files change during the run.
+    """
     text = _hash_code(("services/tracker",)) + _chain_config().model_dump_json()
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 

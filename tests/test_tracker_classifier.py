@@ -104,3 +104,33 @@ def test_config_turns_the_classifiers_off_and_validates() -> None:
     assert off.classifier is None
     with pytest.raises(ValueError):
         TrackerConfig.model_validate({"robust": {"classifier": {"rate": 0}}})
+
+
+def test_classifiers_are_kept_in_the_id_memory_file_and_read_back_by_the_service(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from common.keys import Keys
+    from common.memory import MemoryBus
+    from services.tracker.core.identity import IdentityMemory
+    from services.tracker.memory_file import read_classifiers, read_memory, save_memory
+    from services.tracker.service import TrackerService
+
+    memory = IdentityMemory(10)
+    memory.archive(memory.new_id(), np.stack([A, A]))
+    weights = {1: np.arange(9.0), 4: -np.arange(9.0)}
+    path = tmp_path / "ids.npz"
+    save_memory(path, memory, "colour", classifiers=weights)
+    assert read_memory(path)[0].entries.keys() == {1}
+    back = read_classifiers(path)
+    assert back.keys() == {1, 4} and np.array_equal(back[4], weights[4])
+    save_memory(path, memory, "colour")  # none to keep: an empty block
+    assert read_classifiers(path) == {}
+    with np.load(path) as f:  # a file written before classifiers existed reads as none
+        np.savez(tmp_path / "old.npz", **{k: f[k] for k in f.files if not k.startswith("classifier")})
+    assert read_classifiers(tmp_path / "old.npz") == {}
+    with pytest.raises(ValueError, match="several dimensions"):
+        save_memory(path, memory, "colour", classifiers={1: np.zeros(9), 2: np.zeros(5)})
+
+    save_memory(path, memory, "colour", classifiers=weights)
+    service = TrackerService(MemoryBus().transport(), Keys(robot="t"), TrackerConfig(memory_path=path))
+    assert service.tracker.classifiers.keys() == {1, 4}  # type: ignore[union-attr]
+    service.close()
+    assert read_classifiers(path).keys() == {1, 4}  # written back at shutdown

@@ -3,7 +3,9 @@
 Layout (version :data:`FORMAT_VERSION`): ``format_version``, ``model`` (the embedding
 model's name), ``next_id``, ``capacity``, then the memory's blocks as
 :meth:`IdentityMemory.to_blocks` gives them: ``ids`` (K,), ``counts`` (K,) and
-``descriptors`` (sum of counts, D) float32.
+``descriptors`` (sum of counts, D) float32. Optionally (the robust profile's online
+classifiers, :mod:`services.tracker.core.classifier`): ``classifier_ids`` (C,) and
+``classifiers`` (C, D + 1) float64; a file without them reads as no classifiers.
 
 Saving writes a temporary file next to the target, syncs it and renames it over the
 target, so a crash never leaves a half-written memory behind.
@@ -15,7 +17,7 @@ import logging
 import os
 import tempfile
 import zipfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +25,7 @@ import numpy as np
 from services.tracker.config import TrackerConfig
 from services.tracker.core import IdentityMemory
 
-__all__ = ["FORMAT_VERSION", "descriptor_dim", "load_memory", "read_memory", "save_memory"]
+__all__ = ["FORMAT_VERSION", "descriptor_dim", "load_memory", "read_classifiers", "read_memory", "save_memory"]
 
 log = logging.getLogger(__name__)
 
@@ -32,21 +34,30 @@ FORMAT_VERSION = 1
 
 
 def save_memory(path: str | Path, memory: IdentityMemory, model: str = "",
-                extra: Iterable[tuple[int, np.ndarray]] = ()) -> None:
+                extra: Iterable[tuple[int, np.ndarray]] = (),
+                classifiers: Mapping[int, np.ndarray] | None = None) -> None:
     """Write ``memory`` atomically to ``path`` (``.npz``).
 
     ``extra`` adds (ID, descriptors (M, D)) blocks stored next to the memory, e.g. the
     galleries of the tracks alive now; :func:`read_memory` merges them into their IDs.
-    Raises ``OSError``, or ``ValueError`` for descriptors of several dimensions.
+    ``classifiers``: ID -> weights (D + 1,) of trained online classifiers, stored beside
+    (:func:`read_classifiers`). Raises ``OSError``, or ``ValueError`` for descriptors of
+    several dimensions.
     """
     ids, counts, data = memory.to_blocks(extra)
+    clf = {int(i): np.asarray(w, np.float64) for i, w in (classifiers or {}).items()}
+    if len({len(w) for w in clf.values()}) > 1:
+        raise ValueError("classifiers of several dimensions")
+    clf_ids = np.array(sorted(clf), np.int64)
+    clf_w = np.stack([clf[i] for i in clf_ids.tolist()]) if clf else np.zeros((0, 0))
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=target.name + ".", suffix=".tmp", dir=target.parent)
     try:
         with os.fdopen(fd, "wb") as f:
             np.savez(f, format_version=np.int64(FORMAT_VERSION), model=np.str_(model), next_id=np.int64(memory.next_id),
-                     capacity=np.int64(memory.capacity), ids=ids, counts=counts, descriptors=data)
+                     capacity=np.int64(memory.capacity), ids=ids, counts=counts, descriptors=data,
+                     classifier_ids=clf_ids, classifiers=clf_w)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, target)
@@ -75,6 +86,23 @@ def read_memory(path: str | Path, capacity: int | None = None) -> tuple[Identity
     if counts.sum() != len(data) or len(ids) != len(counts):
         raise ValueError(f"{path}: ID memory file is inconsistent ({len(ids)} ids, {counts.sum()} counted, {len(data)} stored)")
     return IdentityMemory.from_blocks(capacity, next_id, ids, counts, data), model
+
+
+def read_classifiers(path: str | Path) -> dict[int, np.ndarray]:
+    """The online classifiers stored by :func:`save_memory` (empty for a file without them).
+
+    Raises ``ValueError`` naming the file when they are unreadable or inconsistent.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            if "classifiers" not in f.files:
+                return {}
+            ids, weights = f["classifier_ids"], f["classifiers"]
+    except (OSError, KeyError, EOFError, ValueError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path}: unreadable classifiers in the ID memory file: {exc}") from exc
+    if len(ids) != len(weights) or (len(ids) and weights.ndim != 2) or not np.all(np.isfinite(weights)):
+        raise ValueError(f"{path}: inconsistent classifiers in the ID memory file ({len(ids)} ids, shape {weights.shape})")
+    return {int(i): w.astype(np.float64) for i, w in zip(ids.tolist(), weights)}
 
 
 def load_memory(config: TrackerConfig) -> tuple[IdentityMemory, str | None]:

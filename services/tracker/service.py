@@ -40,7 +40,7 @@ from common.transport import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of, track_state, tracks_message, usable_covariances
 from services.tracker.core.tracker import FrameResult, TrackerState
-from services.tracker.memory_file import descriptor_dim, load_memory, save_memory
+from services.tracker.memory_file import descriptor_dim, load_memory, read_classifiers, save_memory
 from services.tracker.reorder import ClockJumps, InputKey, ReorderBuffer
 
 __all__ = ["TrackerService", "load_memory"]
@@ -84,6 +84,12 @@ class TrackerService(Node):
                                                       f"{self._dim} (move the file away if the model changed)")
         th = config.thresholds(self.model) if self.model else None
         self.tracker = config.build_tracker(th, memory)
+        if hasattr(self.tracker, "classifiers") and config.memory_path is not None and config.memory_path.exists():
+            # the robust profile's remembered classifiers (a bad block costs them, not the memory)
+            try:
+                self.tracker.classifiers = read_classifiers(config.memory_path)
+            except ValueError as exc:
+                log.warning("%s; starting without remembered classifiers", exc)
         self._have_thresholds = th is not None
         self._card_applied = False
         self._epoch_ns: int | None = None
@@ -308,7 +314,8 @@ class TrackerService(Node):
         if not (changed or periodic or (force and self._dirty)):
             return
         try:
-            save_memory(path, self.tracker.memory, self.model or "", extra=self.tracker.live_galleries())
+            save_memory(path, self.tracker.memory, self.model or "", extra=self.tracker.live_galleries(),
+                        classifiers=self._classifiers())
         except (OSError, ValueError) as exc:
             self.counters.count("memory_save_errors")
             log.error("could not write the ID memory to %s: %s", path, exc)
@@ -316,6 +323,13 @@ class TrackerService(Node):
         self._saved_version = self.tracker.memory.version
         self._last_save, self._dirty = now, False
         self.counters.count("memory_saves")
+
+    def _classifiers(self) -> dict[int, np.ndarray]:
+        """The robust profile's classifiers to keep: the remembered ones and the live tracks'."""
+        live = getattr(self.tracker, "live_classifiers", None)
+        if live is None:
+            return {}
+        return {**self.tracker.classifiers, **live()}  # type: ignore[attr-defined]
 
     # ------------------------------------------------------------------ query
     def _answer_query(self, _key: str, params: dict[str, str]) -> list[Tracks]:

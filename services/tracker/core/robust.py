@@ -551,6 +551,10 @@ class RobustTracker:
         self.last_stamp = state.last_stamp
         self.classifiers = dict(state.classifiers)
 
+    def live_classifiers(self) -> dict[int, np.ndarray]:
+        """ID -> weights of every confirmed live track's trained classifier."""
+        return {t.id: t.clf for t in self.tracks if t.id and t.clf_steps and t.clf is not None}
+
     def live_galleries(self) -> list[tuple[int, np.ndarray]]:
         return [(t.id, t.gallery.descriptors) for t in self.tracks if t.id and t.gallery is not None and len(t.gallery)]
 

@@ -40,6 +40,7 @@ import numpy as np
 from common.schemas import Embeddings, LocalizedDetections, Message, PeopleGroundTruth, Tracks
 from services.tracker.config import TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of
+from services.tracker.core.view import FieldOfView
 from services.tracker.offline import Detections, Row
 from tools.evaluation.evaluate import evaluate_tables
 from tools.evaluation.metrics import ClearMot
@@ -80,7 +81,9 @@ class Capture:
     frames), ``positions`` (M, 3) map frame in m, ``covs`` (M, 3, 3) m^2, ``scores`` (M,),
     ``descriptors`` (M, D) float32 (NaN rows: none for that detection). Ground truth (G,):
     ``gt_seq`` int64, ``gt_id`` int64, ``gt_pos`` (G, 3), the counted people of every
-    frame. ``meta``: scenario, seconds, fps, simulated frames, the embedding model (name,
+    frame. The camera's view per frame (as the localizer sends it; NaN where it sent none):
+    ``view_pose`` (F, 4, 4) camera -> map, ``view_k`` (F, 3, 3), ``view_size`` (F, 2)
+    width, height, ``view_range`` (F,) m. ``meta``: scenario, seconds, fps, simulated frames, the embedding model (name,
     dim, metric), the seq of the first embeddings message and the in-chain tracker's figures.
     """
 
@@ -95,10 +98,21 @@ class Capture:
     gt_seq: np.ndarray
     gt_id: np.ndarray
     gt_pos: np.ndarray
+    view_pose: np.ndarray
+    view_k: np.ndarray
+    view_size: np.ndarray
+    view_range: np.ndarray
     meta: dict[str, Any]
 
     ARRAYS = ("seq", "stamp_ns", "has_embeddings", "det_frame", "positions", "covs", "scores", "descriptors",
-              "gt_seq", "gt_id", "gt_pos")
+              "gt_seq", "gt_id", "gt_pos", "view_pose", "view_k", "view_size", "view_range")
+
+    def view(self, k: int) -> FieldOfView | None:
+        """The camera's view at frame ``k`` (None where the localizer sent none)."""
+        if not np.isfinite(self.view_range[k]):
+            return None
+        w, h = (int(v) for v in self.view_size[k])
+        return FieldOfView(self.view_pose[k], self.view_k[k], w, h, float(self.view_range[k]))
 
     @property
     def name(self) -> str:
@@ -138,7 +152,13 @@ def _to_capture(rec: _Recorder, meta: dict[str, Any]) -> Capture:
     cards = [e.model for e in rec.embeddings.values()]
     dim = cards[0].dim if cards else 0
     seq, stamp, has_emb, det_frame, pos, covs, scores, descs = [], [], [], [], [], [], [], []
+    n = len(rec.localized)
+    view_pose, view_k = np.full((n, 4, 4), np.nan), np.full((n, 3, 3), np.nan)
+    view_size, view_range = np.zeros((n, 2), np.int64), np.full(n, np.nan)
     for k, loc in enumerate(rec.localized):
+        if loc.view is not None:
+            view_pose[k], view_k[k] = loc.view.camera_to_frame, loc.view.K
+            view_size[k], view_range[k] = (loc.view.width, loc.view.height), loc.view.max_range_m
         emb = rec.embeddings.get(loc.header.join_key)
         seq.append(loc.header.seq)
         stamp.append(loc.header.stamp_ns)
@@ -160,7 +180,8 @@ def _to_capture(rec: _Recorder, meta: dict[str, Any]) -> Capture:
         covs=np.concatenate(covs) if covs else np.zeros((0, 3, 3)), scores=np.asarray(scores, np.float64),
         descriptors=np.concatenate(descs) if descs else np.zeros((0, dim), np.float32),
         gt_seq=np.asarray([g[0] for g in gt], np.int64), gt_id=np.asarray([g[1] for g in gt], np.int64),
-        gt_pos=np.asarray([g[2] for g in gt], np.float64).reshape(-1, 3), meta=meta)
+        gt_pos=np.asarray([g[2] for g in gt], np.float64).reshape(-1, 3),
+        view_pose=view_pose, view_k=view_k, view_size=view_size, view_range=view_range, meta=meta)
 
 
 def _hash_code(paths: tuple[str, ...]) -> str:
@@ -267,7 +288,7 @@ def replay(cap: Capture, config: TrackerConfig) -> list[Row]:
         stamp = (int(cap.stamp_ns[k]) - epoch) / 1e9
         covs = cap.covs[a:b] + np.eye(3) * SERVICE_COV_EPS if use_cov else None
         try:
-            result = tracker.update(stamp, cap.positions[a:b], desc, covs, cap.scores[a:b])
+            result = tracker.update(stamp, cap.positions[a:b], desc, covs, cap.scores[a:b], view=cap.view(k))
         except (ValueError, np.linalg.LinAlgError) as exc:  # the service counts and skips such a frame
             log.error("frame %d could not be tracked: %s", seq, exc)
             continue

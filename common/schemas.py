@@ -29,6 +29,7 @@ __all__ = [
     "MESSAGE_TYPES",
     "AppearanceThresholds",
     "CameraInfo",
+    "CameraView",
     "Detection",
     "Detections",
     "Embeddings",
@@ -374,6 +375,24 @@ class LocalizedDetection(_Model):
         return self
 
 
+class CameraView(_Model):
+    """What the camera could see at a frame, in the frame of the positions: the tracker
+    tells a person out of view from one the detector missed (it does not report the
+    prediction of a person the camera could not see)."""
+
+    camera_to_frame: NDArray(np.float64, (4, 4))  # type: ignore[valid-type]  # camera (z forward) -> header.frame_id
+    K: NDArray(np.float64, (3, 3))  # type: ignore[valid-type]
+    width: int = Field(gt=0)
+    height: int = Field(gt=0)
+    max_range_m: float = Field(gt=0.0, description="farthest depth the localizer uses")
+
+    @model_validator(mode="after")
+    def _check(self) -> CameraView:
+        _finite(self.camera_to_frame, "camera_to_frame")
+        _finite(self.K, "K")
+        return self
+
+
 @message("perception.LocalizedDetections", 1)
 class LocalizedDetections(Message):
     """People positions of one source frame.
@@ -385,6 +404,7 @@ class LocalizedDetections(Message):
     camera_frame: str = ""
     detections: list[LocalizedDetection] = Field(default_factory=list)
     rejected: dict[str, int] = Field(default_factory=dict, description="boxes rejected in this frame, by reason")
+    view: CameraView | None = Field(default=None, description="the camera's view at this frame (None: not known)")
 
 
 # ------------------------------------------------------------------------ embeddings

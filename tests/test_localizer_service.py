@@ -71,6 +71,11 @@ def test_localizes_in_the_map_frame(memory_bus: MemoryBus) -> None:
         assert np.all(np.linalg.eigvalsh(d.cov) > 0)
     assert out.rejected == {"outside_image": 1, "empty_box": 1}
     assert rig.counters.extra["rejected_outside_image"] == 1 and rig.counters.extra["boxes_localized"] == 2
+    # the camera's view goes along, so the tracker can tell a person out of view from one missed
+    assert out.view is not None and (out.view.width, out.view.height) == (f.camera_info.width, f.camera_info.height)
+    cam_to_map = out.view.camera_to_frame
+    for d, p in zip(out.detections, PEOPLE):
+        assert np.allclose(cam_to_map[:3, :3] @ p.center + cam_to_map[:3, 3], d.position, atol=0.05)
 
 
 def test_pairs_detections_with_their_own_frame(memory_bus: MemoryBus) -> None:

@@ -9,6 +9,7 @@ import pytest
 from services.tracker.config import TrackerConfig
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker, ScoreModel
 from services.tracker.core.tracker import Tracker, TrackStatus
+from services.tracker.core.view import FieldOfView
 
 DIM = 8
 RNG = np.random.default_rng(5)
@@ -196,3 +197,36 @@ def test_motion_must_be_known() -> None:
         RobustParams(motion="ctrv")  # type: ignore[arg-type]
     with pytest.raises(ValueError):
         TrackerConfig.model_validate({"robust": {"motion": "ctrv"}})
+
+
+def _camera_looking_along_x() -> FieldOfView:
+    """A 640x480 camera at the origin looking along +x (camera z = x, camera x = -y, camera y = -z)."""
+    m = np.eye(4)
+    m[:3, :3] = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+    return FieldOfView(m, np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]), 640, 480, 8.0)
+
+
+def test_field_of_view_contains_what_projects_inside_the_image_and_range() -> None:
+    fov = _camera_looking_along_x()
+    pts = np.array([[3.0, 0.0, 0.0], [3.0, 2.5, 0.0], [-3.0, 0.0, 0.0], [9.0, 0.0, 0.0], [3.0, 1.5, 0.0]])
+    assert fov.contains(pts).tolist() == [True, False, False, False, True]
+    # 1.5 m left at 3 m projects at u = 70 px: inside the image, not inside a 15 % border
+    assert fov.contains(pts, margin=0.15).tolist() == [True, False, False, False, False]
+
+
+def test_a_coasting_person_out_of_view_is_kept_but_not_reported() -> None:
+    fov = _camera_looking_along_x()
+    trk = RobustTracker(RobustParams(report_coast_s=0.5))
+    walk(trk, {0: (3.0, 0.0), 1: (3.0, 1.0)}, 0.0, 1.0, 10.0, descriptors=False)
+    # both are missed; the robot turned so that person 1 is now out of view
+    turned = FieldOfView(fov.camera_to_frame @ np.array([[np.cos(0.45), 0, np.sin(0.45), 0], [0, 1, 0, 0],
+                                                         [-np.sin(0.45), 0, np.cos(0.45), 0], [0, 0, 0, 1.0]]),
+                         fov.K, 640, 480, 8.0)
+    assert turned.contains(np.array([[3.0, 0.0, 1.0], [3.0, 1.0, 1.0]])).tolist() == [True, False]
+    r = trk.update(1.0, np.zeros((0, 3)), view=turned)
+    assert {v.id: v.in_view for v in r.tracks} == {1: True, 2: False}
+    assert [v.id for v in trk.reported(r)] == [1]  # in view and missed: reported as coasting
+    r = trk.update(1.1, np.zeros((0, 3)))  # no view known: both reported, as before
+    assert sorted(v.id for v in trk.reported(r)) == [1, 2]
+    r = trk.update(1.2, np.array([[3.0, 1.0, 1.0]]), view=fov)  # person 2 seen again: the same ID
+    assert [v.id for v in trk.reported(r) if v.status is TrackStatus.CONFIRMED] == [2]

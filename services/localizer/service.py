@@ -43,6 +43,7 @@ from common.node import Node
 from common.ratelog import RateLimitedLog
 from common.runtime import Counters
 from common.schemas import (
+    CameraView,
     Detections,
     Header,
     Image,
@@ -218,8 +219,11 @@ class LocalizerService(Node):
             seq=msg.header.seq,
             source=msg.header.source,
         )
+        cam = frame.camera
+        view = CameraView(camera_to_frame=tf.matrix, K=cam.K, width=cam.width, height=cam.height,
+                          max_range_m=self.params.max_depth_m)
         return LocalizedDetections(
-            header=header, camera_frame=frame.camera_frame, detections=entries, rejected=rejected
+            header=header, camera_frame=frame.camera_frame, detections=entries, rejected=rejected, view=view
         )
 
     # ------------------------------------------------------------------- loop

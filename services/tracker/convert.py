@@ -6,8 +6,17 @@ import numpy as np
 
 from common.schemas import Embeddings, Header, LocalizedDetections, TrackState, Tracks
 from services.tracker.core.tracker import FrameResult, TrackView
+from services.tracker.core.view import FieldOfView
 
-__all__ = ["descriptors_for", "positions_of", "track_state", "tracks_message", "usable_covariances"]
+__all__ = ["descriptors_for", "field_of_view", "positions_of", "track_state", "tracks_message", "usable_covariances"]
+
+
+def field_of_view(loc: LocalizedDetections) -> FieldOfView | None:
+    """The camera's view at a frame, if the localizer sent it."""
+    v = loc.view
+    if v is None:
+        return None
+    return FieldOfView(v.camera_to_frame, v.K, v.width, v.height, v.max_range_m)
 
 
 def positions_of(loc: LocalizedDetections) -> tuple[np.ndarray, np.ndarray]:

@@ -38,7 +38,14 @@ from common.runtime import Counters
 from common.schemas import Embeddings, Header, LocalizedDetections, ModelCard, TrackState, Tracks
 from common.transport import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
-from services.tracker.convert import descriptors_for, positions_of, track_state, tracks_message, usable_covariances
+from services.tracker.convert import (
+    descriptors_for,
+    field_of_view,
+    positions_of,
+    track_state,
+    tracks_message,
+    usable_covariances,
+)
 from services.tracker.core.tracker import FrameResult, TrackerState
 from services.tracker.memory_file import descriptor_dim, load_memory, read_classifiers, save_memory
 from services.tracker.reorder import ClockJumps, InputKey, ReorderBuffer
@@ -237,7 +244,7 @@ class TrackerService(Node):
         if self.config.uses_detection_covariance:  # unusable ones: the profile's fixed R (counted on arrival)
             covs_used = np.where(usable_covariances(covs)[:, None, None], covs, self.config.covariance_fallback + _R_EPS)
         scores = np.array([d.score for d in loc.detections], np.float64)
-        result = self.tracker.update(stamp, positions, descriptors, covs_used, scores)
+        result = self.tracker.update(stamp, positions, descriptors, covs_used, scores, view=field_of_view(loc))
         self._ever_confirmed.update(v.id for v in result.confirmed)
         self.counters.count("updates")
         if not result.appearance_available and loc.detections:

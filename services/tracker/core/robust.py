@@ -63,6 +63,7 @@ from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.gallery import Gallery
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.tracker import FrameResult, TrackStatus, TrackView
+from services.tracker.core.view import FieldOfView
 
 __all__ = ["AppearanceModel", "RobustParams", "RobustTracker", "RobustTrackerState", "ScoreModel"]
 
@@ -146,6 +147,7 @@ class RobustParams:
     is_person_tau_s: float = 2.0
     tentative_timeout_s: float = 0.25
     report_coast_s: float = 0.3
+    view_margin: float = 0.1  # image border (share of its size) where a coasting person counts as out of view
     max_coast_s: float = 2.0
     max_position_var: float = 4.0  # m^2, trace of the (x, y) covariance
     gallery_size: int = 100
@@ -166,6 +168,8 @@ class RobustParams:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
         if not (0 < self.tentative_timeout_s and 0 <= self.report_coast_s <= self.max_coast_s):
             raise ValueError("need tentative_timeout_s > 0 and 0 <= report_coast_s <= max_coast_s")
+        if not 0 <= self.view_margin < 0.5:
+            raise ValueError(f"view_margin must be in [0, 0.5), got {self.view_margin}")
         if not 0.5 <= self.confirm_is_person < 1:
             raise ValueError("confirm_is_person must be in [0.5, 1)")
 
@@ -248,10 +252,12 @@ class RobustTracker:
 
     # ------------------------------------------------------------------ update
     def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
-               measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None) -> FrameResult:
+               measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
+               view: FieldOfView | None = None) -> FrameResult:
         """Process one frame: ``stamp`` in seconds, ``positions`` (N, 3), ``descriptors``
         (N, D) or None (a NaN row: no descriptor), ``measurement_cov`` (N, 3, 3) or None,
-        ``scores`` (N,) or None (the detector's confidences)."""
+        ``scores`` (N,) or None (the detector's confidences), ``view`` what the camera could
+        see (None: unknown): a coasting track out of view is kept but not reported."""
         p = self.params
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         n = len(positions)
@@ -286,6 +292,12 @@ class RobustTracker:
         self._confirm(result)
         result.matches = len(matches)
         result.tracks = [self._view(t, stamp) for t in self.tracks]
+        if view is not None:
+            coasting = [k for k, t in enumerate(self.tracks) if t.status is TrackStatus.COASTING]
+            if coasting:
+                seen = view.contains(np.array([self.tracks[k].mean[:3] for k in coasting]), self.params.view_margin)
+                for k, s in zip(coasting, seen.tolist()):
+                    result.tracks[k] = replace(result.tracks[k], in_view=s)
         return result
 
     def _measurement_cov(self, cov: np.ndarray | None, n: int) -> np.ndarray:
@@ -535,10 +547,11 @@ class RobustTracker:
         return ended
 
     def reported(self, result: FrameResult) -> list[TrackView]:
-        """What to output: confirmed tracks, and coasting ones missed for at most ``report_coast_s``."""
+        """What to output: confirmed tracks, and coasting ones missed for at most
+        ``report_coast_s`` unless known to be out of the camera's view."""
         limit = self.params.report_coast_s
         return [v for v in result.tracks if v.status is TrackStatus.CONFIRMED or
-                (v.status is TrackStatus.COASTING and result.stamp - v.last_update <= limit)]
+                (v.status is TrackStatus.COASTING and result.stamp - v.last_update <= limit and v.in_view is not False)]
 
     # ---------------------------------------------------------------- snapshots
     def snapshot(self) -> RobustTrackerState:

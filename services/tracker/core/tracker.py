@@ -117,6 +117,8 @@ class TrackView:
     last_update: float
     gallery_size: int
     ever_confirmed: bool = False
+    #: whether the camera could see the track's position at this update (None: not known)
+    in_view: bool | None = None
 
     @property
     def position(self) -> np.ndarray:
@@ -196,14 +198,16 @@ class Tracker:
 
     # ------------------------------------------------------------------ update
     def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
-               measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None) -> FrameResult:
+               measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
+               view: object | None = None) -> FrameResult:
         """Process one frame.
 
         ``stamp`` in seconds (sensor time). ``positions`` (N, 3) in the tracking frame.
         ``descriptors`` (N, D) or None for a position-only frame; a row of NaN marks a
         detection without a descriptor. ``measurement_cov`` (N, 3, 3) replaces the
         thesis's fixed ``R`` per detection when given. ``scores`` are accepted for the
-        robust profile's interface and unused: the thesis has no detector confidence.
+        robust profile's interface and unused: the thesis has no detector confidence;
+        ``view`` (the camera's field of view) likewise: the thesis reports Confirmed tracks only.
         """
         positions, descriptors = _checked_inputs(positions, descriptors)
         appearance = descriptors is not None and self.params.gate is not None

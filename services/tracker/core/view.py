@@ -1,0 +1,60 @@
+"""What the camera could see at a frame: tells a person out of view from one the detector missed.
+
+A confirmed track that gets no detection coasts. Whether it should be *reported* while
+it coasts depends on why it was missed: a person inside the camera's view whom the
+detector missed for a moment is still there and should be reported (that is what
+coasting is for); a person who walked out of the view, or whom the robot turned away
+from, cannot be seen by this camera, and reporting their prediction as a person seen
+now is a false positive for every consumer that reads the output as "people in view".
+Such a track is kept (their ID is still theirs when they come back), but not reported.
+
+:class:`FieldOfView` is a pinhole camera's view in the tracking frame: its pose, its
+intrinsics and image size, and the range its depth reaches. Pure numpy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["FieldOfView"]
+
+
+@dataclass(frozen=True)
+class FieldOfView:
+    """A pinhole camera's view: ``camera_to_frame`` (4, 4) maps camera points (z forward)
+    into the tracking frame; ``K`` (3, 3), ``width`` x ``height`` pixels; points farther
+    than ``max_range_m`` along the optical axis are out of view."""
+
+    camera_to_frame: np.ndarray
+    K: np.ndarray
+    width: int
+    height: int
+    max_range_m: float
+
+    def __post_init__(self) -> None:
+        m = np.asarray(self.camera_to_frame, np.float64).reshape(4, 4)
+        k = np.asarray(self.K, np.float64).reshape(3, 3)
+        if not (np.all(np.isfinite(m)) and np.all(np.isfinite(k)) and k[0, 0] > 0 and k[1, 1] > 0):
+            raise ValueError("camera_to_frame and K must be finite, with positive focal lengths")
+        if self.width <= 0 or self.height <= 0 or not self.max_range_m > 0:
+            raise ValueError("width, height and max_range_m must be positive")
+        object.__setattr__(self, "camera_to_frame", m)
+        object.__setattr__(self, "K", k)
+
+    def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Whether each point (N, 3) of the tracking frame is in view: in front of the
+        camera, within ``max_range_m`` and projecting inside the image less a border of
+        ``margin`` times its width (and height): a person whose centre is near the edge
+        is mostly outside the image."""
+        p = np.asarray(points, np.float64).reshape(-1, 3)
+        r, t = self.camera_to_frame[:3, :3], self.camera_to_frame[:3, 3]
+        cam = (p - t) @ r  # R^T (p - t), row by row
+        z = cam[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = self.K[0, 0] * cam[:, 0] / z + self.K[0, 2]
+            v = self.K[1, 1] * cam[:, 1] / z + self.K[1, 2]
+        mu, mv = margin * self.width, margin * self.height
+        return ((z > 0.05) & (z <= self.max_range_m) & (u >= mu) & (u <= self.width - mu)
+                & (v >= mv) & (v <= self.height - mv))

@@ -21,7 +21,7 @@ from pydantic import ValidationError
 
 from common.schemas import MESSAGE_TYPES, Message
 
-__all__ = ["DEFAULT_MAX_BYTES", "DecodeError", "decode", "decode_any", "encode", "peek_schema"]
+__all__ = ["DEFAULT_MAX_BYTES", "DecodeError", "decode", "decode_any", "encode", "peek_schema", "unpack_unchecked"]
 
 M = TypeVar("M", bound=Message)
 
@@ -154,6 +154,13 @@ def decode_any(data: bytes | bytearray | memoryview, *, max_bytes: int | None = 
     if model is None:
         raise DecodeError(f"unknown schema {name!r}; known: {', '.join(sorted(MESSAGE_TYPES))}")
     return _validate(model, version, body)
+
+
+def unpack_unchecked(data: bytes | bytearray | memoryview, *, max_bytes: int | None = None) -> tuple[str, int, dict[str, Any]]:
+    """``(schema name, version, body)`` of a payload, the body as plain values and arrays,
+    not validated: for diagnosing a payload that :func:`decode` refuses. Raises
+    :class:`DecodeError` only when the bytes are not a message envelope at all."""
+    return _unpack(data, max_bytes)
 
 
 def peek_schema(data: bytes | bytearray | memoryview, *, max_bytes: int | None = None) -> tuple[str, int]:

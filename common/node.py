@@ -49,7 +49,7 @@ from common.transport import Publisher, QueryHandler, Subscription, Transport, w
 from common.zenoh_config import add_zenoh_arguments
 from common.zenoh_transport import open_transport_from_args
 
-__all__ = ["Node", "NodeIO", "add_node_arguments", "load_node_config", "run_node"]
+__all__ = ["Node", "NodeIO", "add_node_arguments", "load_node_config", "run_node", "settings_summary"]
 
 log = logging.getLogger(__name__)
 
@@ -161,6 +161,37 @@ def _prune(tree: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _text(value: Any) -> str | None:
+    """A scalar setting as text, or None if ``value`` is not a scalar."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (str, int, float, Path)):
+        return str(value)
+    return None
+
+
+def settings_summary(config: BaseModel) -> dict[str, str]:
+    """``config``'s top-level settings as text, for the status (``perception doctor`` reads them).
+
+    A scalar is written as is, a list of scalars comma-separated, a mapping as its keys
+    (``appearance: colour,trinet``), a list of records as how many there are; nested
+    sections and unset (None) values are left out.
+    """
+    out: dict[str, str] = {}
+    for name in type(config).model_fields:
+        value = getattr(config, name)
+        if value is None or isinstance(value, BaseModel):
+            continue
+        if isinstance(value, Mapping):
+            out[name] = ",".join(sorted(str(k) for k in value))
+        elif isinstance(value, (list, tuple)):
+            items = [_text(v) for v in value]
+            out[name] = ",".join(t for t in items if t is not None) if all(t is not None for t in items) else str(len(value))
+        elif (text := _text(value)) is not None:
+            out[name] = text
+    return out
+
+
 def load_node_config(model: type[C], name: str, path: str | Path | None, overrides: Mapping[str, Any]) -> C:
     """Defaults -> ``path`` (section ``name`` if present) -> ``PERCEPTION_<NAME>__*`` -> overrides.
 
@@ -200,7 +231,8 @@ def run_node(args: argparse.Namespace, name: str, config_model: type[C], overrid
         except (ValueError, ConfigError) as exc:
             raise CliError(f"cannot start the {name}: {exc}") from exc
         try:
-            with ServiceRuntime(name, transport, keys, counters=counters, io=node.io):
+            with ServiceRuntime(name, transport, keys, counters=counters, io=node.io,
+                                settings=settings_summary(config)):
                 log.info("%s: %s", name, node.describe())
                 node.run(shutdown)
         finally:

@@ -31,9 +31,9 @@ def package_version() -> str:
         return "0+unknown"
 
 
-def instance_id() -> str:
-    """``host-pid``, usable as one key chunk."""
-    return re.sub(r"[^A-Za-z0-9_.-]", "_", f"{socket.gethostname()}-{os.getpid()}")
+def instance_id(pid: int | None = None) -> str:
+    """``host-pid`` (this process's pid by default), usable as one key chunk."""
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", f"{socket.gethostname()}-{os.getpid() if pid is None else pid}")
 
 
 class Shutdown:
@@ -113,14 +113,18 @@ class ServiceRuntime:
     """Liveliness token, periodic :class:`ServiceStatus` and a status queryable.
 
     Received/dropped/invalid sum the subscriptions' stats and the service's
-    :class:`Counters`; published sums the publishers. A node passes its ``io``
+    :class:`Counters`; published sums the publishers. The status also lists the keys
+    subscribed and published, and the ``settings`` it was given. A node passes its ``io``
     (:class:`common.node.NodeIO`), whose declared subscriptions and publishers are read
     live; tools without a node add theirs with :meth:`watch`.
     """
 
     def __init__(self, name: str, transport: Transport, keys: Keys, *, period_s: float = 1.0,
-                 instance: str | None = None, counters: Counters | None = None, io: Any = None) -> None:
+                 instance: str | None = None, counters: Counters | None = None, io: Any = None,
+                 settings: dict[str, str] | None = None) -> None:
         self.name = name
+        #: The service's settings as text, reported in every status (:func:`common.node.settings_summary`).
+        self.settings = dict(settings or {})
         self.instance = instance or instance_id()
         self.transport = transport
         self.keys = keys
@@ -159,6 +163,9 @@ class ServiceRuntime:
             dropped=dropped + sum(s.stats.dropped for s in self.subscriptions),
             invalid=invalid + sum(s.stats.invalid for s in self.subscriptions),
             extra=extra,
+            subscribes=sorted({s.key for s in self.subscriptions}),
+            publishes=sorted({p.key for p in self.publishers}),
+            settings=self.settings,
         )
 
     def start(self) -> None:

@@ -487,7 +487,8 @@ class Tracks(Message):
 
 @message("perception.ServiceStatus", 1)
 class ServiceStatus(Message):
-    """Health and counters of one running service instance."""
+    """Health and counters of one running service instance, or, with ``state`` ``failed``, of
+    one that stopped for good (a configuration error), as its launcher reports it."""
 
     name: str = Field(min_length=1)
     instance: str = ""
@@ -500,6 +501,14 @@ class ServiceStatus(Message):
     dropped: int = Field(default=0, ge=0)
     invalid: int = Field(default=0, ge=0)
     extra: dict[str, float] = Field(default_factory=dict, description="service-specific counters and gauges")
+    state: Literal["running", "failed"] = Field(
+        default="running", description="'failed': the service stopped and is not restarted (reported by its launcher)")
+    error: str = Field(default="", description="why a failed service stopped: its last error line")
+    exit_status: int | None = Field(default=None, description="a failed service's exit status")
+    subscribes: list[str] = Field(default_factory=list, description="the keys the service subscribes to")
+    publishes: list[str] = Field(default_factory=list, description="the keys the service publishes on")
+    settings: dict[str, str] = Field(
+        default_factory=dict, description="the service's top-level settings, as text (perception doctor reads them)")
 
 
 # ---------------------------------------------------------------------- ground truth

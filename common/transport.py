@@ -116,6 +116,19 @@ class Subscription(Generic[M]):
             return Received(msg, key, recv_ns)  # type: ignore[arg-type]
         return None
 
+    def try_recv_raw(self) -> tuple[str, bytes, int] | None:
+        """The next payload as it arrived, ``(key, bytes, recv_ns)``, without decoding it.
+
+        For tools that inspect payloads themselves (``perception doctor`` reads an invalid
+        frame's fields to say what is wrong with it); nothing is counted as invalid.
+        """
+        item = self._inbox.pop()
+        if item is None:
+            return None
+        key, payload, recv_ns = item
+        data = payload if isinstance(payload, (bytes, bytearray)) else payload.payload.to_bytes()
+        return key, bytes(data), recv_ns
+
     def recv(self, timeout: float | None = None) -> Received[M] | None:
         """Wait up to ``timeout`` seconds (forever if None) for the next message."""
         deadline = None if timeout is None else time.monotonic() + timeout

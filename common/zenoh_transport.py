@@ -99,8 +99,9 @@ class ZenohTransport(Transport):
             callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
 
         sub = self.session.liveliness().declare_subscriber(pattern, on_sample, history=True)
-        self._closeables.append(Closer(sub.undeclare))
-        return sub.undeclare
+        closer = Closer(sub.undeclare)
+        self._closeables.append(closer)
+        return closer.close  # undeclaring twice (here and at close) is harmless
 
     def serve(self, key: str, handler: QueryHandler) -> Callable[[], None]:
         def on_query(query: zenoh.Query) -> None:

@@ -19,7 +19,9 @@ DESCRIPTION = """\
 List every live service instance of the robot (through Zenoh liveliness tokens),
 with its host, uptime and message counters (received, published, dropped, invalid)
 and its own extra counters. A service that died shows up as gone within about
-10 ms of its death, even after SIGKILL."""
+10 ms of its death, even after SIGKILL. A service that `perception launch` stopped
+for good (exit status 2, a configuration or start-up error) is listed as FAILED with
+its error line, and the tracker's position-only counters next to it."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,15 +33,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def collect(transport: Transport, keys: Keys, timeout: float) -> list[tuple[str, str, ServiceStatus | None]]:
-    """(service, instance, last status or None) for every live token."""
+    """(service, instance, last status or None) for every live token, then every service a
+    launcher reports as failed (stopped for good, so without a token)."""
     statuses = {
         (m.name, m.instance): m for _, m in transport.query(keys.status(), timeout=timeout) if isinstance(m, ServiceStatus)
     }
-    out = []
+    out: list[tuple[str, str, ServiceStatus | None]] = []
     for key in transport.alive(keys.alive(), timeout=timeout):
         service, instance = keys.parse_alive(key)
-        out.append((service, instance, statuses.get((service, instance))))
+        out.append((service, instance, statuses.pop((service, instance), None)))
+    out += [(st.name, st.instance, st) for st in statuses.values() if st.state == "failed"]
     return out
+
+
+#: Counters that say the tracker runs without appearance, shown next to a failed service.
+POSITION_ONLY = ("position_only_frames", "position_only_timeout")
+
+
+def position_only(rows: list[tuple[str, str, ServiceStatus | None]]) -> str:
+    """The tracker's position-only counters, e.g. ``position_only_frames=120``, or ''."""
+    counts = [f"{k}={st.extra.get(k, 0):g}" for name, _, st in rows
+              if name == "tracker" and st is not None and st.state == "running" for k in POSITION_ONLY]
+    return ", ".join(counts)
 
 
 def render(rows: list[tuple[str, str, ServiceStatus | None]]) -> str:
@@ -47,9 +62,16 @@ def render(rows: list[tuple[str, str, ServiceStatus | None]]) -> str:
         return "no live services"
     head = f"{'service':<12} {'instance':<24} {'host':<16} {'uptime':>8} {'recv':>8} {'pub':>8} {'drop':>6} {'inval':>6}  extra"
     lines = [head, "-" * len(head)]
+    tracker = position_only(rows)
     for service, instance, st in rows:
         if st is None:
             lines.append(f"{service:<12} {instance:<24} {'(no status reply)':<16}")
+            continue
+        if st.state == "failed":
+            status = f"exit status {st.exit_status}" if st.exit_status is not None else "stopped"
+            lines.append(f"{service:<12} {instance:<24} {st.host:<16} FAILED ({status}, not restarted)"
+                         + (f"; tracker: {tracker}" if tracker and service != "tracker" else ""))
+            lines.append(f"{'':<12} error: {st.error or '(none reported)'}")
             continue
         extra = ", ".join(f"{k}={v:g}" for k, v in sorted(st.extra.items()))
         lines.append(

@@ -11,7 +11,7 @@ import yaml
 from perception.cli import main as cli_main
 from tools.launcher.launchfile import LaunchFileError, load_launch_file, substitute
 from tools.launcher.plan import build_plan, connectable
-from tools.launcher.supervisor import BackoffState, describe_exit, should_restart
+from tools.launcher.supervisor import BackoffState, describe_exit, error_line, should_restart
 
 ROOT = Path(__file__).resolve().parents[1]
 DEPLOY = ROOT / "deploy"
@@ -129,6 +129,27 @@ def test_restart_policy_and_exit_descriptions() -> None:
     assert not should_restart("on-failure", 0) and not should_restart("never", 1)
     assert describe_exit(3) == "exit status 3"
     assert describe_exit(-signal.SIGKILL) == "killed by SIGKILL"
+
+
+def test_exit_status_2_is_never_restarted_unless_the_launch_file_says_so(tmp_path: Path) -> None:
+    assert not should_restart("always", 2) and not should_restart("on-failure", 2)
+    assert should_restart("always", 2, no_restart=()) and not should_restart("always", 3, no_restart=(3,))
+    f = tmp_path / "l.yaml"
+    f.write_text("services:\n  - {name: a, command: tracker, restart: always}\n"
+                 "  - {name: b, command: tracker, restart_prevent_exit_status: [2, 78]}\n"
+                 "  - {name: c, command: tracker, restart_prevent_exit_status: []}\n")
+    plan = build_plan(load_launch_file(f, {}), {}, tmp_path)
+    assert [p.no_restart_status for p in plan] == [(2,), (2, 78), ()]
+    f.write_text("services:\n  - {name: a, command: tracker, restart_prevent_exit_status: [0]}\n")
+    with pytest.raises(LaunchFileError, match="restart_prevent_exit_status"):
+        load_launch_file(f, {})
+
+
+def test_error_line_is_the_last_perception_error_with_its_continuation() -> None:
+    lines = ["starting", "perception: error: invalid tracker settings: camera 'a/b'", "(fix it in x.yaml or the flags)"]
+    assert error_line(lines) == "perception: error: invalid tracker settings: camera 'a/b' (fix it in x.yaml or the flags)"
+    assert error_line(["one", "Traceback", "  ValueError: boom  "]) == "ValueError: boom"
+    assert error_line([]) == ""
 
 
 def test_deploy_folder_has_the_expected_files() -> None:

@@ -15,7 +15,7 @@ import pytest
 
 from common.router_process import RouterProcess, free_port
 from tests.helpers.launcher import CHILD, PY, ROOT, TIMEOUT, Launch
-from tools.launcher.supervisor import ProcessSpec, Supervisor
+from tools.launcher.supervisor import FailedChild, ProcessSpec, Supervisor
 
 
 @pytest.fixture
@@ -220,3 +220,30 @@ def test_router_port_already_taken_is_reported_not_mistaken_for_ready(router: Ro
     assert res.returncode == 1
     assert f"something already accepts connections on 127.0.0.1:{router.port} (another router?)" in res.stderr
     assert "started" not in res.stderr and "boom" not in res.stdout
+
+
+def test_exit_status_2_is_not_restarted_and_said_once(caplog: pytest.LogCaptureFixture) -> None:
+    out = io.BytesIO()
+    failed: list[FailedChild] = []
+    specs = [ProcessSpec("sleeper", [PY, "-c", "import time; print('up', flush=True); time.sleep(3600)"], dict(os.environ)),
+             ProcessSpec("embedder", [PY, CHILD, "config-error"], dict(os.environ), restart="always",
+                         backoff_initial_s=0.01, backoff_max_s=0.05)]
+    sup = Supervisor(specs, out, handle_signals=False, on_failed=failed.append)
+    result: list[int] = []
+    thread = threading.Thread(target=lambda: result.append(sup.run()))
+    with caplog.at_level("INFO", logger="tools.launcher.supervisor"):
+        thread.start()
+        try:
+            deadline = time.monotonic() + TIMEOUT
+            while (not failed or b"[sleeper]  up" not in out.getvalue()) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            time.sleep(0.3)  # a restart, if any, would be due after 0.01 s
+        finally:
+            sup.request_stop()
+            thread.join(TIMEOUT)
+    assert result == [0]
+    assert sup.restarts("embedder") == 0 and out.getvalue().count(b"[embedder] loading settings") == 1
+    assert len(failed) == 1 and failed[0].name == "embedder" and failed[0].returncode == 2 and failed[0].pid > 0
+    assert failed[0].error == "perception: error: model file /nowhere/reid.onnx not found (fix it in the config)"
+    said = [r.getMessage() for r in caplog.records if "NOT restarted" in r.getMessage()]
+    assert len(said) == 1 and "embedder stopped" in said[0] and "/nowhere/reid.onnx" in said[0], said

@@ -1,6 +1,7 @@
 """Small child programs for the launcher tests (run as ``python tests/helpers/launch_child.py MODE ...``).
 
     crash CODE        print 'boom', exit with CODE at once
+    config-error      print a two-line 'perception: error:' message to stderr, exit with status 2
     family PIDFILE    start a grandchild, append both pids to PIDFILE, print 'family ready', sleep
     stubborn PIDFILE  ignore SIGTERM, append its pid to PIDFILE, print 'stubborn ready', sleep
     echo WORDS...     print the words and the env var LAUNCH_TEST, exit 0
@@ -31,6 +32,11 @@ def main(argv: list[str]) -> int:
     if mode == "crash":
         print("boom", flush=True)
         return int(argv[1])
+    if mode == "config-error":
+        print("loading settings", flush=True)
+        print("perception: error: model file /nowhere/reid.onnx not found\n(fix it in the config)", file=sys.stderr,
+              flush=True)
+        return 2
     if mode == "family":
         grandchild = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(3600)"])
         _append_pids(argv[1], os.getpid(), grandchild.pid)

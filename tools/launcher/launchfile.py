@@ -131,6 +131,9 @@ class ServiceSpec(_Strict):
     common_flags: bool = Field(default=True, description="pass --robot/--connect/--config (Zenoh) to the command")
     env: dict[str, EnvValue] = Field(default_factory=dict)
     restart: Literal["always", "on-failure", "never"] = "on-failure"
+    restart_prevent_exit_status: list[Annotated[int, Field(ge=1, le=255)]] = Field(
+        default_factory=lambda: [2], description="exit statuses never restarted, whatever restart says (systemd's "
+        "RestartPreventExitStatus); 2 is a perception command's configuration or start-up error")
     backoff: Backoff = Field(default_factory=Backoff)
     stop_timeout_s: float = Field(default=10.0, gt=0.0, le=600.0,
                                   description="SIGTERM, then SIGKILL after this many seconds")

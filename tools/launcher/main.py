@@ -11,8 +11,11 @@ import tempfile
 from pathlib import Path
 
 from common.cli_util import CliError
+from common.keys import DEFAULT_PREFIX, DEFAULT_ROBOT, Keys
+from common.zenoh_config import ZenohOptions
 from tools.launcher.launchfile import LaunchFile, LaunchFileError, load_launch_file
-from tools.launcher.plan import build_plan, render_plan
+from tools.launcher.plan import build_plan, render_plan, services_connect
+from tools.launcher.report import FailureReport
 from tools.launcher.supervisor import Supervisor
 
 log = logging.getLogger(__name__)
@@ -25,6 +28,9 @@ TCP connections), then the services.
 - Every child's output is forwarded with its name as a prefix: '[tracker]  ...'.
 - A child that crashes is restarted with exponential backoff (restart: always,
   on-failure or never; backoff: initial_s, x2, max_s; reset after stable_after_s).
+- A child that exits with status 2 (a configuration or start-up error, e.g. a
+  missing model file) is never restarted: the launcher says once which one stopped
+  and its error line, and `perception status` / `perception doctor` list it as failed.
 - SIGINT (Ctrl-C) or SIGTERM stops everything: SIGTERM to each child's process group
   in reverse start order, SIGKILL after its stop_timeout_s, the router last. A second
   Ctrl-C kills at once. Exit status 0 after a clean stop.
@@ -64,6 +70,15 @@ def _check_programs(launch: LaunchFile, names: set[str]) -> list[str]:
     return problems
 
 
+def failure_report(launch: LaunchFile) -> FailureReport:
+    """Where services that stop for good are reported: the services' router and key space."""
+    robot = launch.robot or os.environ.get("PERCEPTION_ROBOT") or DEFAULT_ROBOT
+    prefix = launch.key_prefix or os.environ.get("PERCEPTION_KEY_PREFIX") or DEFAULT_PREFIX
+    options = ZenohOptions(mode="client", connect=services_connect(launch) or [], config_file=launch.zenoh.config)
+    return FailureReport(Keys(robot=robot, prefix=prefix), options,
+                         {s.name: s.command for s in launch.services if s.command is not None})
+
+
 def main(args: argparse.Namespace) -> int:
     only = [n for item in args.only for n in item.split(",") if n]
     try:
@@ -81,6 +96,10 @@ def main(args: argparse.Namespace) -> int:
             colour = args.color == "always" or (
                 args.color == "auto" and sys.stdout.isatty() and "NO_COLOR" not in os.environ)
             log.info("launching %s: %s", args.file, ", ".join(p.name for p in plan))
-            return Supervisor(plan, sys.stdout.buffer, colour=colour).run()
+            report = failure_report(launch)
+            try:
+                return Supervisor(plan, sys.stdout.buffer, colour=colour, on_failed=report).run()
+            finally:
+                report.close()
     except LaunchFileError as exc:
         raise CliError(str(exc)) from exc

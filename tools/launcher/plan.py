@@ -13,7 +13,7 @@ import yaml
 from tools.launcher.launchfile import LaunchFile, LaunchFileError, RouterSpec, ServiceSpec
 from tools.launcher.supervisor import ProcessSpec
 
-__all__ = ["build_plan", "connectable", "perception_argv", "render_plan", "router_port"]
+__all__ = ["build_plan", "connectable", "perception_argv", "render_plan", "router_port", "services_connect"]
 
 ROUTER_NAME = "router"
 _TCP = re.compile(r"^tcp/(\[[0-9A-Fa-f:.]+\]|[^:/\[\]]+):(\d+)$")
@@ -92,7 +92,18 @@ def _service_spec(launch: LaunchFile, s: ServiceSpec, connect: list[str] | None,
     return ProcessSpec(
         name=s.name, argv=argv, env=env, restart=s.restart, backoff_initial_s=s.backoff.initial_s,
         backoff_max_s=s.backoff.max_s, stable_after_s=s.backoff.stable_after_s, stop_timeout_s=s.stop_timeout_s,
+        no_restart_status=tuple(s.restart_prevent_exit_status),
     )
+
+
+def services_connect(launch: LaunchFile) -> list[str] | None:
+    """The router endpoints ``command:`` services connect to: ``zenoh.connect``, else the
+    router's first listen endpoint, else None (the services' own default)."""
+    if launch.zenoh.connect is not None:
+        return list(launch.zenoh.connect)
+    if launch.router is not None:
+        return [connectable(launch.router.listen[0])]
+    return None
 
 
 def build_plan(launch: LaunchFile, environ: Mapping[str, str], config_dir: Path,
@@ -114,9 +125,7 @@ def build_plan(launch: LaunchFile, environ: Mapping[str, str], config_dir: Path,
         base_env["PERCEPTION_KEY_PREFIX"] = launch.key_prefix
     if launch.zenoh.config is not None:
         base_env["PERCEPTION_ZENOH_CONFIG"] = str(launch.zenoh.config)
-    connect = launch.zenoh.connect
-    if connect is None and launch.router is not None:
-        connect = [connectable(launch.router.listen[0])]
+    connect = services_connect(launch)
     plan: list[ProcessSpec] = []
     if launch.router is not None and (not only or ROUTER_NAME in only):
         plan.append(_router_spec(launch, base_env))
@@ -135,7 +144,8 @@ def render_plan(launch: LaunchFile, plan: list[ProcessSpec], environ: Mapping[st
     for i, p in enumerate(plan, 1):
         policy = f"restart {p.restart}" + (
             "" if p.restart == "never" else f", backoff {p.backoff_initial_s:g}s x2 up to {p.backoff_max_s:g}s, "
-            f"reset after {p.stable_after_s:g}s")
+            f"reset after {p.stable_after_s:g}s") + (
+            f", never after exit status {', '.join(map(str, p.no_restart_status))}" if p.no_restart_status else "")
         lines.append(f"{i}. {p.name}: {policy}; stop: SIGTERM, SIGKILL after {p.stop_timeout_s:g}s")
         if p.ready_tcp is not None:
             lines.append(f"   waits until {p.ready_tcp[0]}:{p.ready_tcp[1]} accepts TCP (up to {p.ready_timeout_s:g}s)")

@@ -4,6 +4,11 @@ Each child runs in its own session (``setsid``), so its process group holds it a
 everything it spawns. Stopping a child signals the whole group; a child that exits on its
 own has its group SIGKILLed at once, so no grandchild outlives it.
 
+A child that exits with a status in its ``no_restart_status`` (2 by default: the
+``perception`` commands' configuration or start-up error, systemd's
+``RestartPreventExitStatus``) is never restarted, whatever its policy: the supervisor says
+once which child stopped and its error line, and tells ``on_failed``.
+
 One thread does everything: a ``selectors`` loop over the children's merged
 stdout/stderr pipes and a wake-up socket that SIGINT/SIGTERM/SIGCHLD write to.
 """
@@ -12,24 +17,32 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import selectors
 import signal
 import socket
 import subprocess
 import threading
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections import deque
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import IO, BinaryIO, Literal
 
-__all__ = ["BackoffState", "ProcessSpec", "Supervisor", "describe_exit", "should_restart"]
+__all__ = ["BackoffState", "FailedChild", "ProcessSpec", "Supervisor", "describe_exit", "error_line", "should_restart"]
 
 log = logging.getLogger(__name__)
 
 RestartPolicy = Literal["always", "on-failure", "never"]
 _COLOURS = (36, 33, 35, 32, 34, 31, 96, 93, 95, 92, 94, 91)
 _MAX_LINE = 64 * 1024
+#: Output lines kept per child, to say why it stopped.
+_TAIL_LINES = 20
+#: Exit status of a configuration or start-up error (common/node.py): restarting cannot help.
+CONFIG_ERROR_STATUS = 2
+_ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
+_ERROR_MARK = "perception: error:"
 
 
 @dataclass(frozen=True)
@@ -47,6 +60,19 @@ class ProcessSpec:
     stop_last: bool = False
     ready_tcp: tuple[str, int] | None = None
     ready_timeout_s: float = 20.0
+    #: Exit statuses after which the child is never restarted, whatever ``restart`` says.
+    no_restart_status: tuple[int, ...] = (CONFIG_ERROR_STATUS,)
+
+
+@dataclass(frozen=True)
+class FailedChild:
+    """A child that stopped with a status in its ``no_restart_status`` and stays stopped."""
+
+    name: str
+    pid: int
+    returncode: int
+    error: str
+    run_s: float
 
 
 def describe_exit(returncode: int) -> str:
@@ -59,9 +85,20 @@ def describe_exit(returncode: int) -> str:
     return f"exit status {returncode}"
 
 
-def should_restart(policy: RestartPolicy, returncode: int) -> bool:
-    """Whether a child that exited with ``returncode`` is started again."""
+def should_restart(policy: RestartPolicy, returncode: int, no_restart: Sequence[int] = (CONFIG_ERROR_STATUS,)) -> bool:
+    """Whether a child that exited with ``returncode`` is started again (never for a status in ``no_restart``)."""
+    if returncode in no_restart:
+        return False
     return policy == "always" or (policy == "on-failure" and returncode != 0)
+
+
+def error_line(lines: Sequence[str]) -> str:
+    """Why a child stopped, from its last output ``lines``: its last ``perception: error:``
+    message (with the lines that continue it), else its last line."""
+    for i in range(len(lines) - 1, -1, -1):
+        if lines[i].startswith(_ERROR_MARK):
+            return " ".join(line.strip() for line in lines[i:])
+    return lines[-1].strip() if lines else ""
 
 
 class BackoffState:
@@ -91,7 +128,9 @@ class _Child:
     restarts: int = 0
     last_rc: int | None = None
     term_at: float | None = None
+    pid: int = 0
     buf: bytearray = field(default_factory=bytearray)
+    tail: deque[str] = field(default_factory=lambda: deque(maxlen=_TAIL_LINES))
 
     @property
     def running(self) -> bool:
@@ -129,11 +168,13 @@ class Supervisor:
 
     ``run()`` returns 0 after a requested stop (signal or :meth:`request_stop`) or when
     every child finished with status 0; 1 if a child that was not restarted failed, or a
-    child with ``ready_tcp`` did not come up.
+    child with ``ready_tcp`` did not come up. ``on_failed`` is called (on the supervisor's
+    thread) for each child that stops with a status in its ``no_restart_status``.
     """
 
     def __init__(self, specs: Sequence[ProcessSpec], out: BinaryIO, *, colour: bool = False,
-                 handle_signals: bool = True, tick_s: float = 0.2) -> None:
+                 handle_signals: bool = True, tick_s: float = 0.2,
+                 on_failed: Callable[[FailedChild], None] | None = None) -> None:
         width = max((len(s.name) for s in specs), default=0) + 2
         self._children = []
         for i, s in enumerate(specs):
@@ -152,6 +193,9 @@ class Supervisor:
         self._sel.register(self._wake_r, selectors.EVENT_READ, None)
         self._stop_requests = 0
         self._lock = threading.Lock()
+        self._on_failed = on_failed
+        #: Children stopped for good (a status in their ``no_restart_status``), in order.
+        self.failed: list[FailedChild] = []
 
     # -- public -------------------------------------------------------------------------
     def request_stop(self) -> None:
@@ -274,7 +318,8 @@ class Supervisor:
         assert proc.stdout is not None
         os.set_blocking(proc.stdout.fileno(), False)
         self._sel.register(proc.stdout, selectors.EVENT_READ, child)
-        child.proc, child.started_at = proc, time.monotonic()
+        child.proc, child.started_at, child.pid = proc, time.monotonic(), proc.pid
+        child.tail.clear()
         log.info("started %s (pid %d)%s", s.name, proc.pid, f", restart #{child.restarts}" if child.restarts else "")
 
     def _reap(self, child: _Child) -> int:
@@ -298,7 +343,10 @@ class Supervisor:
 
     def _schedule(self, child: _Child, run_s: float, rc: int) -> None:
         name, policy = child.spec.name, child.spec.restart
-        if self._stop_requests or not should_restart(policy, rc):
+        if rc in child.spec.no_restart_status and not self._stop_requests:
+            self._give_up(child, run_s, rc)
+            return
+        if self._stop_requests or not should_restart(policy, rc, child.spec.no_restart_status):
             level = logging.INFO if rc == 0 else logging.ERROR
             log.log(level, "%s exited (%s) after %.1f s; not restarted (restart: %s)", name, describe_exit(rc), run_s, policy)
             return
@@ -306,6 +354,16 @@ class Supervisor:
         child.next_start = time.monotonic() + delay
         log.warning("%s exited (%s) after %.1f s; restart #%d in %.2f s", name, describe_exit(rc), run_s,
                     child.restarts + 1, delay)
+
+    def _give_up(self, child: _Child, run_s: float, rc: int) -> None:
+        """Say once, plainly, that ``child`` stopped for good and why."""
+        failed = FailedChild(child.spec.name, child.pid, rc, error_line(list(child.tail)), run_s)
+        self.failed.append(failed)
+        log.error("%s stopped after %.1f s and is NOT restarted: %s means a configuration or start-up error, "
+                  "which a restart cannot fix. Its error: %s. Fix it, then start the launcher again.",
+                  failed.name, run_s, describe_exit(rc), failed.error or "(it printed nothing)")
+        if self._on_failed is not None:
+            self._on_failed(failed)
 
     # -- output -------------------------------------------------------------------------
     def _pump(self, timeout: float) -> None:
@@ -352,6 +410,10 @@ class Supervisor:
             return
         lines = bytes(buf[:end]).splitlines(keepends=True)
         del buf[:end]
+        for line in lines:
+            text = _ANSI.sub("", line.decode(errors="replace")).rstrip()
+            if text:
+                child.tail.append(text)
         if self._out_broken:
             return
         try:

@@ -6,6 +6,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from tools.simulator.core.scenarios import SCENARIOS
 from tools.simulator.core.simulation import MIN_VISIBLE
+from tools.simulator.faults import FAULTS
 
 __all__ = ["SimulatorConfig"]
 
@@ -30,6 +31,15 @@ class SimulatorConfig(BaseModel):
     depth_noise: bool = True
     start_ns: int | None = Field(default=None, ge=0, description="stamp of frame 0 (default: the wall clock at start)")
     static_period_s: float = Field(default=1.0, gt=0.0, description="how often tf_static is re-sent for late joiners")
+    faults: list[str] = Field(default_factory=list, description="setup mistakes to make on purpose (tools/simulator/faults.py)")
+
+    @field_validator("faults")
+    @classmethod
+    def _known_faults(cls, v: list[str]) -> list[str]:
+        unknown = [f for f in v if f not in FAULTS]
+        if unknown:
+            raise ValueError(f"unknown fault {unknown[0]!r}; choose from {', '.join(FAULTS)}")
+        return v
 
     @field_validator("scenario")
     @classmethod

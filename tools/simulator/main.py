@@ -14,6 +14,7 @@ from common.zenoh_transport import TransportError, open_transport
 from tools.replay.recorder import McapRecorder
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.scenarios import SCENARIOS
+from tools.simulator.faults import FAULTS
 from tools.simulator.groundtruth import GroundTruthCsv
 from tools.simulator.service import SimulatorService
 from tools.simulator.snapshot import write_snapshot
@@ -30,7 +31,8 @@ RGB + registered depth (16UC1 mm) frames with camera info, transforms map->odom-
   perception simulate --scenario moving-base                 # publish in real time
   perception simulate --scenario chairs --max                # as fast as the detector keeps up
   perception simulate --scenario still --output run.mcap --gt-csv gt.csv
-  perception simulate --scenario still --snapshot still.png --snapshot-time 6"""
+  perception simulate --scenario still --snapshot still.png --snapshot-time 6
+  perception simulate --fault depth-float-mm                 # a setup mistake, for perception doctor"""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -69,6 +71,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-depth-noise", dest="depth_noise", action="store_false", default=None, help="exact depth (for debugging)"
     )
     parser.add_argument("--start-ns", type=int, default=None, help="stamp of frame 0 (default: now)")
+    parser.add_argument("--fault", dest="faults", action="append", default=None, choices=sorted(FAULTS),
+                        help="make a setup mistake on purpose, repeatable, to see what `perception doctor` "
+                             "says: " + "; ".join(f"{k}: {v}" for k, v in FAULTS.items()))
     parser.add_argument(
         "--settings",
         dest="config_file",
@@ -101,6 +106,7 @@ def _config(args: argparse.Namespace) -> SimulatorConfig:
             "min_visible",
             "depth_noise",
             "start_ns",
+            "faults",
         )
     }
     overrides["duration_s"] = args.duration

@@ -11,6 +11,7 @@ from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.render import default_camera
 from tools.simulator.core.scenarios import SCENARIOS, build_world
 from tools.simulator.core.simulation import FrameData, Simulation
+from tools.simulator.faults import OLD_STAMPS_S, apply_faults
 from tools.simulator.messages import frame_message, groundtruth_message, static_transforms, tf_message
 
 __all__ = ["SimulatedStream"]
@@ -27,7 +28,9 @@ class SimulatedStream:
         self.simulation = Simulation(
             self.world, self.camera, config.fps, config.seed, config.min_visible, config.depth_noise
         )
-        self.start_ns = time.time_ns() if config.start_ns is None else config.start_ns
+        self.faults = frozenset(config.faults)
+        late_ns = round(OLD_STAMPS_S * 1e9) if "old-stamps" in self.faults else 0
+        self.start_ns = max(0, (time.time_ns() if config.start_ns is None else config.start_ns) - late_ns)
         duration = SCENARIOS[config.scenario].duration_s if config.duration_s is None else config.duration_s
         #: Number of frames to produce; None = until stopped.
         self.frame_count: int | None = math.ceil(duration * config.fps) if duration > 0 else None
@@ -48,7 +51,7 @@ class SimulatedStream:
         out.append((keys.tf(), tf_message(fd, stamp, cfg.camera, self.world.head_moves)))
         out.append((keys.groundtruth(), groundtruth_message(fd, stamp, cfg.camera, cfg.min_visible)))
         out.append((keys.frames(cfg.camera), frame_message(fd, self.camera, stamp, cfg.camera)))
-        return fd, out
+        return fd, apply_faults(out, self.faults, keys, seq)
 
     @staticmethod
     def groundtruth_of(pairs: list[tuple[str, Message]]) -> PeopleGroundTruth:

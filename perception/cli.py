@@ -31,6 +31,7 @@ COMMAND_PACKAGES = (
     "tools.simulator",
     "tools.launcher",
     "tools.demo",
+    "tools.doctor",
 )
 
 

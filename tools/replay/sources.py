@@ -39,11 +39,13 @@ class McapSource(Source):
 
     Channels with another message encoding, or a schema this build does not know, are
     skipped and listed. ServiceStatus channels are kept in the file but never replayed
-    (they would impersonate services that are not running).
+    (they would impersonate services that are not running), unless ``keep_status`` asks
+    for them (``perception doctor --recording`` reads them).
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, keep_status: bool = False) -> None:
         super().__init__(path)
+        self.keep_status = keep_status
         from mcap.reader import make_reader
 
         self._file: BinaryIO = path.open("rb")
@@ -92,7 +94,7 @@ class McapSource(Source):
             self.skipped[topic] = f"message encoding {encoding!r} is not {MSGPACK!r} (not a perception recording)"
         elif model is None:
             self.skipped[topic] = f"schema {name!r} is unknown to this build"
-        elif name == "perception.ServiceStatus":
+        elif name == "perception.ServiceStatus" and not self.keep_status:
             self.skipped[topic] = "service status is not replayed"
         else:
             self._channels[ch_id] = topic
@@ -173,8 +175,8 @@ def _mcap_profile(path: Path) -> str:
         return ""  # McapSource reports what is wrong with it
 
 
-def open_source(path: Path | str, bag_options: BagOptions | None = None) -> Source:
-    """Open an MCAP recording, a ROS 1 ``.bag`` or a ROS 2 bag folder."""
+def open_source(path: Path | str, bag_options: BagOptions | None = None, *, keep_status: bool = False) -> Source:
+    """Open an MCAP recording, a ROS 1 ``.bag`` or a ROS 2 bag folder (``keep_status``: see :class:`McapSource`)."""
     p = Path(path)
     if not p.exists():
         raise SourceError(p, "no such file or directory")
@@ -193,7 +195,7 @@ def open_source(path: Path | str, bag_options: BagOptions | None = None) -> Sour
     if head.startswith(MCAP_MAGIC):
         if _mcap_profile(p) == "ros2":  # a ROS 2 bag's MCAP file on its own (no metadata.yaml)
             return BagSource(p, bag_options or BagOptions())
-        return McapSource(p)
+        return McapSource(p, keep_status)
     if head.startswith(ROSBAG1_MAGIC):
         return BagSource(p, bag_options or BagOptions())
     raise SourceError(p, "not an MCAP recording, a ROS 1 bag or a ROS 2 bag folder (unknown file format)")

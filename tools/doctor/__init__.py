@@ -1,0 +1,1 @@
+"""`perception doctor`: why there are detections but no tracks, in one command."""

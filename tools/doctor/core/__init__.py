@@ -1,0 +1,1 @@
+"""The diagnosis without I/O: observed facts in, checklist out."""

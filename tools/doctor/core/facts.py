@@ -1,0 +1,173 @@
+"""What ``perception doctor`` observed, as plain data, and what it concludes, as :class:`Check`.
+
+The collector (:mod:`tools.doctor.collect`) fills an :class:`Observation` from a live
+system or a recording; the checks (:mod:`tools.doctor.core.checks`) read nothing else,
+so every diagnosis can be tested offline from hand-written facts.
+
+Keys are stream keys under the robot's base (``frames/head``, ``tracks``,
+``status/tracker/pc-12``), never full Zenoh keys.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+__all__ = ["CHAIN", "NODES", "SYMBOLS", "Check", "EdgeFacts", "FrameFacts", "NodeFacts", "Observation", "Status",
+           "StreamFacts"]
+
+Status = Literal["ok", "warn", "fail"]
+#: How each status is printed.
+SYMBOLS: dict[str, str] = {"ok": "✓", "warn": "!", "fail": "✗"}
+#: The pipeline's nodes, in data-flow order.
+NODES = ("detector", "localizer", "embedder", "tracker")
+#: The chain's stages: (stream, the node that produces it, the stream it is made from).
+CHAIN: tuple[tuple[str, str, str], ...] = (
+    ("frames", "", ""),
+    ("detections", "detector", "frames"),
+    ("localized", "localizer", "detections"),
+    ("embeddings", "embedder", "detections"),
+    ("tracks", "tracker", "localized"),
+)
+
+
+@dataclass(frozen=True)
+class Check:
+    """One line of the checklist: ``status``, the measured ``figure`` and, unless ok, the ``fix``."""
+
+    section: str
+    name: str
+    status: Status
+    figure: str
+    fix: str = ""
+
+
+@dataclass
+class StreamFacts:
+    """One key's traffic: how many payloads, how many invalid (the first error), when (receive ns)."""
+
+    key: str
+    count: int = 0
+    invalid: int = 0
+    error: str = ""
+    first_ns: int = 0
+    last_ns: int = 0
+
+    def rate_hz(self, duration_s: float) -> float:
+        return self.count / duration_s if duration_s > 0 else 0.0
+
+
+@dataclass
+class NodeFacts:
+    """One service instance, from liveliness and its status messages.
+
+    ``counters`` are what changed while the doctor watched (the last status minus the
+    first: ``received``, ``published``, ``dropped``, ``invalid`` and every extra counter),
+    over ``window_s`` seconds; with a single status they are the totals since its start
+    and ``window_s`` is 0. ``alive`` is None when liveliness is unknown (a recording).
+    """
+
+    service: str
+    instance: str
+    alive: bool | None = True
+    state: str = "running"
+    error: str = ""
+    exit_status: int | None = None
+    host: str = ""
+    uptime_s: float = 0.0
+    counters: dict[str, float] = field(default_factory=dict)
+    window_s: float = 0.0
+    settings: dict[str, str] = field(default_factory=dict)
+    subscribes: list[str] = field(default_factory=list)
+    publishes: list[str] = field(default_factory=list)
+    has_status: bool = True
+
+    def drops(self) -> dict[str, float]:
+        """The node's own counted drops by reason (``dropped_<reason>`` counters > 0)."""
+        return {k.removeprefix("dropped_"): v for k, v in self.counters.items()
+                if k.startswith("dropped_") and k != "dropped_stale" and v > 0}
+
+
+@dataclass
+class FrameFacts:
+    """One RGB-D frame as sent, read leniently (also when receivers refuse it).
+
+    Shapes are ``(height, width)``. ``depth_sample`` holds raw depth values of a pixel
+    subsample in the unit sent (mm for ``16UC1``), float64 (N,). ``error`` is the decode
+    error when the frame is invalid.
+    """
+
+    camera: str
+    stamp_ns: int
+    recv_ns: int
+    frame_id: str = ""
+    rgb_hw: tuple[int, int] | None = None
+    depth_hw: tuple[int, int] | None = None
+    depth_encoding: str = ""
+    depth_sample: np.ndarray | None = None
+    info_hw: tuple[int, int] | None = None
+    K: np.ndarray | None = None
+    error: str = ""
+
+
+@dataclass
+class EdgeFacts:
+    """A transform edge ``parent -> child`` as received on ``tf`` or ``tf_static``."""
+
+    parent: str
+    child: str
+    static: bool
+    count: int = 0
+    first_stamp_ns: int = 0
+    last_stamp_ns: int = 0
+
+
+@dataclass
+class Observation:
+    """Everything the checks judge.
+
+    ``stages[camera][stream]`` maps each join key ``(stamp_ns, source, seq)`` seen on a
+    chain stream to its receive time (ns). ``offsets_ns[camera]`` holds receive time
+    minus stamp for every frame. ``cards`` are the embedding model cards seen
+    ``(name, dim, metric, has_thresholds)``; ``track_models`` the ``embedding_model``
+    of the tracks, ``track_frames`` their frame ids, ``localized_frames`` those of the
+    localized detections; ``position_only`` / ``tracks_total`` count Tracks messages;
+    ``boxes_total`` the people detected.
+    """
+
+    duration_s: float
+    source: str = "live"
+    end_ns: int = 0
+    streams: dict[str, StreamFacts] = field(default_factory=dict)
+    nodes: list[NodeFacts] = field(default_factory=list)
+    frames: dict[str, list[FrameFacts]] = field(default_factory=dict)
+    offsets_ns: dict[str, list[int]] = field(default_factory=dict)
+    edges: list[EdgeFacts] = field(default_factory=list)
+    stages: dict[str, dict[str, dict[tuple[int, str, int], int]]] = field(default_factory=dict)
+    cards: list[tuple[str, int, str, bool]] = field(default_factory=list)
+    track_models: list[str] = field(default_factory=list)
+    track_frames: list[str] = field(default_factory=list)
+    localized_frames: list[str] = field(default_factory=list)
+    position_only: int = 0
+    tracks_total: int = 0
+    boxes_total: int = 0
+
+    def stream(self, key: str) -> StreamFacts:
+        return self.streams.get(key) or StreamFacts(key)
+
+    def running(self, service: str) -> list[NodeFacts]:
+        """The instances of ``service`` that are up (alive, or with status in a recording)."""
+        return [n for n in self.nodes if n.service == service and n.state == "running" and n.alive is not False]
+
+    def failed(self, service: str | None = None) -> list[NodeFacts]:
+        return [n for n in self.nodes if n.state == "failed" and (service is None or n.service == service)]
+
+    def cameras(self) -> list[str]:
+        """The cameras in play: those with traffic, else those the nodes are set to, else ``head``."""
+        seen = {key.split("/", 1)[1] for key in self.streams if key.split("/", 1)[0] in ("frames", "detections")
+                and "/" in key}
+        if not seen:
+            seen = {n.settings["camera"] for n in self.nodes if n.settings.get("camera", "*") != "*"}
+        return sorted(seen) or ["head"]

@@ -96,7 +96,7 @@ def _node(obs: Observation, service: str) -> Check:
         if gone:
             return Check(SECTION, service, "fail", "stopped while the doctor watched",
                          f"see the {service}'s log; perception launch restarts it unless it exited with status 2")
-        if any(n.alive is None for n in obs.nodes):  # a recording: no liveliness, only statuses
+        if obs.source == "recording":  # no liveliness, only the statuses recorded
             return Check(SECTION, service, "warn", "no status of it in the recording",
                          "record with the services running, or record the status keys too")
         return Check(SECTION, service, "fail", "not running", f"start it: perception {service} (or perception launch)")

@@ -66,7 +66,7 @@ def _wait_ready(proc: subprocess.Popen[bytes], log: Path) -> None:
 def _doctor(router: RouterProcess, robot: str) -> tuple[int, dict[str, dict[str, str]], str]:
     res = subprocess.run([PY, "-m", "perception", "-q", "doctor", "--duration", WATCH_S, "--json", "--robot", robot,
                           "--connect", router.endpoint], capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT,
-                         env={**os.environ, "RUST_LOG": "error"})
+                         env={**os.environ, "RUST_LOG": "error"}, check=False)
     report = json.loads(res.stdout)
     assert report["exit_code"] == res.returncode
     return res.returncode, {c["name"]: c for c in report["checks"]}, res.stdout

@@ -59,9 +59,9 @@ services:
         connect = ["--robot", robot, "--connect", f"tcp/127.0.0.1:{port}"]
         env = {**os.environ, "RUST_LOG": "error"}
         status = subprocess.run([PY, "-m", "perception", "-q", "status", *connect], capture_output=True, text=True,
-                                timeout=TIMEOUT, cwd=ROOT, env=env)
+                                timeout=TIMEOUT, cwd=ROOT, env=env, check=False)
         doctor = subprocess.run([PY, "-m", "perception", "-q", "doctor", "--duration", "1", "--json", *connect],
-                                capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT, env=env)
+                                capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT, env=env, check=False)
         time.sleep(0.5)  # a restart would have been due 0.1 s after the exit
         out = launch.output()
         # said once, plainly: which node stopped and why; started once, never again

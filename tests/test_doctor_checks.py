@@ -3,6 +3,7 @@ payloads (invalid frames included), and --recording on a simulated MCAP file."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -218,6 +219,15 @@ def test_depth_units_are_judged_by_their_values() -> None:
         f.depth_sample = np.round(f.depth_sample / 1000.0)  # type: ignore[operator]
     check = the(run_checks(obs), "depth unit (head)")
     assert check.status == "fail" and "metres stored as integers" in check.figure
+
+
+def test_a_fixed_camera_needs_no_dynamic_transforms() -> None:
+    obs = healthy()
+    del obs.streams["tf"]
+    obs.edges = [dataclasses.replace(e, static=True) for e in obs.edges]
+    checks = run_checks(obs)
+    assert [c for c in checks if c.status != "ok"] == []
+    assert "tf_static" in the(checks, "tf").figure
 
 
 def test_a_warning_gives_exit_status_1_and_a_replay_explains_old_stamps() -> None:

@@ -79,6 +79,8 @@ STREAMS: tuple[Stream, ...] = (
     Stream("status", "status/{service}/{instance}", "ServiceStatus", "every service (1 Hz, and on query)", "perception status, monitors", STATUS),
     Stream("alive", "alive/{service}/{instance}", "liveliness token", "every service", "perception status, launcher", None, "liveliness"),
     Stream("track_query", "query/track", "query `?id=K` → TrackState", "tracker (queryable)", "any client", None, "query"),
+    Stream("forget_query", "query/forget", "query `?id=K` or `?all=1` → ForgetReply", "tracker (queryable)",
+           "perception forget", None, "query"),
 )
 
 
@@ -156,6 +158,9 @@ class Keys:
 
     def track_query(self) -> str:
         return self._join("query", "track")
+
+    def forget_query(self) -> str:
+        return self._join("query", "forget")
 
     def all(self) -> str:
         return self._join("**")

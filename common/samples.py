@@ -9,9 +9,11 @@ import numpy as np
 from common.schemas import (
     AppearanceThresholds,
     CameraInfo,
+    CameraView,
     Detection,
     Detections,
     Embeddings,
+    ForgetReply,
     Header,
     Image,
     LocalizedDetection,
@@ -127,6 +129,9 @@ def example_messages(stamp_ns: int = 1_700_000_000_000_000_000, n_people: int = 
                 for i, b in enumerate(boxes)
             ],
             rejected={"too_few_valid_pixels": 1},
+            view=CameraView(camera_to_frame=np.array([[0.0, 0, 1, 0.1], [-1, 0, 0, 0], [0, -1, 0, 1.2], [0, 0, 0, 1]]),
+                            K=np.array([[525.0, 0, 320], [0, 525.0, 240], [0, 0, 1]]), width=640, height=480,
+                            max_range_m=10.0),
         ),
         Embeddings(header=cam, model=card, indices=np.arange(n_people, dtype=np.int32), vectors=vectors),
         Tracks(
@@ -147,6 +152,8 @@ def example_messages(stamp_ns: int = 1_700_000_000_000_000_000, n_people: int = 
             appearance_available=True,
             embedding_model="colour",
         ),
+        ForgetReply(header=Header(stamp_ns=stamp_ns, frame_id="map", source="tracker"), forgotten_ids=[2],
+                    descriptors_removed=140, classifiers_removed=1, live_tracks_cleared=[2]),
         ServiceStatus(
             header=Header(stamp_ns=stamp_ns, source="tracker"),
             name="tracker",

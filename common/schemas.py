@@ -33,6 +33,7 @@ __all__ = [
     "Detection",
     "Detections",
     "Embeddings",
+    "ForgetReply",
     "Header",
     "Image",
     "LocalizedDetection",
@@ -480,6 +481,19 @@ class Tracks(Message):
     tracks: list[TrackState] = Field(default_factory=list)
     appearance_available: bool = True
     embedding_model: str = ""
+    note: str = Field(default="", description="a query's answer when it has no track: why (e.g. not found)")
+
+
+@message("perception.ForgetReply", 1)
+class ForgetReply(Message):
+    """The tracker's answer to a forget request (``keys.forget_query()``)."""
+
+    forgotten_ids: list[int] = Field(default_factory=list, description="IDs whose appearance was removed")
+    descriptors_removed: int = Field(default=0, ge=0, description="remembered and live descriptors removed")
+    classifiers_removed: int = Field(default=0, ge=0)
+    live_tracks_cleared: list[int] = Field(default_factory=list,
+                                           description="live tracks that keep their ID but lost their appearance")
+    error: str = Field(default="", description="why nothing was done (a malformed request, an unknown ID)")
 
 
 # ---------------------------------------------------------------------------- status

@@ -9,9 +9,11 @@ from hypothesis.extra import numpy as hnp
 from common.schemas import (
     AppearanceThresholds,
     CameraInfo,
+    CameraView,
     Detection,
     Detections,
     Embeddings,
+    ForgetReply,
     Header,
     Image,
     LocalizedDetection,
@@ -121,6 +123,9 @@ localized_msgs = st.builds(
         max_size=5,
     ),
     rejected=st.dictionaries(st.text(max_size=8), st.integers(0, 100), max_size=3),
+    view=st.none() | st.builds(CameraView, camera_to_frame=hnp.arrays(np.float64, (4, 4), elements=finite),
+                               K=hnp.arrays(np.float64, (3, 3), elements=finite), width=st.integers(1, 4096),
+                               height=st.integers(1, 4096), max_range_m=st.floats(0.1, 100)),
 )
 
 
@@ -153,6 +158,12 @@ tracks_msgs = st.builds(
     ),
     appearance_available=st.booleans(),
     embedding_model=st.text(max_size=8),
+    note=st.text(max_size=20),
+)
+forget_msgs = st.builds(
+    ForgetReply, header=headers, forgotten_ids=st.lists(st.integers(0, 10**6), max_size=4),
+    descriptors_removed=st.integers(0, 10**6), classifiers_removed=st.integers(0, 100),
+    live_tracks_cleared=st.lists(st.integers(0, 10**6), max_size=4), error=st.text(max_size=20),
 )
 status_msgs = st.builds(
     ServiceStatus, header=headers, name=names, instance=st.text(max_size=10), host=st.text(max_size=10),
@@ -184,6 +195,7 @@ MESSAGE_STRATEGIES = {
     "perception.LocalizedDetections": localized_msgs,
     "perception.Embeddings": embeddings_msgs(),
     "perception.Tracks": tracks_msgs,
+    "perception.ForgetReply": forget_msgs,
     "perception.ServiceStatus": status_msgs,
     "perception.PeopleGroundTruth": groundtruth_msgs,
 }

@@ -217,6 +217,8 @@ class TrackerConfig(BaseModel):
                     "every track ends, its ID remembered, and tracking starts over; must exceed reorder_window_s")
     memory_path: Path | None = Field(default_factory=default_memory_path,
                                      description="ID memory file, loaded at start and rewritten on change; null: none")
+    retention_s: float = Field(default=7 * 86400.0, gt=0.0,
+                               description="a remembered ID not seen for this long is forgotten (s; default 7 days)")
     memory_save_period_s: float = Field(default=2.0, gt=0.0, le=3600.0,
                                         description="how often live tracks' galleries are also written")
 

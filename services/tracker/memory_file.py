@@ -5,7 +5,9 @@ model's name), ``next_id``, ``capacity``, then the memory's blocks as
 :meth:`IdentityMemory.to_blocks` gives them: ``ids`` (K,), ``counts`` (K,) and
 ``descriptors`` (sum of counts, D) float32. Optionally (the robust profile's online
 classifiers, :mod:`services.tracker.core.classifier`): ``classifier_ids`` (C,) and
-``classifiers`` (C, D + 1) float64; a file without them reads as no classifiers.
+``classifiers`` (C, D + 1) float64; a file without them reads as no classifiers. And
+``seen_ids`` (S,), ``seen_at`` (S,) float64: when each ID was last seen (Unix time, for
+the retention).
 
 Saving writes a temporary file next to the target, syncs it and renames it over the
 target, so a crash never leaves a half-written memory behind.
@@ -25,7 +27,8 @@ import numpy as np
 from services.tracker.config import TrackerConfig
 from services.tracker.core import IdentityMemory
 
-__all__ = ["FORMAT_VERSION", "descriptor_dim", "load_memory", "read_classifiers", "read_memory", "save_memory"]
+__all__ = ["FORMAT_VERSION", "descriptor_dim", "load_memory", "read_classifiers", "read_last_seen", "read_memory",
+           "save_memory"]
 
 log = logging.getLogger(__name__)
 
@@ -35,13 +38,15 @@ FORMAT_VERSION = 1
 
 def save_memory(path: str | Path, memory: IdentityMemory, model: str = "",
                 extra: Iterable[tuple[int, np.ndarray]] = (),
-                classifiers: Mapping[int, np.ndarray] | None = None) -> None:
+                classifiers: Mapping[int, np.ndarray] | None = None,
+                last_seen: Mapping[int, float] | None = None) -> None:
     """Write ``memory`` atomically to ``path`` (``.npz``).
 
     ``extra`` adds (ID, descriptors (M, D)) blocks stored next to the memory, e.g. the
     galleries of the tracks alive now; :func:`read_memory` merges them into their IDs.
     ``classifiers``: ID -> weights (D + 1,) of trained online classifiers, stored beside
-    (:func:`read_classifiers`). Raises ``OSError``, or ``ValueError`` for descriptors of
+    (:func:`read_classifiers`). ``last_seen``: ID -> Unix time it was last seen
+    (:func:`read_last_seen`). Raises ``OSError``, or ``ValueError`` for descriptors of
     several dimensions.
     """
     ids, counts, data = memory.to_blocks(extra)
@@ -50,6 +55,8 @@ def save_memory(path: str | Path, memory: IdentityMemory, model: str = "",
         raise ValueError("classifiers of several dimensions")
     clf_ids = np.array(sorted(clf), np.int64)
     clf_w = np.stack([clf[i] for i in clf_ids.tolist()]) if clf else np.zeros((0, 0))
+    seen = dict(sorted((last_seen or {}).items()))
+    seen_ids, seen_at = np.array(list(seen), np.int64), np.array(list(seen.values()), np.float64)
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=target.name + ".", suffix=".tmp", dir=target.parent)
@@ -57,7 +64,7 @@ def save_memory(path: str | Path, memory: IdentityMemory, model: str = "",
         with os.fdopen(fd, "wb") as f:
             np.savez(f, format_version=np.int64(FORMAT_VERSION), model=np.str_(model), next_id=np.int64(memory.next_id),
                      capacity=np.int64(memory.capacity), ids=ids, counts=counts, descriptors=data,
-                     classifier_ids=clf_ids, classifiers=clf_w)
+                     classifier_ids=clf_ids, classifiers=clf_w, seen_ids=seen_ids, seen_at=seen_at)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, target)
@@ -103,6 +110,20 @@ def read_classifiers(path: str | Path) -> dict[int, np.ndarray]:
     if len(ids) != len(weights) or (len(ids) and weights.ndim != 2) or not np.all(np.isfinite(weights)):
         raise ValueError(f"{path}: inconsistent classifiers in the ID memory file ({len(ids)} ids, shape {weights.shape})")
     return {int(i): w.astype(np.float64) for i, w in zip(ids.tolist(), weights)}
+
+
+def read_last_seen(path: str | Path) -> dict[int, float]:
+    """ID -> Unix time last seen, as stored by :func:`save_memory` (empty for a file without it)."""
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            if "seen_ids" not in f.files:
+                return {}
+            ids, at = f["seen_ids"], f["seen_at"]
+    except (OSError, KeyError, EOFError, ValueError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path}: unreadable last-seen times in the ID memory file: {exc}") from exc
+    if len(ids) != len(at):
+        raise ValueError(f"{path}: inconsistent last-seen times in the ID memory file")
+    return {int(i): float(t) for i, t in zip(ids.tolist(), at.tolist())}
 
 
 def load_memory(config: TrackerConfig) -> tuple[IdentityMemory, str | None]:

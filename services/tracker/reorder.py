@@ -81,6 +81,14 @@ class ReorderBuffer(Generic[In, S, R]):
         self.newest_ns = None
         self._snaps.append((_BEFORE_ALL, self.snapshot()))
 
+    def rebase(self) -> None:
+        """Make the consumer's state now the only one to rewind to: earlier snapshots may
+        hold what must not come back (a forgotten person). Inputs older than the newest
+        applied one are dropped as too old from now on."""
+        last = self._log[-1:]
+        self._log = list(last)
+        self._snaps = [(last[0][0] if last else _BEFORE_ALL, self.snapshot())]
+
     def latest(self) -> tuple[InputKey, In] | None:
         """The newest input applied (key, input), or None."""
         return self._log[-1] if self._log else None

@@ -35,7 +35,15 @@ from common.keys import RELIABLE, Keys
 from common.node import Node
 from common.ratelog import RateLimitedLog
 from common.runtime import Counters
-from common.schemas import Embeddings, Header, LocalizedDetections, ModelCard, TrackState, Tracks
+from common.schemas import (
+    Embeddings,
+    ForgetReply,
+    Header,
+    LocalizedDetections,
+    ModelCard,
+    Tracks,
+    TrackState,
+)
 from common.transport import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import (
@@ -46,8 +54,14 @@ from services.tracker.convert import (
     tracks_message,
     usable_covariances,
 )
-from services.tracker.core.tracker import FrameResult, TrackerState
-from services.tracker.memory_file import descriptor_dim, load_memory, read_classifiers, save_memory
+from services.tracker.core.tracker import FrameResult, TrackerState, TrackStatus
+from services.tracker.memory_file import (
+    descriptor_dim,
+    load_memory,
+    read_classifiers,
+    read_last_seen,
+    save_memory,
+)
 from services.tracker.reorder import ClockJumps, InputKey, ReorderBuffer
 
 __all__ = ["TrackerService", "load_memory"]
@@ -60,6 +74,10 @@ _DROP_NAMES = {"orphan": "unpaired_embeddings", "late": "late_embeddings", "dupl
                "overflow": "join_overflow"}
 #: Added to every detection covariance: keeps R invertible for degenerate (zero) ones.
 _R_EPS = np.eye(3) * 1e-6
+
+
+#: The statuses the track query answers for.
+_ANSWERED = (TrackStatus.CONFIRMED, TrackStatus.COASTING)
 
 
 def _complete(items: Mapping[str, Any]) -> bool:
@@ -79,10 +97,13 @@ class TrackerService(Node):
     name = "tracker"
 
     def __init__(self, transport: Transport, keys: Keys, config: TrackerConfig, counters: Counters | None = None,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic, wall_clock: Callable[[], float] = time.time) -> None:
         super().__init__(transport, keys, counters)
         self.config = config
         self.clock = clock
+        self.wall_clock = wall_clock
+        #: held while the tracker changes: frames in poll(), forget requests from query threads
+        self._lock = threading.RLock()
         memory, stored_model = load_memory(config)
         self.model: str | None = config.embedding_model or stored_model
         #: the descriptors' dimension: the remembered ones', else the first accepted model card's
@@ -119,6 +140,19 @@ class TrackerService(Node):
         self.emb_sub = self.io.subscribe(keys.embeddings(config.camera), Embeddings, RELIABLE)
         self.publisher = self.io.publisher(keys.tracks(), Tracks, RELIABLE)
         self.io.serve(keys.track_query(), self._answer_query)
+        self.io.serve(keys.forget_query(), self._answer_forget)
+        #: wall-clock time each remembered or tracked ID was last seen (retention_s forgets the others)
+        self._seen: dict[int, float] = {}
+        if config.memory_path is not None and config.memory_path.exists():
+            try:
+                self._seen = read_last_seen(config.memory_path)
+            except ValueError as exc:
+                log.warning("%s; the remembered IDs count as seen now", exc)
+        start = wall_clock()
+        for track_id in memory.entries:
+            self._seen.setdefault(track_id, start)
+        self._forgotten: set[int] = set()  # forgotten IDs of tracks still live: the query answers "not found"
+        self._last_expiry = -1e18
 
     def describe(self) -> str:
         return (f"tracking camera {self.config.camera!r} in frame {self.config.frame_id!r}, "
@@ -251,13 +285,18 @@ class TrackerService(Node):
             self.counters.count("position_only_frames")
         if result.recovered_ids:
             self.counters.count("ids_recovered", len(result.recovered_ids))
+        wall = self.wall_clock()
         with self._state_lock:
-            for view in result.tracks + result.deleted:
-                if view.id:  # a robust tentative track has no ID yet
+            # the query answers for confirmed and coasting tracks (and the last state of one that
+            # ended after being confirmed), never for a tentative one
+            for view in result.tracks:
+                if view.id and view.status in _ANSWERED and view.id not in self._forgotten:
                     self._last_state[view.id] = track_state(view, result.appearance_available, self._epoch_ns)
+                    self._seen[view.id] = wall
             for view in result.deleted:
-                if view.id and not view.ever_confirmed and not self._confirmed_before(view.id):
-                    del self._last_state[view.id]  # never output (a false positive): nothing to answer
+                if view.id in self._last_state:
+                    self._last_state[view.id] = track_state(view, result.appearance_available, self._epoch_ns)
+                self._forgotten.discard(view.id)
         self._dirty = True
         return result
 
@@ -278,9 +317,11 @@ class TrackerService(Node):
 
     def poll(self, now: float) -> list[Tracks]:
         """Take what has arrived, apply every frame that is ready; returns the Tracks published."""
-        published = self._drain(now)
-        published += self._apply_ready(now)
-        self._persist(now)
+        with self._lock:
+            published = self._drain(now)
+            published += self._apply_ready(now)
+            self._expire(now)
+            self._persist(now)
         return published
 
     def _apply_ready(self, now: float) -> list[Tracks]:
@@ -322,7 +363,7 @@ class TrackerService(Node):
             return
         try:
             save_memory(path, self.tracker.memory, self.model or "", extra=self.tracker.live_galleries(),
-                        classifiers=self._classifiers())
+                        classifiers=self._classifiers(), last_seen=self._seen)
         except (OSError, ValueError) as exc:
             self.counters.count("memory_save_errors")
             log.error("could not write the ID memory to %s: %s", path, exc)
@@ -338,20 +379,98 @@ class TrackerService(Node):
             return {}
         return {**self.tracker.classifiers, **live()}  # type: ignore[attr-defined]
 
+    # ------------------------------------------------------------- forgetting
+    def forget(self, track_id: int | None) -> ForgetReply:
+        """Forget one person (``track_id``) or everyone (None): their remembered descriptors
+        and classifiers, and the appearance of a live track with that ID (which keeps its
+        ID); the ID memory file is rewritten at once. Safe to call from a query thread."""
+        with self._lock:
+            if track_id is None:
+                ids = sorted(set(self.tracker.memory.entries) | self.tracker.live_ids() | set(self._seen))
+            else:
+                ids = [track_id]
+            reply = ForgetReply(header=Header(stamp_ns=time.time_ns(), frame_id=self.config.frame_id, source="tracker"))
+            live = self.tracker.live_ids()
+            for i in ids:
+                known = i in self.tracker.memory or i in live or i in self._seen
+                if not known or (i in self._forgotten and i not in self.tracker.memory):
+                    continue
+                done = self.tracker.forget(i)
+                reply.forgotten_ids.append(i)
+                reply.descriptors_removed += int(done["descriptors"])
+                reply.classifiers_removed += int(bool(done["classifier"]))
+                if done["live_track"]:
+                    reply.live_tracks_cleared.append(i)
+                    self._forgotten.add(i)
+                self._seen.pop(i, None)
+                with self._state_lock:
+                    self._last_state.pop(i, None)
+            if track_id is not None and not reply.forgotten_ids:
+                reply.error = f"not found: the tracker knows no ID {track_id} (never seen, or already forgotten)"
+                return reply
+            self.buffer.rebase()  # no rewind may bring the forgotten appearance back
+            self.counters.count("ids_forgotten", len(reply.forgotten_ids))
+            log.info("forgot IDs %s: %d descriptors, %d classifiers; live tracks kept without appearance: %s",
+                     reply.forgotten_ids, reply.descriptors_removed, reply.classifiers_removed,
+                     reply.live_tracks_cleared)
+            self._dirty = True
+            self._saved_version = -1  # rewrite the file now
+            self._persist(self.clock(), force=True)
+            return reply
+
+    def _expire(self, now: float) -> None:
+        """Forget the remembered IDs not seen for ``retention_s`` (checked about once a minute)."""
+        if now - self._last_expiry < 60.0:
+            return
+        self._last_expiry = now
+        limit = self.wall_clock() - self.config.retention_s
+        live = self.tracker.live_ids()
+        old = [i for i, seen in self._seen.items() if seen < limit and i not in live]
+        old += [i for i in self.tracker.memory.entries if i not in self._seen and i not in live]
+        for i in sorted(set(old)):
+            self.tracker.forget(i)
+            self._seen.pop(i, None)
+            with self._state_lock:
+                self._last_state.pop(i, None)
+        if old:
+            self.counters.count("ids_expired", len(set(old)))
+            log.info("forgot IDs %s: not seen for %.0f s (retention_s)", sorted(set(old)), self.config.retention_s)
+            self.buffer.rebase()
+            self._dirty = True
+
+    def _answer_forget(self, _key: str, params: dict[str, str]) -> list[ForgetReply]:
+        header = Header(stamp_ns=time.time_ns(), frame_id=self.config.frame_id, source="tracker")
+        if params.get("all", "").lower() in ("1", "true", "yes"):
+            return [self.forget(None)]
+        raw = params.get("id")
+        try:
+            track_id = int(raw) if raw is not None else None
+        except ValueError:
+            track_id = None
+        if track_id is None or track_id < 1:
+            self._log.warning("bad_forget", "forget request with a malformed id %r", raw)
+            return [ForgetReply(header=header, error=f"malformed request: need ?id=K (a positive integer) or ?all=1, "
+                                                     f"got {_key.split('?')[-1] if '?' in _key else params!r}")]
+        return [self.forget(track_id)]
+
     # ------------------------------------------------------------------ query
     def _answer_query(self, _key: str, params: dict[str, str]) -> list[Tracks]:
         header = Header(stamp_ns=time.time_ns(), frame_id=self.config.frame_id, source="tracker")
+        note = ""
         with self._state_lock:
             if "id" not in params:
                 states = list(self._last_state.values())
             else:
                 try:
                     state = self._last_state.get(int(params["id"]))
+                    if state is None:
+                        note = (f"not found: no confirmed or coasting track has ID {params['id']} "
+                                "(unknown, tentative, or forgotten)")
                 except ValueError:
                     self._log.warning("bad_query", "track query with a non-integer id %r", params["id"])
-                    state = None
+                    state, note = None, f"malformed request: id must be an integer, got {params['id']!r}"
                 states = [state] if state is not None else []
-        return [Tracks(header=header, tracks=states, embedding_model=self.model or "")]
+        return [Tracks(header=header, tracks=states, embedding_model=self.model or "", note=note)]
 
     # -------------------------------------------------------------------- end
     def close(self) -> None:

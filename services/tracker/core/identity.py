@@ -59,6 +59,14 @@ class IdentityMemory:
         self.next_id = max(self.next_id, track_id + 1)
         self.version += 1
 
+    def forget(self, track_id: int) -> int:
+        """Remove everything remembered of ``track_id``; returns how many descriptors went."""
+        entry = self.entries.pop(track_id, None)
+        if entry is None:
+            return 0
+        self.version += 1
+        return len(entry)
+
     def distances(self, descriptor: np.ndarray, exclude: Iterable[int] = ()) -> tuple[np.ndarray, np.ndarray]:
         """Appearance distance from ``descriptor`` (D,) to every remembered ID not in ``exclude``.
 

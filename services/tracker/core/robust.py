@@ -189,6 +189,7 @@ class _Track:
     ever_confirmed: bool = False
     clf: np.ndarray | None = None  # online classifier weights (D + 1), once trained
     clf_steps: int = 0
+    forgotten: bool = False  # its person was forgotten: it learns and leaves no appearance
 
     def copy(self) -> _Track:
         return replace(self, mean=self.mean.copy(), cov=self.cov.copy(),
@@ -464,6 +465,8 @@ class RobustTracker:
 
     def _archive(self, t: _Track) -> None:
         """A deleted person's gallery and classifier go to the ID memory."""
+        if t.forgotten:
+            return
         if t.gallery is not None and len(t.gallery):
             self.memory.archive(t.id, t.gallery.descriptors)
         if t.clf_steps and t.clf is not None:
@@ -522,6 +525,8 @@ class RobustTracker:
         return int(cands[best][0]) if s[best] >= cp.recover_score else None
 
     def _add_descriptor(self, t: _Track, desc: np.ndarray, d2: np.ndarray | None = None) -> None:
+        if t.forgotten:
+            return
         if t.gallery is None:
             t.gallery = Gallery(len(desc), self.params.gallery_size, prune="nearest")
         t.gallery.add(desc, d2)
@@ -532,6 +537,29 @@ class RobustTracker:
         mean, cov = (t.mean[:6], t.cov[:6, :6]) if self._ukf else (t.mean, t.cov)  # (x, y, z, vx, vy, vz)
         return TrackView(t.id, t.status, mean, cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp),
                          t.last_update, len(t.gallery) if t.gallery else 0, t.ever_confirmed)
+
+    def forget(self, track_id: int) -> dict[str, int | bool]:
+        """Forget a person: their remembered descriptors and classifier go, and a live track
+        with that ID keeps its ID and position but loses its appearance history and learns
+        none from now on, so the person gets a new ID when they come back. Returns what
+        was removed: ``descriptors`` (remembered and live), ``classifier``, ``live_track``."""
+        removed = self.memory.forget(track_id)
+        had_classifier = self.classifiers.pop(track_id, None) is not None
+        live = False
+        for t in self.tracks:
+            if t.id == track_id:
+                removed += len(t.gallery) if t.gallery is not None else 0
+                had_classifier = had_classifier or t.clf_steps > 0
+                t.gallery, t.clf, t.clf_steps, t.forgotten = None, None, 0, True
+                live = True
+        return {"descriptors": removed, "classifier": had_classifier, "live_track": live}
+
+    def forget_all(self) -> list[int]:
+        """Forget everyone (:meth:`forget` for every remembered or live ID); returns the IDs."""
+        ids = sorted(set(self.memory.entries) | set(self.classifiers) | self.live_ids())
+        for i in ids:
+            self.forget(i)
+        return ids
 
     def restart_clock(self) -> list[int]:
         """End every live track and forget the clock, keeping the ID memory (a clock jump:

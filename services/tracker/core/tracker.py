@@ -172,6 +172,7 @@ class Tracker:
         self.tracks: list[Track] = []
         self.last_stamp: float | None = None
         self._pending: list[tuple[int, Gallery]] = []  # galleries of tracks deleted in position-only frames
+        self._forgotten: set[int] = set()  # IDs of live tracks whose person was forgotten
         self._q_frame = np.asarray(params.sigma_q, dtype=np.float64) ** 2
         self._r = np.diag(np.asarray(params.sigma_r, dtype=np.float64) ** 2)
         self._position_gate = chi2_gate(params.position_gate_probability, 2)
@@ -305,6 +306,8 @@ class Tracker:
 
     def _archive(self, t: Track, appearance: bool) -> None:
         """Give a deleted track's gallery to the ID memory (held back in position-only frames)."""
+        if t.id in self._forgotten:
+            return
         if t.gallery is not None and len(t.gallery):
             if appearance:
                 self.memory.archive(t.id, t.gallery.descriptors)
@@ -346,6 +349,8 @@ class Tracker:
             t.status, t.ever_confirmed = TrackStatus.CONFIRMED, True
 
     def _add_descriptor(self, t: Track, desc: np.ndarray) -> None:
+        if t.id in self._forgotten:
+            return
         if t.gallery is None:
             t.gallery = Gallery(len(desc), self.params.gallery_size)
         t.gallery.add(desc)
@@ -367,6 +372,28 @@ class Tracker:
         self.memory = state.memory.copy()
         self._pending = [(i, g.copy()) for i, g in state.pending]
         self.last_stamp = state.last_stamp
+
+    def forget(self, track_id: int) -> dict[str, int | bool]:
+        """Forget a person (see the robust profile's ``forget``): remembered and pending
+        descriptors go; a live track with that ID keeps it but loses its gallery and keeps
+        none from now on."""
+        removed = self.memory.forget(track_id)
+        removed += sum(len(g) for i, g in self._pending if i == track_id)
+        self._pending = [(i, g) for i, g in self._pending if i != track_id]
+        live = False
+        for t in self.tracks:
+            if t.id == track_id:
+                removed += len(t.gallery) if t.gallery is not None else 0
+                t.gallery, live = None, True
+                self._forgotten.add(track_id)
+        return {"descriptors": removed, "classifier": False, "live_track": live}
+
+    def forget_all(self) -> list[int]:
+        """Forget everyone; returns the IDs."""
+        ids = sorted(set(self.memory.entries) | {i for i, _ in self._pending} | self.live_ids())
+        for i in ids:
+            self.forget(i)
+        return ids
 
     def restart_clock(self) -> list[int]:
         """End every live track and forget the clock, keeping the ID memory (a clock jump:

@@ -32,6 +32,7 @@ COMMAND_PACKAGES = (
     "tools.launcher",
     "tools.demo",
     "tools.doctor",
+    "tools.viewer",
 )
 
 

@@ -63,7 +63,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--height", type=int, default=240, help="image height (default 240)")
     parser.add_argument("--fps", type=float, default=10.0, help="camera frames per second (default 10)")
     parser.add_argument("--detector", default="depth", help="detector backend (default depth; hog also needs no model)")
-    parser.add_argument("--no-view", action="store_true", help="no live view, only the final table")
+    parser.add_argument("--no-view", action="store_true", help="no live view in the terminal, only the final table")
+    parser.add_argument("--view", action="store_true",
+                        help="also serve the live page (perception view) and open it in a browser when there is a display")
+    parser.add_argument("--view-port", type=int, default=8080, metavar="PORT",
+                        help="the page's port with --view (default 8080)")
     parser.add_argument("--json", action="store_true", help="print the final metrics as JSON")
     parser.add_argument("--log-dir", type=Path, default=None, help="where the processes' log goes (default: a temp dir)")
 
@@ -87,7 +91,19 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
     for name in SERVICES:
         specs.append(ProcessSpec(name, _perception(name, *common, *extra[name]), env, restart="on-failure",
                                  backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
+    if args.view:
+        specs.append(ProcessSpec("viewer", _perception("view", *common, "--port", str(args.view_port)), env,
+                                 restart="on-failure", backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
     return specs
+
+
+def _open_page(url: str) -> None:
+    """Open ``url`` in the desktop's browser, only when there is a desktop (a text browser
+    would take the terminal over)."""
+    if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") or sys.platform == "darwin":
+        import webbrowser
+
+        webbrowser.open(url)
 
 
 def _wait_alive(transport: Transport, keys: Keys, supervisor_thread: threading.Thread, shutdown: Shutdown,
@@ -146,6 +162,10 @@ def main(args: argparse.Namespace) -> int:
                 env={**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "error")},
             )
             started = time.monotonic()
+            page = f"   page: http://127.0.0.1:{args.view_port}/" if args.view else ""
+            if args.view:
+                print(f"the live page is on http://127.0.0.1:{args.view_port}/", flush=True)
+                _open_page(f"http://127.0.0.1:{args.view_port}/")
             pids = {m.name: m.pid for _, m in transport.query(keys.status(), timeout=2.0) if isinstance(m, ServiceStatus)}
             cpu_start = {n: (pid, _cpu_seconds(pid)) for n, pid in pids.items() if n in SERVICES}
             tty = sys.stdout.isatty() and not args.no_view
@@ -158,7 +178,7 @@ def main(args: argparse.Namespace) -> int:
                     break  # the scenario is over and the pipeline has drained
                 if tty:
                     view = monitor.render(f"perception demo: scenario {args.scenario!r}, {args.width}x{args.height} "
-                                          f"at {args.fps:g} fps, {args.duration:g} s   (Ctrl-C to stop)", elapsed)
+                                          f"at {args.fps:g} fps, {args.duration:g} s   (Ctrl-C to stop){page}", elapsed)
                     sys.stdout.write("\x1b[H\x1b[J" + view + "\n")
                     sys.stdout.flush()
                 elif not args.no_view and time.monotonic() - last_line > 5:

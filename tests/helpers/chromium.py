@@ -1,0 +1,132 @@
+"""Headless Chromium driven over the DevTools protocol, for tests and the README's screenshots.
+
+Starts the distribution's ``chromium`` with ``--remote-debugging-port=0``, reads the port
+it picked from ``DevToolsActivePort`` in its profile folder, and talks to the page target
+over a WebSocket (the ``websockets`` package): evaluate JavaScript, wait for a condition,
+take a PNG screenshot.
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import json
+import shutil
+import subprocess
+import tempfile
+import time
+import urllib.request
+from pathlib import Path
+from typing import Any
+
+__all__ = ["Browser", "chromium_path"]
+
+_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+
+
+def chromium_path() -> str | None:
+    """The first Chromium-like browser on the PATH, or None."""
+    for name in _NAMES:
+        if (path := shutil.which(name)) is not None:
+            return path
+    return None
+
+
+class Browser:
+    """One headless Chromium with one page; use as a context manager."""
+
+    def __init__(self, width: int = 1280, height: int = 900, timeout_s: float = 30.0) -> None:
+        path = chromium_path()
+        if path is None:
+            raise RuntimeError("no Chromium on the PATH")
+        self._profile = Path(tempfile.mkdtemp(prefix="perception-chromium-"))
+        self._proc = subprocess.Popen(
+            [path, "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+             "--no-first-run", "--no-default-browser-check", "--disable-extensions",
+             "--remote-debugging-address=127.0.0.1", "--remote-debugging-port=0", f"--user-data-dir={self._profile}",
+             f"--window-size={width},{height}", "about:blank"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self._id = 0
+        self._stack = contextlib.ExitStack()
+        try:
+            port = self._wait_port(timeout_s)
+            with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=5) as res:
+                targets = json.loads(res.read())
+            page = next(t for t in targets if t.get("type") == "page")
+            from websockets.sync.client import connect
+
+            self._ws = self._stack.enter_context(
+                connect(page["webSocketDebuggerUrl"], max_size=None, open_timeout=timeout_s))
+            self.call("Emulation.setDeviceMetricsOverride", width=width, height=height, deviceScaleFactor=1,
+                      mobile=False)
+        except BaseException:
+            self.close()
+            raise
+
+    def _wait_port(self, timeout_s: float) -> int:
+        marker = self._profile / "DevToolsActivePort"
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self._proc.poll() is not None:
+                raise RuntimeError(f"chromium exited with status {self._proc.returncode}")
+            if marker.is_file() and (text := marker.read_text().split()):
+                return int(text[0])
+            time.sleep(0.05)
+        raise TimeoutError("chromium did not open its DevTools port")
+
+    def call(self, method: str, timeout_s: float = 30.0, **params: Any) -> dict[str, Any]:
+        """Send one DevTools command and return its result (events on the way are skipped)."""
+        self._id += 1
+        self._ws.send(json.dumps({"id": self._id, "method": method, "params": params}))
+        deadline = time.monotonic() + timeout_s
+        while True:
+            reply = json.loads(self._ws.recv(timeout=max(0.01, deadline - time.monotonic())))
+            if reply.get("id") == self._id:
+                if "error" in reply:
+                    raise RuntimeError(f"{method}: {reply['error']}")
+                return reply.get("result", {})
+
+    def goto(self, url: str) -> None:
+        self.call("Page.navigate", url=url)
+
+    def evaluate(self, expression: str) -> Any:
+        """The value of a JavaScript expression in the page (JSON-serialisable values)."""
+        result = self.call("Runtime.evaluate", expression=expression, returnByValue=True, awaitPromise=True)
+        if "exceptionDetails" in result:
+            raise RuntimeError(f"{expression}: {result['exceptionDetails']}")
+        return result["result"].get("value")
+
+    def wait_for(self, expression: str, timeout_s: float = 30.0) -> Any:
+        """Poll ``expression`` until it is truthy; its value (TimeoutError with the last one)."""
+        deadline = time.monotonic() + timeout_s
+        value = None
+        while time.monotonic() < deadline:
+            try:
+                value = self.evaluate(expression)
+            except RuntimeError:
+                value = None  # the page is still loading
+            if value:
+                return value
+            time.sleep(0.1)
+        raise TimeoutError(f"{expression!r} still {value!r} after {timeout_s} s")
+
+    def screenshot(self) -> bytes:
+        """The page as PNG bytes."""
+        return base64.b64decode(self.call("Page.captureScreenshot", format="png")["data"])
+
+    def close(self) -> None:
+        self._stack.close()
+        if self._proc.poll() is None:
+            self._proc.terminate()
+            try:
+                self._proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
+                self._proc.wait()
+        shutil.rmtree(self._profile, ignore_errors=True)
+
+    def __enter__(self) -> Browser:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

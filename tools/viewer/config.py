@@ -1,0 +1,23 @@
+"""The viewer's settings."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field
+
+__all__ = ["ViewerConfig"]
+
+
+class ViewerConfig(BaseModel):
+    """What ``perception view`` serves and how often it refreshes."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    camera: str = Field(default="head", description="camera name in the keys")
+    host: str = Field(default="127.0.0.1", description="address the page is served on")
+    port: int = Field(default=8080, ge=0, le=65535, description="the page's HTTP port (0: a free one)")
+    map_frame: str = Field(default="map", min_length=1, description="the frame of the map and the tracks")
+    base_frame: str = Field(default="base_link", min_length=1, description="the robot's body frame")
+    trail_s: float = Field(default=5.0, gt=0.0, le=120.0, description="how long a track's trail is (s)")
+    state_hz: float = Field(default=15.0, gt=0.0, le=60.0, description="most page states per second")
+    image_hz: float = Field(default=10.0, gt=0.0, le=60.0, description="most camera images encoded per second")
+    jpeg_quality: int = Field(default=75, ge=10, le=100)

@@ -1,0 +1,150 @@
+"""The viewer's pure pieces: colours stable per ID, trails, rates and latencies, and which
+image box a track is.
+
+Everything takes and returns numpy arrays, floats and dataclasses; the node turns
+messages into these and the results into the page's JSON.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["PALETTE", "StageMeter", "Trails", "colour_hex", "colour_rgb", "label_boxes", "project_to_image", "yaw_of"]
+
+#: Twelve colours that stay apart from each other and readable on a dark background.
+PALETTE: tuple[tuple[int, int, int], ...] = (
+    (230, 25, 75), (60, 180, 75), (255, 225, 25), (67, 99, 216), (245, 130, 49), (145, 30, 180),
+    (70, 240, 240), (240, 50, 230), (188, 246, 12), (250, 190, 190), (0, 128, 128), (220, 190, 255),
+)
+
+
+def colour_rgb(track_id: int) -> tuple[int, int, int]:
+    """The colour of ``track_id``: the same in every run and every view (the page, Foxglove,
+    the plots); IDs up to twelve apart get different colours."""
+    return PALETTE[track_id % len(PALETTE)]
+
+
+def colour_hex(track_id: int) -> str:
+    """``colour_rgb`` as ``#rrggbb``."""
+    return "#{:02x}{:02x}{:02x}".format(*colour_rgb(track_id))
+
+
+def yaw_of(rotation: np.ndarray) -> float:
+    """Heading (rad, about z) of a (3, 3) rotation matrix: where its x axis points in the plane."""
+    return math.atan2(float(rotation[1, 0]), float(rotation[0, 0]))
+
+
+@dataclass
+class Trails:
+    """The last ``span_s`` seconds of each track's ground-plane position.
+
+    ``add(id, t, x, y)`` appends (at most one point per ``min_step_s``); ``prune(now)``
+    forgets old points and tracks not seen for ``span_s``.
+    """
+
+    span_s: float = 5.0
+    min_step_s: float = 0.1
+    max_points: int = 100
+    _points: dict[int, deque[tuple[float, float, float]]] = field(default_factory=dict)
+
+    def add(self, track_id: int, t: float, x: float, y: float) -> None:
+        trail = self._points.setdefault(track_id, deque(maxlen=self.max_points))
+        if trail and t - trail[-1][0] < self.min_step_s:
+            trail[-1] = (trail[-1][0], x, y)  # keep the newest position, not a denser trail
+            return
+        trail.append((t, x, y))
+
+    def prune(self, now: float) -> None:
+        for track_id in list(self._points):
+            trail = self._points[track_id]
+            while trail and now - trail[0][0] > self.span_s:
+                trail.popleft()
+            if not trail:
+                del self._points[track_id]
+
+    def get(self, track_id: int) -> list[tuple[float, float]]:
+        """The trail of ``track_id``, oldest first, as (x, y) pairs."""
+        return [(x, y) for _, x, y in self._points.get(track_id, ())]
+
+
+@dataclass
+class StageMeter:
+    """Recent arrivals of one stream: rate (Hz) and latency from the sensor stamp (ms)."""
+
+    window: int = 300
+    count: int = 0
+    _arrivals: deque[float] = field(default_factory=deque)
+    _latencies_ms: deque[float] = field(default_factory=deque)
+
+    def add(self, now: float, latency_ms: float) -> None:
+        self.count += 1
+        self._arrivals.append(now)
+        self._latencies_ms.append(latency_ms)
+        while len(self._arrivals) > self.window:
+            self._arrivals.popleft()
+            self._latencies_ms.popleft()
+
+    def rate_hz(self, now: float, span_s: float = 3.0) -> float:
+        """Messages per second over the last ``span_s`` (0 when fewer than two arrived)."""
+        recent = [t for t in self._arrivals if now - t <= span_s]
+        if len(recent) < 2:
+            return 0.0
+        return (len(recent) - 1) / max(recent[-1] - recent[0], 1e-6)
+
+    def latency_ms(self, q: float, now: float, span_s: float = 10.0) -> float | None:
+        """The ``q``-th percentile latency of the last ``span_s`` seconds, or None."""
+        recent = [lat for t, lat in zip(self._arrivals, self._latencies_ms) if now - t <= span_s]
+        return float(np.percentile(recent, q)) if recent else None
+
+
+def project_to_image(points: np.ndarray, camera_to_frame: np.ndarray, K: np.ndarray, width: int,
+                     height: int) -> np.ndarray:
+    """Pixels of ``points`` (N, 3) in the positions' frame, seen by a pinhole camera.
+
+    ``camera_to_frame`` (4, 4) maps camera points (z forward) into that frame, ``K`` (3, 3)
+    is the intrinsic matrix. Returns (N, 2) float64 pixels; a point behind the camera or
+    outside the image is NaN.
+    """
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    frame_to_camera = np.linalg.inv(camera_to_frame)
+    cam = points @ frame_to_camera[:3, :3].T + frame_to_camera[:3, 3]
+    out = np.full((len(points), 2), np.nan)
+    ahead = cam[:, 2] > 1e-6
+    if ahead.any():
+        uvw = cam[ahead] @ np.asarray(K, np.float64).T
+        out[ahead] = uvw[:, :2] / uvw[:, 2:3]
+    inside = (out[:, 0] >= 0) & (out[:, 0] < width) & (out[:, 1] >= 0) & (out[:, 1] < height)
+    out[~inside] = np.nan
+    return out
+
+
+def label_boxes(boxes_xyxy: np.ndarray, pixels: np.ndarray, ids: np.ndarray) -> list[int | None]:
+    """Which track each image box shows.
+
+    ``boxes_xyxy`` (N, 4), ``pixels`` (M, 2) the tracks' projected positions (NaN when not
+    in the image), ``ids`` (M,). A track labels the box that contains its pixel, the one
+    whose centre column is nearest when several do; each box and each track is used once,
+    nearest pairs first. Returns N labels, None for a box no track falls in.
+    """
+    boxes = np.asarray(boxes_xyxy, np.float64).reshape(-1, 4)
+    pixels = np.asarray(pixels, np.float64).reshape(-1, 2)
+    labels: list[int | None] = [None] * len(boxes)
+    if not len(boxes) or not len(pixels):
+        return labels
+    u, v = pixels[:, 0][None, :], pixels[:, 1][None, :]
+    inside = (u >= boxes[:, 0:1]) & (u <= boxes[:, 2:3]) & (v >= boxes[:, 1:2]) & (v <= boxes[:, 3:4])
+    cost = np.abs(u - (boxes[:, 0:1] + boxes[:, 2:3]) / 2)
+    cost = np.where(inside, cost, np.inf)
+    used_tracks: set[int] = set()
+    for flat in np.argsort(cost, axis=None):
+        b, m = divmod(int(flat), cost.shape[1])
+        if not np.isfinite(cost[b, m]):
+            break
+        if labels[b] is None and m not in used_tracks:
+            labels[b] = int(ids[m])
+            used_tracks.add(m)
+    return labels

@@ -1,0 +1,63 @@
+"""``perception view``: the operator's live page."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any, Mapping
+
+from common.keys import Keys
+from common.node import add_node_arguments, run_node
+from common.runtime import Counters
+from common.transport import Transport
+from tools.viewer.config import ViewerConfig
+from tools.viewer.node import ViewerNode
+from tools.viewer.web import LatestState, WebServer
+
+DESCRIPTION = """\
+Serve a live page for the robot's operator on this machine: a top-down map of the
+confirmed tracks with their IDs, short trails and the robot; the camera image with the
+detections' boxes labelled with track IDs; each stage's rate and latency; and each
+node's health from its liveliness token and status. Open http://127.0.0.1:PORT/ in any
+browser; the page needs no internet (every asset ships in the package). Any number of
+browsers may watch; each gets the newest state, and a slow one skips states instead of
+queueing them.
+
+examples:
+  perception view                       # the page on http://127.0.0.1:8080/
+  perception view --port 9000 --robot mbot --connect tcp/192.168.1.20:7447"""
+
+#: flag -> (setting, type, metavar, help)
+_FLAGS: dict[str, tuple[str, type, str | None, str]] = {
+    "--camera": ("camera", str, None, "camera name in the keys (default head)"),
+    "--port": ("port", int, "PORT", "the page's HTTP port (default 8080; 0 picks a free one)"),
+    "--host": ("host", str, "ADDR", "address to serve on (default 127.0.0.1, this machine only)"),
+    "--map-frame": ("map_frame", str, None, "frame of the map and the tracks (default map)"),
+    "--base-frame": ("base_frame", str, None, "the robot's body frame (default base_link)"),
+    "--trail": ("trail_s", float, "S", "length of the tracks' trails (default 5 s)"),
+}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    g = parser.add_argument_group("viewer")
+    for flag, (dest, kind, metavar, help_text) in _FLAGS.items():
+        g.add_argument(flag, dest=dest, type=kind, default=None, metavar=metavar, help=help_text)
+    add_node_arguments(parser, "viewer")
+
+
+def _prepare(config: ViewerConfig) -> Mapping[str, Any]:
+    """Bind the servers before connecting, so a busy port fails at once (exit status 2)."""
+    return {"web": WebServer(config.host, config.port, LatestState())}
+
+
+def _build(transport: Transport, keys: Keys, config: ViewerConfig, counters: Counters, *,
+           web: WebServer) -> ViewerNode:
+    node = ViewerNode(transport, keys, config, counters, state=web.state)
+    web.start()
+    node.on_close(web.close)
+    print(f"perception view: the page is on {web.url}", flush=True)
+    return node
+
+
+def main(args: argparse.Namespace) -> int:
+    overrides = {dest: getattr(args, dest, None) for dest, *_ in _FLAGS.values()}
+    return run_node(args, "viewer", ViewerConfig, overrides, _build, prepare=_prepare)

@@ -1,0 +1,232 @@
+"""The viewer node: listens to one camera's streams, the tracks, the transforms and the
+nodes' health, and keeps the newest page state for any number of browsers.
+
+It publishes nothing on Zenoh. ``poll`` drains what arrived, hands every message to the
+optional sinks (the Foxglove bridge) and, at most ``state_hz`` times a second, writes the
+page state into :class:`~tools.viewer.web.LatestState`. The camera image is JPEG-encoded
+only while a browser asks for it, at most ``image_hz`` times a second.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any, Protocol
+
+import numpy as np
+
+from common.geometry import TransformBuffer, TransformError
+from common.geometry_messages import add_batch
+from common.keys import FRAMES, RELIABLE, STATUS, Delivery, Keys
+from common.node import Node
+from common.runtime import Counters
+from common.schemas import (Detections, Embeddings, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
+                            TransformBatch)
+from common.transport import Subscription, Transport
+from tools.viewer.config import ViewerConfig
+from tools.viewer.core.health import NodeSeen, health
+from tools.viewer.core.drawing import StageMeter, Trails, colour_hex, label_boxes, project_to_image, yaw_of
+from tools.viewer.web import LatestState
+
+__all__ = ["STAGES", "Sink", "ViewerNode", "jpeg_of"]
+
+#: Small messages the viewer reads: a short FIFO, overflow counted (it only needs the newest).
+_LOOSE = Delivery(latest=False, queue=64, congestion="drop")
+#: The stages whose rate and latency the page shows, in pipeline order ("camera": the frames).
+STAGES = ("camera", "detector", "localizer", "embedder", "tracker")
+#: Images are encoded only while a browser has asked for something within this long (s).
+_IMAGE_INTEREST_S = 2.0
+
+
+class Sink(Protocol):
+    """Another view of the streams (the Foxglove bridge): it gets every message the viewer reads."""
+
+    def on_message(self, stream: str, msg: Message) -> None: ...
+
+    def close(self) -> None: ...
+
+
+def jpeg_of(frame: RGBDFrame, quality: int) -> bytes:
+    """The frame's colour image as JPEG (passed through when it already is one)."""
+    if frame.rgb.encoding == "jpeg":
+        return frame.rgb.data
+    import cv2
+
+    rgb = frame.rgb.to_array()
+    bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR) if rgb.ndim == 3 else rgb
+    ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if not ok:
+        raise ValueError(f"cannot encode a {rgb.dtype.name} {rgb.shape} image as JPEG")
+    return buf.tobytes()
+
+
+class ViewerNode(Node):
+    """Reads the streams of ``config.camera``; writes the page state to ``state``."""
+
+    name = "viewer"
+
+    def __init__(self, transport: Transport, keys: Keys, config: ViewerConfig, counters: Counters | None = None, *,
+                 state: LatestState | None = None, sinks: tuple[Sink, ...] = ()) -> None:
+        super().__init__(transport, keys, counters)
+        self.config = config
+        self.state = state
+        self.sinks = sinks
+        cam = config.camera
+        self.subs: dict[str, Subscription[Any]] = {
+            "camera": self.io.subscribe(keys.frames(cam), RGBDFrame, FRAMES),
+            "detector": self.io.subscribe(keys.detections(cam), Detections, _LOOSE),
+            "localizer": self.io.subscribe(keys.localized(cam), LocalizedDetections, _LOOSE),
+            "embedder": self.io.subscribe(keys.embeddings(cam), Embeddings, _LOOSE),
+            "tracker": self.io.subscribe(keys.tracks(), Tracks, _LOOSE),
+            "tf": self.io.subscribe(keys.tf(), TransformBatch, RELIABLE),
+            "tf_static": self.io.subscribe(keys.tf_static(), TransformBatch, RELIABLE),
+            "status": self.io.subscribe(keys.status(), ServiceStatus, STATUS),
+        }
+        self.meters = {stage: StageMeter() for stage in STAGES}
+        self.trails = Trails(span_s=config.trail_s)
+        self.buffer = TransformBuffer(history_s=10.0, tolerance_s=0.1)
+        self.latest: dict[str, Any] = {}
+        self.nodes: dict[tuple[str, str], NodeSeen] = {}
+        self._alive_events: list[tuple[str, bool]] = []
+        self._alive_lock = threading.Lock()
+        self._dirty = True
+        self._last_state = -1e9
+        self._last_image = -1e9
+        self._image_seq = -1
+        self._image_info: dict[str, int] | None = None
+        self._on_close: list[Any] = []
+        self._unwatch = transport.watch_alive(keys.alive(), self._on_alive)
+
+    def on_close(self, fn: Any) -> None:
+        """Call ``fn()`` when the node closes (the page's server)."""
+        self._on_close.append(fn)
+
+    def describe(self) -> str:
+        return f"viewing camera {self.config.camera!r} and the tracks in {self.config.map_frame!r}"
+
+    def _on_alive(self, key: str, alive: bool) -> None:  # the transport's thread
+        with self._alive_lock:
+            self._alive_events.append((key, alive))
+
+    # ------------------------------------------------------------------ inputs
+
+    def _take(self, now: float) -> None:
+        for stream, sub in self.subs.items():
+            while (got := sub.try_recv()) is not None:
+                msg = got.msg
+                self._dirty = True
+                for sink in self.sinks:
+                    sink.on_message(stream, msg)
+                if stream in self.meters:
+                    self.meters[stream].add(now, (got.recv_ns - msg.header.stamp_ns) / 1e6)
+                    self.latest[stream] = msg
+                if isinstance(msg, Tracks):
+                    for t in msg.tracks:
+                        self.trails.add(t.id, now, float(t.position[0]), float(t.position[1]))
+                elif isinstance(msg, TransformBatch):
+                    add_batch(self.buffer, msg, static=stream == "tf_static")
+                elif isinstance(msg, ServiceStatus):
+                    seen = self.nodes.setdefault((msg.name, msg.instance), NodeSeen(msg.name, msg.instance))
+                    seen.status_at, seen.state, seen.error = now, msg.state, msg.error
+                    seen.counters = {"received": msg.received, "published": msg.published, "dropped": msg.dropped,
+                                     "invalid": msg.invalid, "host": msg.host}
+                    if msg.state == "failed":
+                        seen.alive = False
+        with self._alive_lock:
+            events, self._alive_events = self._alive_events, []
+        for key, alive in events:
+            try:
+                name, instance = self.keys.parse_alive(key)
+            except ValueError:
+                continue
+            self.nodes.setdefault((name, instance), NodeSeen(name, instance)).alive = alive
+            self._dirty = True
+
+    # ------------------------------------------------------------------ outputs
+
+    def _robot(self) -> dict[str, float] | None:
+        try:
+            tf = self.buffer.lookup(self.config.map_frame, self.config.base_frame, None)
+        except (TransformError, KeyError):
+            return None
+        return {"x": float(tf.translation[0]), "y": float(tf.translation[1]), "yaw": yaw_of(tf.rotation.as_matrix())}
+
+    def _boxes(self) -> list[dict[str, Any]]:
+        dets: Detections | None = self.latest.get("detector")
+        if dets is None:
+            return []
+        boxes = np.array([d.bbox_xyxy for d in dets.detections], np.float64).reshape(-1, 4)
+        tracks: Tracks | None = self.latest.get("tracker")
+        loc: LocalizedDetections | None = self.latest.get("localizer")
+        labels: list[int | None] = [None] * len(boxes)
+        if tracks is not None and tracks.tracks and loc is not None and loc.view is not None:
+            view = loc.view
+            pixels = project_to_image(np.array([t.position for t in tracks.tracks]), view.camera_to_frame, view.K,
+                                      view.width, view.height)
+            labels = label_boxes(boxes, pixels, np.array([t.id for t in tracks.tracks]))
+        return [{"bbox": [round(float(v), 1) for v in box], "score": round(d.score, 3), "id": label,
+                 "colour": colour_hex(label) if label is not None else "#cccccc"}
+                for box, d, label in zip(boxes, dets.detections, labels)]
+
+    def snapshot(self, now: float) -> dict[str, Any]:
+        """The page state: tracks with trails, the robot, the image's boxes, stages and nodes."""
+        self.trails.prune(now)
+        tracks: Tracks | None = self.latest.get("tracker")
+        out_tracks = []
+        for t in sorted(tracks.tracks if tracks else [], key=lambda t: t.id):
+            out_tracks.append({"id": t.id, "x": round(float(t.position[0]), 3), "y": round(float(t.position[1]), 3),
+                               "vx": round(float(t.velocity[0]), 3), "vy": round(float(t.velocity[1]), 3),
+                               "status": t.status, "hits": t.hits, "age_s": round(t.age_s, 1),
+                               "colour": colour_hex(t.id),
+                               "trail": [[round(x, 3), round(y, 3)] for x, y in self.trails.get(t.id)]})
+        nodes = []
+        for (name, instance), seen in sorted(self.nodes.items()):
+            nodes.append({"name": name, "instance": instance, "health": health(seen, now), "error": seen.error,
+                          **seen.counters})
+        return {
+            "time": time.time(),
+            "camera": self.config.camera,
+            "map_frame": self.config.map_frame,
+            "robot": self._robot(),
+            "tracks": out_tracks,
+            "appearance_available": tracks.appearance_available if tracks else None,
+            "image": self._image_info,
+            "boxes": self._boxes(),
+            "stages": [{"name": s, "count": m.count, "rate_hz": round(m.rate_hz(now), 2),
+                        "latency_p50_ms": _round(m.latency_ms(50, now)), "latency_p95_ms": _round(m.latency_ms(95, now))}
+                       for s, m in self.meters.items()],
+            "nodes": nodes,
+        }
+
+    def poll(self, now: float) -> list[Any]:
+        self._take(now)
+        if self.state is None:
+            return []
+        frame: RGBDFrame | None = self.latest.get("camera")
+        wants_image = time.monotonic() - self.state.watched_at < _IMAGE_INTEREST_S
+        if (frame is not None and frame.header.seq != self._image_seq and wants_image
+                and now - self._last_image >= 1.0 / self.config.image_hz):
+            self.state.set_image(jpeg_of(frame, self.config.jpeg_quality))
+            self._image_seq, self._last_image = frame.header.seq, now
+            self._image_info = {"seq": frame.header.seq, "width": frame.camera_info.width,
+                                "height": frame.camera_info.height}
+            self._dirty = True
+        if (self._dirty and now - self._last_state >= 1.0 / self.config.state_hz) or now - self._last_state >= 1.0:
+            self.state.set_state(self.snapshot(now))
+            self._dirty, self._last_state = False, now
+        return []
+
+    def deadline(self, now: float) -> float | None:
+        return max(0.0, self._last_state + 1.0 / self.config.state_hz - now) if self._dirty else None
+
+    def close(self) -> None:
+        self._unwatch()
+        for fn in self._on_close:
+            fn()
+        for sink in self.sinks:
+            sink.close()
+        super().close()
+
+
+def _round(value: float | None) -> float | None:
+    return None if value is None else round(value, 1)

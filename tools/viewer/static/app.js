@@ -1,0 +1,164 @@
+// The operator's page: pulls the newest state (long poll) and the newest camera image.
+// A slow browser simply asks less often; the server never queues states for it.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+let version = 0;
+let state = null;
+let imageSeq = -1;
+let imageLoading = false;
+
+function setConnection(ok, text) {
+  const el = $("connection");
+  el.textContent = text;
+  el.className = ok ? "ok" : "down";
+}
+
+async function pull() {
+  for (;;) {
+    try {
+      const res = await fetch(`/api/state?after=${version}`, { cache: "no-store" });
+      if (!res.ok) throw new Error(`HTTP ${res.status}`);
+      const next = await res.json();
+      if (next.version !== undefined) {
+        version = next.version;
+        state = next;
+        render();
+      }
+      setConnection(true, "live");
+    } catch (err) {
+      setConnection(false, `no connection (${err.message}), retrying`);
+      await new Promise((r) => setTimeout(r, 1000));
+    }
+  }
+}
+
+function fmt(v, digits = 1) {
+  return v === null || v === undefined ? "–" : Number(v).toFixed(digits);
+}
+
+function row(cells, attrs = {}) {
+  const tr = document.createElement("tr");
+  for (const [k, v] of Object.entries(attrs)) tr.setAttribute(k, v);
+  for (const c of cells) {
+    const td = document.createElement("td");
+    if (c instanceof Node) td.appendChild(c); else td.textContent = c;
+    tr.appendChild(td);
+  }
+  return tr;
+}
+
+function swatch(colour, text) {
+  const span = document.createElement("span");
+  const dot = document.createElement("span");
+  dot.className = "swatch";
+  dot.style.background = colour;
+  span.appendChild(dot);
+  span.appendChild(document.createTextNode(text));
+  return span;
+}
+
+function render() {
+  $("map-frame").textContent = `frame ${state.map_frame}`;
+  $("camera-name").textContent = state.camera;
+  const mode = state.appearance_available === false ? "   position only (no embeddings)" : "";
+  $("summary").textContent = `${state.tracks.length} confirmed tracks${mode}`;
+  renderTracks();
+  renderStages();
+  renderNodes();
+  drawMap();
+  refreshImage();
+  drawOverlay();
+}
+
+function renderTracks() {
+  const body = $("tracks").tBodies[0];
+  body.replaceChildren(...state.tracks.map((t) => row(
+    [swatch(t.colour, String(t.id)), fmt(t.x, 2), fmt(t.y, 2), fmt(Math.hypot(t.vx, t.vy), 2), t.status, t.hits, fmt(t.age_s)],
+    { "data-track-id": t.id })));
+}
+
+function renderStages() {
+  const body = $("stages").tBodies[0];
+  body.replaceChildren(...state.stages.map((s) => row(
+    [s.name, s.count, fmt(s.rate_hz), s.latency_p50_ms === null ? "–" : `${fmt(s.latency_p50_ms)} ms`,
+     s.latency_p95_ms === null ? "–" : `${fmt(s.latency_p95_ms)} ms`], { "data-stage": s.name })));
+}
+
+function renderNodes() {
+  const body = $("nodes").tBodies[0];
+  body.replaceChildren(...state.nodes.map((n) => {
+    const h = document.createElement("span");
+    h.className = n.health;
+    h.textContent = n.health + (n.error ? `: ${n.error}` : "");
+    return row([n.name, h, n.host ?? "", n.received ?? "", n.published ?? "", n.dropped ?? "", n.invalid ?? ""],
+      { "data-node": n.name, "data-health": n.health });
+  }));
+}
+
+function drawMap() {
+  const cv = $("map");
+  const ctx = cv.getContext("2d");
+  const W = cv.width, H = cv.height;
+  ctx.clearRect(0, 0, W, H);
+  // fit every track, trail point and the robot, at least 6 m across
+  const xs = [], ys = [];
+  for (const t of state.tracks) { xs.push(t.x); ys.push(t.y); for (const [x, y] of t.trail) { xs.push(x); ys.push(y); } }
+  if (state.robot) { xs.push(state.robot.x); ys.push(state.robot.y); }
+  if (!xs.length) { xs.push(0); ys.push(0); }
+  const cx = (Math.min(...xs) + Math.max(...xs)) / 2, cy = (Math.min(...ys) + Math.max(...ys)) / 2;
+  const span = Math.max(6, Math.max(...xs) - Math.min(...xs) + 2, (Math.max(...ys) - Math.min(...ys) + 2) * W / H);
+  const scale = W / span;
+  const px = (x) => W / 2 + (x - cx) * scale, py = (y) => H / 2 - (y - cy) * scale;
+  ctx.strokeStyle = "#262b33"; ctx.lineWidth = 1;
+  for (let g = Math.floor(cx - span); g <= cx + span; g++) { ctx.beginPath(); ctx.moveTo(px(g), 0); ctx.lineTo(px(g), H); ctx.stroke(); }
+  for (let g = Math.floor(cy - span); g <= cy + span; g++) { ctx.beginPath(); ctx.moveTo(0, py(g)); ctx.lineTo(W, py(g)); ctx.stroke(); }
+  ctx.fillStyle = "#667"; ctx.font = "11px sans-serif"; ctx.fillText("grid 1 m", 6, H - 6);
+  if (state.robot) {
+    const r = state.robot, x = px(r.x), y = py(r.y);
+    ctx.save(); ctx.translate(x, y); ctx.rotate(-r.yaw);
+    ctx.fillStyle = "#8ab4f8"; ctx.beginPath(); ctx.moveTo(14, 0); ctx.lineTo(-9, 8); ctx.lineTo(-9, -8); ctx.closePath(); ctx.fill();
+    ctx.restore();
+    ctx.fillStyle = "#8ab4f8"; ctx.fillText("robot", x + 10, y + 16);
+  }
+  for (const t of state.tracks) {
+    ctx.strokeStyle = t.colour; ctx.lineWidth = 2; ctx.globalAlpha = 0.6;
+    ctx.beginPath();
+    t.trail.forEach(([x, y], i) => (i ? ctx.lineTo(px(x), py(y)) : ctx.moveTo(px(x), py(y))));
+    ctx.stroke(); ctx.globalAlpha = 1;
+    ctx.fillStyle = t.colour; ctx.beginPath(); ctx.arc(px(t.x), py(t.y), 7, 0, 2 * Math.PI); ctx.fill();
+    ctx.beginPath(); ctx.moveTo(px(t.x), py(t.y)); ctx.lineTo(px(t.x + t.vx), py(t.y + t.vy)); ctx.stroke();
+    ctx.fillStyle = "#fff"; ctx.font = "bold 13px sans-serif"; ctx.fillText(String(t.id), px(t.x) + 9, py(t.y) - 9);
+  }
+}
+
+function refreshImage() {
+  if (state.image && state.image.seq !== imageSeq) fetchImage();
+}
+
+function fetchImage() {
+  if (imageLoading) return; // one request at a time: a slow browser skips images
+  imageLoading = true;
+  const img = $("camera");
+  const seq = state.image.seq;
+  img.onload = img.onerror = () => { imageLoading = false; imageSeq = seq; drawOverlay(); };
+  img.src = `/api/image.jpg?seq=${seq}&t=${Date.now()}`;
+}
+
+function drawOverlay() {
+  const cv = $("overlay");
+  if (!state || !state.image) return;
+  cv.width = state.image.width; cv.height = state.image.height;
+  const ctx = cv.getContext("2d");
+  ctx.clearRect(0, 0, cv.width, cv.height);
+  ctx.lineWidth = Math.max(1.5, cv.width / 200); ctx.font = `bold ${Math.max(11, cv.width / 28)}px sans-serif`;
+  for (const b of state.boxes) {
+    const [x1, y1, x2, y2] = b.bbox;
+    ctx.strokeStyle = b.colour; ctx.strokeRect(x1, y1, x2 - x1, y2 - y1);
+    if (b.id !== null) {
+      ctx.fillStyle = b.colour; ctx.fillText(`ID ${b.id}`, x1 + 3, Math.max(12, y1 - 4));
+    }
+  }
+}
+
+pull();

@@ -210,6 +210,11 @@ class Supervisor:
     def restarts(self, name: str) -> int:
         return next(c.restarts for c in self._children if c.spec.name == name)
 
+    def pid(self, name: str) -> int | None:
+        """The pid of child ``name`` while it runs, else None."""
+        child = next(c for c in self._children if c.spec.name == name)
+        return child.pid if child.running else None
+
     def run(self) -> int:
         with self._signals():
             code = 1

@@ -1,0 +1,203 @@
+"""Soak benchmark: the demo pipeline for a long time, sampled every interval.
+
+    python benchmarks/soak.py --duration 3600 [--fps 30] [--interval 60] [--kill-router-at S] [--json FILE]
+
+Starts what `perception demo` starts (a router and the four services as supervised
+processes, restarted on failure; the simulator feeding them at ``--fps``, 320x240 by
+default, its people walking on after the scenario's script ends) and, every
+``--interval`` seconds, samples each process's resident memory (RSS) and CPU share from
+/proc (Linux), the services' counters from their status (received, published, dropped,
+invalid and every ``dropped_*`` reason) and the tracker's ID memory size
+(``ids_remembered``). ``--kill-router-at S`` SIGKILLs the router once, S seconds in, under
+load: the launcher restarts it, and the time until tracks flow again is measured.
+
+The summary checks the targets: RSS growth from minute 5 (or the first sample after it)
+to the end at most 5 % in every process, no restarts (beyond the one router kill), no
+drop by any service reason (``dropped_*``; the frame subscriptions' latest-only skips
+are the design and are reported as totals only), and the ID memory within its bound.
+Exit status 1 when a target is missed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+from common.keys import RELIABLE, Keys
+from common.router_process import free_port
+from common.schemas import ServiceStatus, Tracks
+from common.zenoh_config import ZenohOptions
+from common.zenoh_transport import open_transport
+from services.tracker.config import TrackerConfig
+from tools.demo.main import SERVICES, _cpu_seconds, _perception, _specs
+from tools.launcher.supervisor import Supervisor
+
+PROCESSES = ("router", *SERVICES)
+
+
+def rss_kib(pid: int) -> int | None:
+    """Resident memory of a process in KiB (Linux /proc), or None."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+def growth(samples: list[dict[str, Any]], name: str, from_s: float) -> float | None:
+    """RSS growth (%) of process ``name`` from the first sample at or after ``from_s`` to the last."""
+    series = [(s["t"], s["processes"][name]["rss_kib"]) for s in samples
+              if s["processes"].get(name, {}).get("rss_kib")]
+    later = [r for t, r in series if t >= from_s] or [r for _, r in series]
+    if len(later) < 2:
+        return None
+    return 100.0 * (later[-1] - later[0]) / later[0]
+
+
+def drops(status: ServiceStatus) -> dict[str, float]:
+    """The service's own drops by reason (``dropped_*``: stale, unpaired, late, overflow of
+    a join...). A subscription's latest-only skips are not among them: they count in the
+    status's ``dropped`` total only, with its FIFO overflows."""
+    return {k: v for k, v in status.extra.items() if k.startswith("dropped_") and v}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--duration", type=float, default=3600.0, metavar="S", help="seconds to run (default 3600)")
+    ap.add_argument("--interval", type=float, default=60.0, metavar="S", help="seconds between samples (default 60)")
+    ap.add_argument("--fps", type=float, default=30.0)
+    ap.add_argument("--width", type=int, default=320)
+    ap.add_argument("--height", type=int, default=240)
+    ap.add_argument("--scenario", default="still")
+    ap.add_argument("--kill-router-at", type=float, default=None, metavar="S",
+                    help="SIGKILL the router once, S seconds in, and time the recovery")
+    ap.add_argument("--growth-from", type=float, default=300.0, metavar="S",
+                    help="RSS growth is measured from this time on (default 300 s: after warm-up)")
+    ap.add_argument("--json", type=Path, default=None, metavar="FILE", help="write every sample and the summary")
+    args = ap.parse_args()
+    if args.duration <= 0 or args.interval <= 0:
+        ap.error("--duration and --interval must be positive")
+
+    log_dir = Path(tempfile.mkdtemp(prefix="perception-soak-"))
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    robot = f"soak{os.getpid()}"
+    keys = Keys(robot=robot)
+    demo_args = SimpleNamespace(detector="depth", view=False, view_port=0)
+    log_file = open(log_dir / "processes.log", "wb")  # noqa: SIM115
+    memory = log_dir / "id-memory.npz"
+    supervisor = Supervisor(_specs(endpoint, port, robot, demo_args, memory), log_file, handle_signals=False)  # type: ignore[arg-type]
+    sup_thread = threading.Thread(target=supervisor.run, name="supervisor", daemon=True)
+    sup_thread.start()
+    transport = open_transport(ZenohOptions(mode="client", connect=[endpoint], connect_timeout_s=30))
+    tracks = transport.subscribe(keys.tracks(), Tracks, RELIABLE)
+    print(f"# Soak: {args.duration:g} s at {args.fps:g} fps, {args.width}x{args.height}, scenario {args.scenario}; "
+          f"log {log_dir / 'processes.log'}", flush=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        alive = {keys.parse_alive(k).service for k in transport.alive(keys.alive(), timeout=0.5)}
+        if all(s in alive for s in SERVICES):
+            break
+    sim = subprocess.Popen(
+        _perception("simulate", "--scenario", args.scenario, "--duration", str(args.duration + 30), "--fps",
+                    str(args.fps), "--width", str(args.width), "--height", str(args.height), "--connect", endpoint,
+                    "--robot", robot), stdout=log_file, stderr=subprocess.STDOUT, start_new_session=True,
+        env={**os.environ, "RUST_LOG": "error"})
+    started = time.monotonic()
+    samples: list[dict[str, Any]] = []
+    cpu_prev: dict[str, tuple[int, float | None, float]] = {}
+    last_tracks = time.monotonic()
+    recovery_s: float | None = None
+    killed_at: float | None = None
+    next_sample = started
+    try:
+        while (now := time.monotonic()) - started < args.duration:
+            while (got := tracks.try_recv()) is not None:
+                last_tracks = time.monotonic()
+                if killed_at is not None and recovery_s is None and got.msg.header.stamp_ns:
+                    recovery_s = last_tracks - killed_at
+            if args.kill_router_at is not None and killed_at is None and now - started >= args.kill_router_at:
+                pid = supervisor.pid("router")
+                if pid:
+                    os.kill(pid, signal.SIGKILL)
+                    killed_at = time.monotonic()
+                    print(f"{now - started:7.0f} s: router (pid {pid}) killed", flush=True)
+            if now >= next_sample:
+                next_sample += args.interval
+                statuses = {m.name: m for _, m in transport.query(keys.status(), timeout=2.0)
+                            if isinstance(m, ServiceStatus)}
+                procs: dict[str, Any] = {}
+                for name in PROCESSES:
+                    pid = supervisor.pid(name)
+                    cpu_s = _cpu_seconds(pid) if pid else None
+                    prev = cpu_prev.get(name)
+                    share = None
+                    if prev and prev[0] == pid and prev[1] is not None and cpu_s is not None and now > prev[2]:
+                        share = round(100.0 * (cpu_s - prev[1]) / (now - prev[2]), 1)
+                    cpu_prev[name] = (pid or 0, cpu_s, now)
+                    st = statuses.get(name)
+                    procs[name] = {
+                        "pid": pid, "rss_kib": rss_kib(pid) if pid else None, "cpu_percent": share,
+                        "restarts": supervisor.restarts(name),
+                        **({"received": st.received, "published": st.published, "dropped": st.dropped,
+                            "invalid": st.invalid, "drops": drops(st), "extra": st.extra} if st else {}),
+                    }
+                sample = {"t": round(now - started, 1), "processes": procs,
+                          "tracks_age_s": round(time.monotonic() - last_tracks, 2)}
+                samples.append(sample)
+                mem = procs["tracker"].get("extra", {}).get("ids_remembered")
+                print(f"{sample['t']:7.0f} s: " + ", ".join(
+                    f"{n} {p['rss_kib'] / 1024 if p['rss_kib'] else 0:.0f} MiB {p['cpu_percent'] or 0:.0f}%"
+                    for n, p in procs.items()) + f"; ids remembered {mem}", flush=True)
+            time.sleep(0.05)
+    finally:
+        if sim.poll() is None:
+            os.killpg(sim.pid, signal.SIGTERM)
+            sim.wait(10)
+        transport.close()
+        supervisor.request_stop()
+        sup_thread.join(60)
+        log_file.close()
+
+    limit = TrackerConfig().memory_size
+    final = samples[-1]["processes"] if samples else {}
+    restarts = {n: p["restarts"] for n, p in final.items() if p["restarts"]}
+    expected_restarts = {"router": 1} if killed_at is not None else {}
+    all_drops = {n: p.get("drops", {}) for n, p in final.items() if p.get("drops")}
+    grown = {n: growth(samples, n, args.growth_from) for n in PROCESSES}
+    remembered = final.get("tracker", {}).get("extra", {}).get("ids_remembered")
+    summary = {
+        "machine": f"{platform.node()}, {os.cpu_count()} cores, {platform.machine()}, Python {platform.python_version()}",
+        "duration_s": args.duration, "fps": args.fps, "size": [args.width, args.height], "scenario": args.scenario,
+        "rss_growth_percent": {n: None if g is None else round(g, 2) for n, g in grown.items()},
+        "restarts": restarts, "drops": all_drops, "ids_remembered": remembered, "memory_size": limit,
+        "router_kill_recovery_s": None if recovery_s is None else round(recovery_s, 2),
+        "ok": {
+            "rss_growth": all(g is None or g <= 5.0 for g in grown.values()),
+            "restarts": restarts == expected_restarts,
+            "drops": not all_drops,
+            "id_memory": remembered is None or remembered <= limit,
+            **({"router_recovery": recovery_s is not None and recovery_s <= 2.0} if killed_at is not None else {}),
+        },
+    }
+    print("\n" + json.dumps(summary, indent=2))
+    if args.json:
+        args.json.write_text(json.dumps({"summary": summary, "samples": samples}, indent=1))
+    return 0 if all(summary["ok"].values()) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -27,6 +27,9 @@ It prints 'router ready' once it accepts connections and stops on SIGINT/SIGTERM
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_zenoh_arguments(parser, default_mode="router")
+    parser.add_argument("--access-control", action="store_true",
+                        help="enforce each service's least-privilege rules (perception certs --acl prints them); "
+                             "the clients must then log in with their own credentials")
 
 
 def router_options(args: argparse.Namespace) -> ZenohOptions:
@@ -36,6 +39,7 @@ def router_options(args: argparse.Namespace) -> ZenohOptions:
         raise CliError(str(exc.errors(include_url=False)[0]["msg"])) from exc
     if opts.mode != "router":
         raise CliError("perception router always runs in router mode; drop --mode")
+    opts.access_control = bool(getattr(args, "access_control", False))
     if not opts.listen and opts.config_file is None:
         opts.listen = [DEFAULT_LISTEN]
     return opts

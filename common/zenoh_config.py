@@ -1,9 +1,12 @@
 """Zenoh session configuration from a JSON5 file and/or the flags of zenoh-python's examples.
 
 Flags: ``--mode``, ``--connect``, ``--listen``, ``--config``, ``--no-multicast-scouting``,
-plus ``--connect-timeout``. The environment variable ``PERCEPTION_ZENOH_CONNECT``
-(comma-separated endpoints) sits between the file and the flags, and
-``PERCEPTION_ZENOH_CONFIG`` names a config file when ``--config`` is not given.
+plus ``--connect-timeout`` and ``--credentials``. The environment variable
+``PERCEPTION_ZENOH_CONNECT`` (comma-separated endpoints) sits between the file and the
+flags, ``PERCEPTION_ZENOH_CONFIG`` names a config file when ``--config`` is not given and
+``PERCEPTION_ZENOH_CREDENTIALS`` a credentials file when ``--credentials`` is not given.
+TLS files in the config file are resolved against its folder and checked
+(:mod:`common.zenoh_security`).
 
 Defaults are the robot's: a client of the local router at ``tcp/127.0.0.1:7447``, with
 fast reconnect retries (a restarted router is rejoined in about 0.1 s rather than 4 s).
@@ -35,6 +38,9 @@ class ZenohOptions(BaseModel):
     multicast_scouting: bool = False
     connect_timeout_s: float = Field(default=10.0, description="how long open() waits for the router; <0 waits forever")
     shared_memory: bool = True
+    access_control: bool = Field(default=False, description="routers: enforce common.acl's least-privilege rules")
+    credentials: Path | None = Field(default=None, description="USER:PASSWORD file (mode 0600) for Zenoh's "
+                                     "user/password authentication")
 
     @field_validator("connect", "listen")
     @classmethod
@@ -66,6 +72,8 @@ class ZenohOptions(BaseModel):
             parts.append("listen " + ",".join(self.listen))
         if self.config_file:
             parts.append(f"config {self.config_file}")
+        if self.credentials:
+            parts.append(f"credentials {self.credentials}")
         return ", ".join(parts)
 
 
@@ -86,6 +94,9 @@ def add_zenoh_arguments(parser: argparse.ArgumentParser, *, default_mode: str = 
                    help="enable multicast discovery of peers on the LAN")
     g.add_argument("--connect-timeout", type=float, default=None, metavar="S",
                    help="seconds to wait for the router at start-up, -1 to wait forever (default 10)")
+    g.add_argument("--credentials", type=Path, default=None, metavar="FILE",
+                   help="USER:PASSWORD file (mode 0600) for the router's password check, e.g. "
+                        "deploy/secure/certs/credentials/monitor.txt (env PERCEPTION_ZENOH_CREDENTIALS)")
     parser.set_defaults(_zenoh_default_mode=default_mode)
 
 
@@ -98,6 +109,9 @@ def options_from_args(args: argparse.Namespace) -> ZenohOptions:
     env_config = os.environ.get("PERCEPTION_ZENOH_CONFIG")
     if env_config:
         values["config_file"] = Path(env_config)
+    env_credentials = os.environ.get("PERCEPTION_ZENOH_CREDENTIALS")
+    if env_credentials:
+        values["credentials"] = Path(env_credentials)
     flags = {
         "mode": args.mode,
         "connect": args.connect,
@@ -105,16 +119,24 @@ def options_from_args(args: argparse.Namespace) -> ZenohOptions:
         "config_file": args.config,
         "multicast_scouting": args.multicast_scouting,
         "connect_timeout_s": args.connect_timeout,
+        "credentials": getattr(args, "credentials", None),
     }
     values.update({k: v for k, v in flags.items() if v is not None})
     return ZenohOptions.model_validate(values)
 
 
 def build_zenoh_config(opts: ZenohOptions) -> "zenoh.Config":  # type: ignore[name-defined]  # noqa: F821
-    """The ``zenoh.Config`` for ``opts``: file first, then the explicit settings on top."""
+    """The ``zenoh.Config`` for ``opts``: file first, then the explicit settings on top.
+
+    Raises :class:`common.zenoh_security.SecurityError` naming a missing, unreadable or
+    expired certificate, or a key or credentials file that others can read.
+    """
     import zenoh
 
+    from common.zenoh_security import secure_config
+
     conf = zenoh.Config.from_file(str(opts.config_file)) if opts.config_file else zenoh.Config()
+    secure_config(conf, opts.config_file, opts.credentials)
     conf.insert_json5("mode", json.dumps(opts.mode))
     connect = opts.effective_connect()
     if connect:
@@ -129,4 +151,8 @@ def build_zenoh_config(opts: ZenohOptions) -> "zenoh.Config":  # type: ignore[na
         conf.insert_json5("connect/retry", json.dumps(_RETRY))
     if not opts.shared_memory:
         conf.insert_json5("transport/shared_memory/enabled", "false")
+    if opts.access_control:
+        from common.acl import access_control
+
+        conf.insert_json5("access_control", json.dumps(access_control()))
     return conf

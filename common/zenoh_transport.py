@@ -13,6 +13,7 @@ from common.keys import Delivery
 from common.schemas import Message
 from common.transport import Closer, Inbox, Publisher, QueryHandler, Token, Transport, parse_parameters
 from common.zenoh_config import ZenohOptions, build_zenoh_config
+from common.zenoh_security import SecurityError
 
 __all__ = ["TransportError", "ZenohTransport", "open_transport", "open_transport_from_args"]
 
@@ -30,18 +31,28 @@ def open_session(opts: ZenohOptions) -> zenoh.Session:
         conf = build_zenoh_config(opts)
     except zenoh.ZError as exc:
         raise TransportError(f"invalid Zenoh configuration ({opts.describe()}): {exc}") from exc
+    except SecurityError as exc:
+        raise TransportError(str(exc)) from exc
     try:
         return zenoh.open(conf)
     except zenoh.ZError as exc:
         text = str(exc)
         if "Address already in use" in text:
             hint = "another process listens on that endpoint; pick another port with --listen"
+        elif opts.mode == "client" and _secured(conf):
+            hint = ("the router refused the session or did not answer: check the credentials (user and password), "
+                    "that the certificates come from the router's CA, and that the endpoint is tls/ for a TLS router")
         elif opts.mode == "client":
             hint = ("no Zenoh router answered; start one with `perception router`, point --connect at "
                     "yours, or use --mode peer")
         else:
             hint = "check the endpoints and the config file"
         raise TransportError(f"could not open a Zenoh session ({opts.describe()}): {text.split(' at ')[0]}. {hint}") from exc
+
+
+def _secured(conf: zenoh.Config) -> bool:
+    """Whether ``conf`` authenticates with a password or a TLS certificate."""
+    return any(conf.get_json(k) != "null" for k in ("transport/auth/usrpwd/user", "transport/link/tls/root_ca_certificate"))
 
 
 def _matching(pub: Any) -> bool:

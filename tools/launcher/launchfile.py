@@ -86,6 +86,8 @@ class RouterSpec(_Strict):
                               description="endpoints this router listens on")
     connect: Endpoints = Field(default_factory=list, description="other routers to connect to (the other PC's)")
     config: Path | None = Field(default=None, description="Zenoh JSON5 file; listen/connect above override it")
+    credentials: Path | None = Field(default=None, description="USER:PASSWORD file (mode 0600) the router presents "
+                                     "to the other PC's router")
     args: list[Arg] = Field(default_factory=list, description="extra flags for perception router")
     env: dict[str, EnvValue] = Field(default_factory=dict)
     ready_timeout_s: float = Field(default=20.0, gt=0.0, le=600.0,
@@ -105,6 +107,8 @@ class ZenohDefaults(_Strict):
     connect: Endpoints | None = Field(default=None, description="router endpoints; default: the router's first "
                                       "listen endpoint, else the services' own default (tcp/127.0.0.1:7447)")
     config: Path | None = Field(default=None, description="Zenoh JSON5 file passed as --config")
+    credentials: Path | None = Field(default=None, description="USER:PASSWORD file (mode 0600) of the launcher's own "
+                                     "session (it reports services that stopped for good)")
 
     @field_validator("connect")
     @classmethod
@@ -128,6 +132,8 @@ class ServiceSpec(_Strict):
     config_section: str | None = Field(default=None, description="top-level key an inline config is written under "
                                        "(default: the command's name; '' writes it as the whole file)")
     connect: Endpoints | None = Field(default=None, description="overrides zenoh.connect for this service")
+    credentials: Path | None = Field(default=None, description="this service's USER:PASSWORD file (mode 0600), "
+                                     "passed as --credentials (as PERCEPTION_ZENOH_CREDENTIALS to exec: programs)")
     common_flags: bool = Field(default=True, description="pass --robot/--connect/--config (Zenoh) to the command")
     env: dict[str, EnvValue] = Field(default_factory=dict)
     restart: Literal["always", "on-failure", "never"] = "on-failure"
@@ -237,7 +243,8 @@ def _resolve(p: Path | None, base: Path, field: str) -> Path | None:
         return None
     path = p.expanduser() if p.is_absolute() or str(p).startswith("~") else base / p
     if not path.is_file():
-        raise LaunchFileError(f"{field}: file {path} does not exist")
+        hint = " (make the certificates and credentials with `perception certs DIR`)" if field.endswith("credentials") else ""
+        raise LaunchFileError(f"{field}: file {path} does not exist{hint}")
     return path
 
 
@@ -270,15 +277,20 @@ def load_launch_file(path: str | Path, environ: Mapping[str, str]) -> LaunchFile
     base = p.resolve().parent
     try:
         updates: dict[str, Any] = {}
-        if launch.router is not None and launch.router.config is not None:
-            updates["router"] = launch.router.model_copy(
-                update={"config": _resolve(launch.router.config, base, "router.config")})
-        if launch.zenoh.config is not None:
-            updates["zenoh"] = launch.zenoh.model_copy(update={"config": _resolve(launch.zenoh.config, base, "zenoh.config")})
+        if launch.router is not None:
+            updates["router"] = launch.router.model_copy(update={
+                "config": _resolve(launch.router.config, base, "router.config"),
+                "credentials": _resolve(launch.router.credentials, base, "router.credentials")})
+        updates["zenoh"] = launch.zenoh.model_copy(update={
+            "config": _resolve(launch.zenoh.config, base, "zenoh.config"),
+            "credentials": _resolve(launch.zenoh.credentials, base, "zenoh.credentials")})
         services = []
         for i, s in enumerate(launch.services):
+            where = f"services[{i}] ({s.name})"
             if isinstance(s.config, Path):
-                s = s.model_copy(update={"config": _resolve(s.config, base, f"services[{i}] ({s.name}).config")})
+                s = s.model_copy(update={"config": _resolve(s.config, base, f"{where}.config")})
+            if s.credentials is not None:
+                s = s.model_copy(update={"credentials": _resolve(s.credentials, base, f"{where}.credentials")})
             services.append(s)
         updates["services"] = services
     except LaunchFileError as exc:

@@ -70,11 +70,37 @@ def _check_programs(launch: LaunchFile, names: set[str]) -> list[str]:
     return problems
 
 
+def _check_security(launch: LaunchFile, names: set[str]) -> list[str]:
+    """Problems with the certificates, keys and credentials the started entries will read."""
+    import zenoh
+
+    from common.zenoh_security import SecurityError, read_credentials, secure_config
+
+    checks: list[tuple[Path | None, Path | None]] = [(launch.zenoh.config, launch.zenoh.credentials)]
+    if launch.router is not None and "router" in names:
+        checks.append((launch.router.config, launch.router.credentials))
+    checks += [(None, s.credentials) for s in launch.services if s.name in names]
+    problems: list[str] = []
+    for config, credentials in checks:
+        try:
+            if config is not None:
+                secure_config(zenoh.Config.from_file(str(config)), config, None)
+            if credentials is not None:
+                read_credentials(credentials)
+        except SecurityError as exc:
+            if str(exc) not in problems:
+                problems.append(str(exc))
+        except zenoh.ZError as exc:
+            problems.append(f"Zenoh config {config} cannot be used: {exc}")
+    return problems
+
+
 def failure_report(launch: LaunchFile) -> FailureReport:
     """Where services that stop for good are reported: the services' router and key space."""
     robot = launch.robot or os.environ.get("PERCEPTION_ROBOT") or DEFAULT_ROBOT
     prefix = launch.key_prefix or os.environ.get("PERCEPTION_KEY_PREFIX") or DEFAULT_PREFIX
-    options = ZenohOptions(mode="client", connect=services_connect(launch) or [], config_file=launch.zenoh.config)
+    options = ZenohOptions(mode="client", connect=services_connect(launch) or [], config_file=launch.zenoh.config,
+                           credentials=launch.zenoh.credentials)
     return FailureReport(Keys(robot=robot, prefix=prefix), options,
                          {s.name: s.command for s in launch.services if s.command is not None})
 
@@ -85,7 +111,7 @@ def main(args: argparse.Namespace) -> int:
         launch = load_launch_file(args.file, os.environ)
         with tempfile.TemporaryDirectory(prefix="perception-launch-") as config_dir:
             plan = build_plan(launch, os.environ, Path(config_dir), only)
-            problems = _check_programs(launch, {p.name for p in plan})
+            problems = _check_programs(launch, {p.name for p in plan}) + _check_security(launch, {p.name for p in plan})
             if args.dry_run:
                 print(render_plan(launch, plan, os.environ))
                 for p in problems:

@@ -16,7 +16,7 @@ from tools.launcher.supervisor import ProcessSpec
 __all__ = ["build_plan", "connectable", "perception_argv", "render_plan", "router_port", "services_connect"]
 
 ROUTER_NAME = "router"
-_TCP = re.compile(r"^tcp/(\[[0-9A-Fa-f:.]+\]|[^:/\[\]]+):(\d+)$")
+_TCP = re.compile(r"^(tcp|tls)/(\[[0-9A-Fa-f:.]+\]|[^:/\[\]]+):(\d+)$")
 
 
 def perception_argv(command: str, *args: str) -> list[str]:
@@ -29,16 +29,16 @@ def connectable(endpoint: str) -> str:
     m = _TCP.match(endpoint)
     if m is None:
         return endpoint
-    host = {"0.0.0.0": "127.0.0.1", "[::]": "[::1]"}.get(m.group(1), m.group(1))
-    return f"tcp/{host}:{m.group(2)}"
+    host = {"0.0.0.0": "127.0.0.1", "[::]": "[::1]"}.get(m.group(2), m.group(2))
+    return f"{m.group(1)}/{host}:{m.group(3)}"
 
 
 def router_port(router: RouterSpec) -> tuple[str, int] | None:
-    """(host, port) to poll for readiness: the first TCP listen endpoint, or None."""
+    """(host, port) to poll for readiness: the first TCP or TLS listen endpoint, or None."""
     for ep in router.listen:
         m = _TCP.match(connectable(ep))
         if m is not None:
-            return m.group(1).strip("[]"), int(m.group(2))
+            return m.group(2).strip("[]"), int(m.group(3))
     return None
 
 
@@ -48,6 +48,8 @@ def _router_spec(launch: LaunchFile, base_env: Mapping[str, str]) -> ProcessSpec
     args = [f"--listen={e}" for e in r.listen] + [f"--connect={e}" for e in r.connect] + ["--no-multicast-scouting"]
     if r.config is not None:
         args += ["--config", str(r.config)]
+    if r.credentials is not None:
+        args += ["--credentials", str(r.credentials)]
     return ProcessSpec(
         name=ROUTER_NAME, argv=perception_argv("router", *args, *r.args), env={**base_env, **r.env},
         restart="always", backoff_initial_s=r.backoff.initial_s, backoff_max_s=r.backoff.max_s,
@@ -74,6 +76,8 @@ def _service_spec(launch: LaunchFile, s: ServiceSpec, connect: list[str] | None,
     connect = s.connect if s.connect is not None else connect
     if connect:
         env["PERCEPTION_ZENOH_CONNECT"] = ",".join(connect)
+    if s.credentials is not None:
+        env["PERCEPTION_ZENOH_CREDENTIALS"] = str(s.credentials)
     config = _config_file(s, config_dir)
     if s.exec_ is not None:
         argv = [*s.exec_, *([s.config_flag, str(config)] if config else []), *s.args]
@@ -86,6 +90,8 @@ def _service_spec(launch: LaunchFile, s: ServiceSpec, connect: list[str] | None,
             flags += [f"--connect={e}" for e in connect or []]
             if launch.zenoh.config is not None:
                 flags += ["--config", str(launch.zenoh.config)]
+            if s.credentials is not None:
+                flags += ["--credentials", str(s.credentials)]
         if config is not None:
             flags += [s.config_flag, str(config)]
         argv = perception_argv(s.command, *flags, *s.args)

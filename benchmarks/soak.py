@@ -172,7 +172,7 @@ def main() -> int:
         sup_thread.join(60)
         log_file.close()
 
-    limit = TrackerConfig().memory_size
+    limit = TrackerConfig().max_remembered_ids
     final = samples[-1]["processes"] if samples else {}
     restarts = {n: p["restarts"] for n, p in final.items() if p["restarts"]}
     expected_restarts = {"router": 1} if killed_at is not None else {}
@@ -183,7 +183,7 @@ def main() -> int:
         "machine": f"{platform.node()}, {os.cpu_count()} cores, {platform.machine()}, Python {platform.python_version()}",
         "duration_s": args.duration, "fps": args.fps, "size": [args.width, args.height], "scenario": args.scenario,
         "rss_growth_percent": {n: None if g is None else round(g, 2) for n, g in grown.items()},
-        "restarts": restarts, "drops": all_drops, "ids_remembered": remembered, "memory_size": limit,
+        "restarts": restarts, "drops": all_drops, "ids_remembered": remembered, "max_remembered_ids": limit,
         "router_kill_recovery_s": None if recovery_s is None else round(recovery_s, 2),
         "ok": {
             "rss_growth": all(g is None or g <= 5.0 for g in grown.values()),

@@ -291,3 +291,13 @@ def test_memory_blocks_round_trip_without_files() -> None:
     np.testing.assert_array_equal(back.entries[2].descriptors, mem.entries[2].descriptors)
     with pytest.raises(ValueError, match="inconsistent"):
         IdentityMemory.from_blocks(5, 1, ids, counts + 1, data)
+
+
+def test_id_memory_keeps_at_most_max_ids_forgetting_the_longest_archived() -> None:
+    mem = IdentityMemory(capacity=5, max_ids=2)
+    for track_id in (1, 2):
+        mem.archive(track_id, np.eye(3)[track_id : track_id + 1])
+    mem.archive(1, np.eye(3)[1:2])  # 1 archived again: now the newest
+    mem.archive(3, np.eye(3)[0:1])
+    assert sorted(mem.entries) == [1, 3] and mem.evicted == 1
+    assert mem.copy().max_ids == 2

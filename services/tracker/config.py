@@ -204,6 +204,8 @@ class TrackerConfig(BaseModel):
     gallery_size: int = Field(default=_D.gallery_size, ge=1, le=100_000,
                               description="max descriptors per track gallery")
     memory_size: int = Field(default=_D.memory_size, ge=1, le=100_000, description="max descriptors per remembered ID")
+    max_remembered_ids: int = Field(default=10_000, ge=1, le=1_000_000,
+                                    description="max IDs remembered; one more forgets the one archived longest ago")
     # --- service
     camera: str = Field(default="head", min_length=1, description="camera whose streams to track ('*' for all)")
     frame_id: str = Field(default="map", min_length=1, description="tracking frame; inputs in another frame are dropped")
@@ -286,9 +288,14 @@ class TrackerConfig(BaseModel):
     def build_tracker(self, thresholds: AppearanceConfig | None, memory: IdentityMemory | None = None,
                       metric: str | None = None) -> Tracker | RobustTracker:
         """The core tracker of the configured profile."""
+        tracker: Tracker | RobustTracker
         if self.profile == "thesis":
-            return Tracker(self.params(thresholds), memory)
-        return RobustTracker(self.robust.params(self.appearance_model(thresholds, metric), self.memory_size), memory)
+            tracker = Tracker(self.params(thresholds), memory)
+        else:
+            tracker = RobustTracker(self.robust.params(self.appearance_model(thresholds, metric), self.memory_size),
+                                    memory)
+        tracker.memory.max_ids = self.max_remembered_ids
+        return tracker
 
     def apply_thresholds(self, tracker: Tracker | RobustTracker, thresholds: AppearanceConfig,
                          metric: str | None = None) -> None:

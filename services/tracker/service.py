@@ -313,6 +313,7 @@ class TrackerService(Node):
         self.counters.gauge("tracks_confirmed", len(result.confirmed))
         self.counters.gauge("tracks_live", len(result.tracks))
         self.counters.gauge("ids_remembered", len(self.tracker.memory))
+        self.counters.gauge("ids_evicted", self.tracker.memory.evicted)
         return msg
 
     def poll(self, now: float) -> list[Tracks]:

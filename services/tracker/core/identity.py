@@ -24,11 +24,17 @@ __all__ = ["IdentityMemory"]
 
 
 class IdentityMemory:
-    """ID -> bounded descriptor set, plus the next unused ID."""
+    """ID -> bounded descriptor set, plus the next unused ID.
 
-    def __init__(self, capacity: int = 500, next_id: int = 1) -> None:
+    ``max_ids`` (None: unbounded) bounds how many IDs are remembered: archiving one more
+    forgets the ID archived longest ago (every archive makes an ID the newest)."""
+
+    def __init__(self, capacity: int = 500, next_id: int = 1, max_ids: int | None = None) -> None:
         self.capacity = capacity
         self.next_id = next_id
+        self.max_ids = max_ids
+        #: IDs forgotten to keep within ``max_ids``
+        self.evicted = 0
         self.entries: dict[int, Gallery] = {}
         #: Incremented whenever a descriptor set changes, so callers can tell when to persist.
         self.version = 0
@@ -50,12 +56,17 @@ class IdentityMemory:
         descriptors = np.asarray(descriptors, dtype=np.float32)
         if len(descriptors) == 0:
             return
-        entry = self.entries.get(track_id)
+        entry = self.entries.pop(track_id, None)  # re-inserted below: the newest archived
         if entry is None:
-            entry = self.entries[track_id] = Gallery(descriptors.shape[1], self.capacity)
+            entry = Gallery(descriptors.shape[1], self.capacity)
         elif entry.dim != descriptors.shape[1]:
+            self.entries[track_id] = entry
             raise ValueError(f"ID {track_id}: descriptors of dimension {descriptors.shape[1]}, memory holds {entry.dim}")
+        self.entries[track_id] = entry
         entry.extend(descriptors)
+        while self.max_ids is not None and len(self.entries) > self.max_ids:
+            del self.entries[next(iter(self.entries))]
+            self.evicted += 1
         self.next_id = max(self.next_id, track_id + 1)
         self.version += 1
 
@@ -94,7 +105,8 @@ class IdentityMemory:
 
     def copy(self) -> IdentityMemory:
         """A snapshot sharing descriptor storage copy-on-write."""
-        other = IdentityMemory(self.capacity, self.next_id)
+        other = IdentityMemory(self.capacity, self.next_id, self.max_ids)
+        other.evicted = self.evicted
         other.entries = {k: g.copy() for k, g in self.entries.items()}
         other.version = self.version
         return other

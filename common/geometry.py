@@ -278,6 +278,10 @@ class _Edge:
         if self.static:
             self.stamps, self.transforms = [stamp_ns], [tf]
             return
+        if self.stamps and stamp_ns < self.stamps[-1] - history_ns:
+            # older than the whole history: a new clock (a replay that loops, a clock
+            # reset), not a late transform; start the history over from it
+            self.stamps, self.transforms = [], []
         i = bisect.bisect_left(self.stamps, stamp_ns)
         if i < len(self.stamps) and self.stamps[i] == stamp_ns:
             self.transforms[i] = tf
@@ -311,7 +315,9 @@ class TransformBuffer:
     history (measured from their newest stamp); a lookup between two stamps
     interpolates (translation linearly, rotation by slerp), and a lookup up to
     ``tolerance_s`` before the oldest or after the newest stamp uses that end stamp.
-    Beyond that it raises :class:`ExtrapolationError`. Static edges hold at all times.
+    Beyond that it raises :class:`ExtrapolationError`. Static edges hold at all times. A
+    dynamic transform older than an edge's whole history starts that history over: it is
+    a new clock (a replay that loops, a clock reset), not a late transform.
     Not thread-safe: feed and query it from one thread.
     """
 

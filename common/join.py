@@ -83,7 +83,8 @@ class Joiner(Generic[A]):
     def __init__(self, slots: tuple[str, ...], *, wait_s: float, buffer: int, max_waiting: int,
                  on_timeout: Literal["release", "drop"] = "drop", orphan_s: float | None = None,
                  max_lag_s: float | None = None, in_order: tuple[str, ...] = (), ordered: bool = False,
-                 complete: Callable[[Mapping[str, Any]], bool] | None = None, remember: int = 256) -> None:
+                 complete: Callable[[Mapping[str, Any]], bool] | None = None, remember: int = 256,
+                 clock_jump_s: float | None = None) -> None:
         if len(slots) < 2 or len(set(slots)) != len(slots):
             raise ValueError(f"a join needs at least two distinct slots, got {slots}")
         if buffer < 1 or max_waiting < 1:
@@ -107,6 +108,10 @@ class Joiner(Generic[A]):
         self._newest_by_slot: dict[tuple[str, str], int] = {}  # (slot, source) -> newest stamp
         self.newest_ns: int | None = None
         self.evicted = 0
+        #: a stamp this much older than the newest is a new clock (a replay that loops, a
+        #: clock reset): the released keys are forgotten so the same keys can come again
+        self.clock_jump_ns = None if clock_jump_s is None else int(clock_jump_s * 1e9)
+        self.clock_jumps = 0
 
     # ------------------------------------------------------------------ input
     def add(self, slot: str, key: JoinKey, item: Any, now: float) -> list[Dropped]:
@@ -114,6 +119,9 @@ class Joiner(Generic[A]):
         if slot not in self.slots:
             raise KeyError(f"unknown slot {slot!r}; this join has {self.slots}")
         stamp, source, _ = key
+        if self.clock_jump_ns is not None and self.newest_ns is not None and stamp < self.newest_ns - self.clock_jump_ns:
+            self.forget_released()
+            self.clock_jumps += 1
         self.newest_ns = stamp if self.newest_ns is None else max(self.newest_ns, stamp)
         if slot in self.in_order:
             k = (slot, source)

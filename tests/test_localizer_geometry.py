@@ -247,3 +247,19 @@ def test_batch_from_ros_tf_messages() -> None:
     add_batch(buf, b1)
     add_batch(buf, b2)
     assert buf.can_transform("odom", "camera", 12 * S + 500)
+
+
+def test_a_transform_older_than_the_whole_history_starts_a_new_clock() -> None:
+    buf = TransformBuffer(history_s=10.0, tolerance_s=0.05)
+    s = 1_000_000_000
+    for k in range(30):  # 30 s of odometry
+        buf.set_transform("map", "base", 100 * s + k * s, RigidTransform.from_quat(np.array([k, 0.0, 0]), np.array([0, 0, 0, 1.0])))
+    # a replay loops: its first transform is stamped 30 s earlier; it is kept, and the old ones go
+    buf.set_transform("map", "base", 100 * s, RigidTransform.from_quat(np.array([-1.0, 0, 0]), np.array([0, 0, 0, 1.0])))
+    buf.set_transform("map", "base", 101 * s, RigidTransform.from_quat(np.array([-2.0, 0, 0]), np.array([0, 0, 0, 1.0])))
+    np.testing.assert_allclose(buf.lookup("map", "base", int(100.5 * s)).translation, [-1.5, 0, 0])
+    with pytest.raises(ExtrapolationError):
+        buf.lookup("map", "base", 120 * s)
+    # a transform late by less than the history is a late transform, inserted in order
+    buf.set_transform("map", "base", int(100.5 * s), RigidTransform.from_quat(np.array([9.0, 0, 0]), np.array([0, 0, 0, 1.0])))
+    assert [st for _, c, _, st, _ in buf.edges() if c == "base"] == [100 * s]

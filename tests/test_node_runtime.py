@@ -229,3 +229,27 @@ def test_config_section_when_present_else_whole_file(tmp_path: Path) -> None:
 
     with pytest.raises(CliError, match=r"(?s)camera.*PERCEPTION_TRACKER__"):
         load_node_config(Cfg, "tracker", flat, {"camera": 5})
+
+
+def test_a_clock_jump_lets_the_same_keys_come_again() -> None:
+    """A replay that loops sends the same keys a second time; with clock_jump_s the join
+    takes them as a new clock instead of dropping them as duplicates forever."""
+    s = 1_000_000_000
+    for jump, expect in ((None, 0), (5.0, 3)):
+        j: Joiner[str] = Joiner(("dets", "frame"), wait_s=1.0, buffer=8, max_waiting=8, in_order=("frame",),
+                                clock_jump_s=jump)
+        for loop in range(2):
+            got = 0
+            for k in range(3):
+                stamp_key = (100 * s + k * s, "head", k)
+                j.add("frame", stamp_key, "F", now=loop * 10 + k)
+                j.add("dets", stamp_key, "D", now=loop * 10 + k)
+                got += len(j.poll(loop * 10 + k)[0])
+            assert got == (3 if loop == 0 else expect)
+            if loop == 0:
+                for k in range(3, 12):  # the first run goes on 9 s more before the loop
+                    late = (100 * s + k * s, "head", k)
+                    j.add("frame", late, "F", now=k)
+                    j.add("dets", late, "D", now=k)
+                    j.poll(k)
+        assert j.clock_jumps == (1 if jump else 0)

@@ -62,7 +62,7 @@ class EmbedderService(Node):
         # no wall-clock timeout: work waits for its frame until it is max_lag_s behind the camera
         self.join: Joiner[Detections] = Joiner(
             ("detections", "frame"), wait_s=math.inf, buffer=config.frame_buffer,
-            max_waiting=4 * config.frame_buffer, max_lag_s=config.max_lag_s)
+            max_waiting=4 * config.frame_buffer, max_lag_s=config.max_lag_s, clock_jump_s=5.0)
 
     def describe(self) -> str:
         c = self.card
@@ -96,6 +96,8 @@ class EmbedderService(Node):
             self._drain_frames(now)  # time passed in the model: see what is newest now
             joined, dropped = self.join.poll(now, limit=1)
             self._count(dropped)
+            if self.join.clock_jumps != self.counters.extra.get("clock_jumps", 0):
+                self.counters.gauge("clock_jumps", self.join.clock_jumps)  # a new clock: the join started over
             if not joined:
                 break
             out = self.process(joined[0].items["frame"], joined[0].anchor)

@@ -94,7 +94,7 @@ class LocalizerService(Node):
             )
         self.join: Joiner[Detections] = Joiner(
             ("detections", "frame"), wait_s=config.frame_wait_s, buffer=config.frame_buffer,
-            max_waiting=config.max_pending, on_timeout="drop", in_order=("frame",), ordered=True)
+            max_waiting=config.max_pending, on_timeout="drop", in_order=("frame",), ordered=True, clock_jump_s=5.0)
         self.waiting_tf: deque[Joined[Detections]] = deque()  # joined, waiting for their transform
         self._log = RateLimitedLog(log)
         # the tf subscriptions first, so a frame's transform is taken before its detections
@@ -235,6 +235,10 @@ class LocalizerService(Node):
         self._take_detections(now)
         joined, dropped = self.join.poll(now)
         self._dropped(dropped)
+        if self.join.clock_jumps != self.counters.extra.get("clock_jumps", 0):
+            self.counters.gauge("clock_jumps", self.join.clock_jumps)
+            self._log.warning("clock_jump", "stamps went back more than 5 s: a new clock (a replay that loops?); "
+                              "the pairing of detections and frames starts over")
         self.waiting_tf.extend(joined)
         published = []
         while self.waiting_tf:

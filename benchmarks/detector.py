@@ -1,6 +1,15 @@
-"""Detector backends: ms per frame at 640x480 and 320x240, median and p95.
+"""Detector backends: ms per frame at 640x480 and 320x240, median and p95; HOG's accuracy on pets09_dev.
 
     python benchmarks/detector.py [--repeats 30] [--backends hog,depth,...]
+    python benchmarks/detector.py --pets [--pets-step 1]   # accuracy only
+
+``--pets``: the HOG backend on the 400 frames of ``../shared/data/pets09_dev`` (every
+``--pets-step``-th), scored by ``benchmarks/detector_accuracy.py``: PASCAL-VOC AP at
+IoU >= 0.5 and the foot-point error on the ground plane through the homography. The
+raw windows are computed once per upsampling factor at the lowest threshold of the
+table, and each row's settings turn them into boxes (``HogDetector.boxes_from_windows``),
+so the rows differ only in what they name. "window fit 0.6 x 0.8, no voting" are the
+settings before the boxes were fitted to the person.
 
 Inputs: a PETS09 frame resized to each size when ../shared/data is present (else a
 rendered scene) for the RGB backends; a rendered floor + people + table scene for
@@ -154,11 +163,63 @@ def measure(fn: Callable[[], object], repeats: int, warmup: int = 2) -> tuple[fl
     return float(np.median(times)), float(np.percentile(times, 95))
 
 
+#: (label, HogParams) of the accuracy table; the old settings first.
+PETS_ROWS: tuple[tuple[str, HogParams], ...] = (
+    ("x2.25, window fit 0.6 x 0.8, no voting, threshold 1.0 (before)",
+     HogParams(upsample=2.25, hit_threshold=1.0, box_scale_x=0.6, box_scale_y=0.8, vote_iou=0.0)),
+    ("x2.25, window fit 0.6 x 0.8, no voting, threshold 0.5",
+     HogParams(upsample=2.25, hit_threshold=0.5, box_scale_x=0.6, box_scale_y=0.8, vote_iou=0.0)),
+    ("x2.25, fit 0.5 x 0.75, no voting, threshold 0.5", HogParams(upsample=2.25, vote_iou=0.0)),
+    ("x2.25, defaults (fit 0.5 x 0.75, voting 0.5, threshold 0.5)", HogParams(upsample=2.25)),
+    ("x2.25, defaults, threshold 1.0", HogParams(upsample=2.25, hit_threshold=1.0)),
+    ("x2.25, defaults, threshold 0", HogParams(upsample=2.25, hit_threshold=0.0)),
+    ("x2.0, defaults", HogParams(upsample=2.0)),
+    ("x2.0, defaults, threshold 0", HogParams(upsample=2.0, hit_threshold=0.0)),
+)
+
+
+def pets_accuracy(step: int) -> int:
+    """Print the accuracy table of :data:`PETS_ROWS` on pets09_dev; 1 if the data is missing."""
+    from benchmarks.detector_accuracy import load_truth, score_detections
+
+    root = SHARED / "pets09_dev"
+    if not (root / "gt.txt").is_file():
+        print(f"pets09_dev not found in {root}")
+        return 1
+    truth = load_truth(root)
+    paths = sorted((root / "frames").glob("frame_*.jpg"))[::step]
+    frames = {int(p.stem.split("_")[1]): cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB) for p in paths}
+    windows: dict[float, dict[int, tuple[np.ndarray, np.ndarray]]] = {}
+    ms: dict[float, float] = {}
+    for up in sorted({params.upsample for _, params in PETS_ROWS}):
+        lowest = min(params.hit_threshold for _, params in PETS_ROWS if params.upsample == up)
+        det = HogDetector(HogParams(upsample=up))
+        t0 = time.perf_counter()
+        windows[up] = {f: det.windows(rgb, hit_threshold=lowest) for f, rgb in frames.items()}
+        ms[up] = (time.perf_counter() - t0) * 1e3 / len(frames)
+    print(f"# HOG on pets09_dev: {len(frames)} frames of 480x360, AP at IoU >= 0.5 (conf-0 rows don't-care); "
+          "foot-point error of the true positives on the ground plane through the homography")
+    print("| settings | AP | precision | recall | foot error median m | mean m | window search ms/frame |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for label, params in PETS_ROWS:
+        det = HogDetector(params)
+        h, w = next(iter(frames.values())).shape[:2]
+        dets = {f: det.boxes_from_windows(*windows[params.upsample][f], w, h) for f in frames}
+        s = score_detections(truth, dets)
+        print(f"| {label} | {s.ap:.3f} | {s.precision:.3f} | {s.recall:.3f} | {s.foot_median_m:.3f} | "
+              f"{s.foot_mean_m:.3f} | {ms[params.upsample]:.0f} |", flush=True)
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeats", type=int, default=30)
     parser.add_argument("--backends", default="hog,hog-x2.25,depth,depth+hog,yolo-onnx,darknet")
+    parser.add_argument("--pets", action="store_true", help="HOG's AP and foot-point error on pets09_dev instead")
+    parser.add_argument("--pets-step", type=int, default=1, help="use every n-th pets09_dev frame")
     args = parser.parse_args()
+    if args.pets:
+        return pets_accuracy(max(args.pets_step, 1))
     wanted = args.backends.split(",")
     tmp = Path(tempfile.mkdtemp(prefix="detector-bench-"))
     factories: dict[str, Callable[[], object]] = {

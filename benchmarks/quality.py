@@ -40,7 +40,7 @@ Data (``../shared/data``, or ``$PERCEPTION_SHARED_DATA``; nothing is downloaded)
    each tracker. The project's tracker gets the colour descriptors (embedding model
    ``colour``, thresholds from TrackerConfig's defaults); the two baselines get the
    positions only. Detections and descriptors are cached under ``--cache-dir``
-   (default ``benchmarks/.cache/``), keyed by a hash of the detector and embedder
+   (default ``benchmarks/.cache/``), keyed by a hash of the detector's and embedder's code and
    settings and the frames, so only the first run pays the ~1-2 minutes of detection.
 3. ``sim``: the simulated apartment, all 7 scenarios of ``tools/simulator`` for 60 s each
    (``--sim-seconds``; 10 s with ``--quick``) at 10 fps, 320x240, seed 0: the scenario runs
@@ -402,14 +402,26 @@ def pets_settings() -> tuple[object, object]:
     return (DetectorConfig.model_validate({"backend": "hog", "hog": {"upsample": PETS_UPSAMPLE}}), EmbedderConfig())
 
 
+#: The code whose change invalidates the cached PETS detections and descriptors.
+PETS_CODE = ("services/detector/core", "services/detector/config.py", "services/embedder/core",
+             "services/embedder/config.py")
+
+
 def pets_cache_key(root: Path) -> str:
-    """Hash of the detector and embedder settings, the homography, the frames and OpenCV's version."""
+    """Hash of the detector and embedder settings and code, the homography, the frames and OpenCV's version."""
     import cv2
 
     det_cfg, emb_cfg = pets_settings()
     frames = sorted((root / "frames").glob("frame_*.jpg"))
+    code = hashlib.sha256()
+    for rel in PETS_CODE:
+        base = ROOT / rel
+        for f in sorted([base] if base.is_file() else base.rglob("*.py")):
+            code.update(str(f.relative_to(ROOT)).encode())
+            code.update(f.read_bytes())
     desc = {
-        "version": 1,
+        "version": 2,
+        "code": code.hexdigest()[:16],
         "detector": det_cfg.model_dump(mode="json"),  # type: ignore[attr-defined]
         "embedder": emb_cfg.model_dump(mode="json"),  # type: ignore[attr-defined]
         "homography": json.loads((root / "ground_homography.json").read_text())["H"],

@@ -47,7 +47,8 @@ class HogConfig(_Section):
     """OpenCV HOG people detector. ``upsample`` > 1 finds people smaller than ~96 px."""
 
     upsample: float = Field(default=_HOG.upsample, ge=0.25, le=8.0,
-                            description="image scale before HOG; 2.25 for ~50 px people")
+                            description="image scale before HOG: about 1.1 x 96 / the smallest person's "
+                                        "height in px (2.25 for ~50 px people, 1.0 from ~105 px)")
     hit_threshold: float = Field(default=_HOG.hit_threshold, ge=-2.0, le=5.0,
                                  description="minimum SVM margin of a window")
     win_stride: int = Field(default=_HOG.win_stride, ge=8, le=64, multiple_of=8)
@@ -55,6 +56,8 @@ class HogConfig(_Section):
     nms_iou: float = Field(default=_HOG.nms_iou, gt=0.0, le=1.0)
     box_scale_x: float = Field(default=_HOG.box_scale_x, gt=0.0, le=1.0, description="person width / window width")
     box_scale_y: float = Field(default=_HOG.box_scale_y, gt=0.0, le=1.0, description="person height / window height")
+    vote_iou: float = Field(default=_HOG.vote_iou, ge=0.0, le=1.0,
+                            description="box voting: mean of the windows overlapping a kept box this much; 0 = off")
     max_detections: int = Field(default=_HOG.max_detections, ge=1)
 
     def params(self) -> HogParams:

@@ -24,7 +24,10 @@ def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
                    help="yolo-onnx: onnxruntime providers in order, e.g. CUDAExecutionProvider,CPUExecutionProvider")
     g.add_argument("--darknet-cfg", default=None, metavar="CFG", help="darknet: the .cfg file")
     g.add_argument("--darknet-weights", default=None, metavar="WEIGHTS", help="darknet: the .weights file")
-    g.add_argument("--upsample", type=float, default=None, help="hog: image scale before detection (2-2.5 for ~50 px people)")
+    g.add_argument("--upsample", type=float, default=None, help="hog: image scale before detection, about 1.1 x 96 / the smallest "
+                   "person's height in px: 2.25 for ~50 px people (PETS-like 480x360), 1.0 (the default) when "
+                   "everyone is taller than ~105 px (a 640x480 RGB-D camera, people within ~8 m); cost grows with "
+                   "its square")
     g.add_argument("--conf", type=float, default=None, help="yolo-onnx/darknet: confidence threshold")
 
 

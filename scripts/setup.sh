@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Create .venv (Python >= 3.10) and install the project with its test extra.
+# Create .venv (Python >= 3.10) and install the project with its test and view (plots) extras.
 # Re-running is cheap: the install is redone only when pyproject.toml changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -14,7 +14,7 @@ fi
 stamp=".venv/.setup-$(sha1sum pyproject.toml | cut -c1-12)"
 if [ ! -f "$stamp" ]; then
   .venv/bin/python -m pip install --quiet --upgrade pip
-  .venv/bin/python -m pip install --quiet -e ".[test]"
+  .venv/bin/python -m pip install --quiet -e ".[test,view]"
   rm -f .venv/.setup-*
   touch "$stamp"
 fi

@@ -160,6 +160,7 @@ def test_demo_view_serves_the_page_while_the_whole_pipeline_runs(tmp_path: Path)
         out, _ = demo.communicate(timeout=120)
         assert demo.returncode == 0, out.decode()
         assert b"live page is on" in out
+        assert (tmp_path / "tracks.png").is_file(), "the demo draws its run"
     finally:
         if demo.poll() is None:
             demo.terminate()

@@ -14,6 +14,7 @@ on the same inputs (``benchmarks/quality_sim.py``).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable
 
 from common.keys import RELIABLE, Keys
@@ -44,12 +45,13 @@ class ChainResult:
 
 def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, width: int = 320, height: int = 240,
               seed: int = 0, tracker: TrackerConfig | None = None, detector: str = "depth",
-              record: Callable[[Message], None] | None = None) -> ChainResult:
+              record: Callable[[Message], None] | None = None, plot: Path | None = None) -> ChainResult:
     """Run ``scenario`` through the four nodes and score the tracks (Table II).
 
     ``record``, if given, is called with every ``PeopleGroundTruth``, ``LocalizedDetections``,
     ``Embeddings`` and ``Tracks`` message of the run, after each simulated frame, each
     stream in the order it was published (ground truth, localized, embeddings, tracks).
+    ``plot``, if given, is where the top-down plot of the run is drawn (PNG).
     """
     keys = Keys(robot="inprocess")
     bus = MemoryBus()
@@ -97,5 +99,5 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         tap.close()
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items() for p in msg.counted()]
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in hyp for tr in t.tracks if t.header.seq in gt]
-    report, table = score_rows(gt_rows, hyp_rows, scenario)
+    report, table = score_rows(gt_rows, hyp_rows, scenario, plot)
     return ChainResult(report, table, sim.seq)

@@ -69,6 +69,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--view-port", type=int, default=8080, metavar="PORT",
                         help="the page's port with --view (default 8080)")
     parser.add_argument("--json", action="store_true", help="print the final metrics as JSON")
+    parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
+                        help="where the top-down plot of the run goes (default: tracks.png in the log dir)")
     parser.add_argument("--log-dir", type=Path, default=None, help="where the processes' log goes (default: a temp dir)")
 
 
@@ -207,12 +209,16 @@ def main(args: argparse.Namespace) -> int:
             supervisor.request_stop()
             sup_thread.join(60)
             log_file.close()
-    report, table = score(gt, monitor, args.scenario)
+    plot = args.plot or log_dir / "tracks.png"
+    report, table = score(gt, monitor, args.scenario, plot=plot)
+    plotted = str(plot) if plot.is_file() else None
     if args.json:
-        print(json.dumps({"scenario": args.scenario, "log": str(log_dir / "processes.log"),
+        print(json.dumps({"scenario": args.scenario, "log": str(log_dir / "processes.log"), "plot": plotted,
                           "pipeline": monitor.summary(), "cpu_percent": cpu, **report}, indent=2))
     else:
         print(f"\nTable II for this run (ground truth from the simulator; logs in {log_dir}):\n")
         print(table)
         print("\nCPU per service: " + ", ".join(f"{n} {v}%" for n, v in cpu.items() if v is not None))
+        if plotted:
+            print(f"plot of the run (tracks against the ground truth): {plotted}")
     return 0

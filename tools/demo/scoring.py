@@ -8,7 +8,9 @@ tracker published nothing for counts all its objects as misses.
 
 from __future__ import annotations
 
+import logging
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -18,9 +20,12 @@ from common.schemas import PeopleGroundTruth
 from common.transport import Transport
 from tools.demo.monitor import Monitor
 from tools.evaluation.evaluate import evaluate_tables, format_table, make_report
+from tools.evaluation.plot import PlotUnavailable, SequencePlot, plot_sequences
 from tools.evaluation.readers import TrackTable
 
 __all__ = ["GroundTruthLog", "score", "score_rows"]
+
+log = logging.getLogger(__name__)
 
 
 class GroundTruthLog:
@@ -48,17 +53,29 @@ def _table(rows: list[tuple[int, int, np.ndarray]]) -> TrackTable:
     return TrackTable.from_arrays(np.array(frames), np.array(ids), np.stack(pos))
 
 
-def score(gt: GroundTruthLog, monitor: Monitor, name: str) -> tuple[dict[str, Any], str]:
-    """(metrics as a dict, Table II as text) of the run."""
+def score(gt: GroundTruthLog, monitor: Monitor, name: str, plot: Path | None = None) -> tuple[dict[str, Any], str]:
+    """(metrics as a dict, Table II as text) of the run; ``plot``: also draw it there (PNG)."""
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.frames.items() for p in msg.counted()]
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in monitor.all_tracks for tr in t.tracks
                 if t.header.seq in gt.frames]
-    return score_rows(gt_rows, hyp_rows, name)
+    return score_rows(gt_rows, hyp_rows, name, plot)
 
 
 def score_rows(gt_rows: list[tuple[int, int, np.ndarray]], hyp_rows: list[tuple[int, int, np.ndarray]],
-               name: str) -> tuple[dict[str, Any], str]:
-    """(metrics as a dict, Table II as text) of (frame, id, position) rows."""
-    mot = evaluate_tables(_table(gt_rows), _table(hyp_rows))
+               name: str, plot: Path | None = None) -> tuple[dict[str, Any], str]:
+    """(metrics as a dict, Table II as text) of (frame, id, position) rows.
+
+    ``plot``: also draw the tracks against the ground truth there (``perception evaluate
+    --plot``'s picture); without matplotlib it is skipped with a warning.
+    """
+    gt, hyp = _table(gt_rows), _table(hyp_rows)
+    panel = SequencePlot(name, gt, hyp)
+    mot = evaluate_tables(gt, hyp, on_frame=panel.on_frame if plot is not None else None)
+    if plot is not None:
+        panel.result = mot
+        try:
+            plot_sequences([panel], plot)
+        except PlotUnavailable as exc:
+            log.warning("no plot of the run: %s", exc)
     report = make_report([(name, mot)])
     return report.to_dict(), format_table(report)

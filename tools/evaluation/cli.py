@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
+from pathlib import Path
 
 from common.cli_util import CliError
-from tools.evaluation.evaluate import FORMATS, evaluate_sequences, format_table
-from tools.evaluation.readers import EvaluationInputError
+from tools.evaluation.evaluate import (FORMATS, default_threshold, evaluate_sequences, evaluate_tables, find_sequences,
+                                      format_table)
+from tools.evaluation.readers import EvaluationInputError, read_table
 
 DESCRIPTION = """\
 Compare tracker output with ground truth, frame by frame (CLEAR MOT, Bernardin and
@@ -58,6 +61,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dims", type=int, choices=(2, 3), default=None,
                         help="tracks format: 2 = ground plane (x, y) (default), 3 = (x, y, z)")
     parser.add_argument("--json", action="store_true", help="print every figure as JSON instead of tables")
+    parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
+                        help="also draw the tracks against the ground truth, one top-down panel per sequence, "
+                             "with ID switches, misses and false positives marked and Table II in each title "
+                             "(needs matplotlib, the 'view' extra)")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -76,4 +83,27 @@ def main(args: argparse.Namespace) -> int:
         print(json.dumps(report.to_dict(), indent=2, allow_nan=False))
     else:
         print(format_table(report))
+    if args.plot is not None:
+        _plot(args, args.plot)
     return 0
+
+
+def _plot(args: argparse.Namespace, out: Path) -> None:
+    """Evaluate again, keeping each frame's events, and draw the plot."""
+    from tools.evaluation.plot import PlotUnavailable, SequencePlot, plot_sequences
+
+    threshold = default_threshold(args.fmt) if args.threshold is None else args.threshold
+    ignore = None if args.gt_ignore is None else Path(args.gt_ignore)
+    panels = []
+    for seq in find_sequences(Path(args.gt), Path(args.tracks), ignore):
+        gt = read_table(seq.gt, args.fmt, ground_truth=True, dims=args.dims or 2)
+        hyp = read_table(seq.tracks, args.fmt, ground_truth=False, dims=args.dims or 2)
+        ign = read_table(seq.ignore, args.fmt, ground_truth=True, dims=args.dims or 2) if seq.ignore else None
+        panel = SequencePlot(seq.name, gt, hyp)
+        panel.result = evaluate_tables(gt, hyp, args.fmt, threshold, ignore=ign, on_frame=panel.on_frame)
+        panels.append(panel)
+    try:
+        written = plot_sequences(panels, out)
+    except PlotUnavailable as exc:
+        raise CliError(str(exc)) from exc
+    print(f"plot: {written}", file=sys.stderr if args.json else sys.stdout)

@@ -9,11 +9,12 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from tools.evaluation.distances import distance_similarity, euclidean_distances, iou_distances, iou_similarity
-from tools.evaluation.metrics import ClearMot, ClearMotAccumulator, HotaAccumulator
+from tools.evaluation.metrics import ClearMot, ClearMotAccumulator, FrameEvents, HotaAccumulator
 from tools.evaluation.readers import EvaluationInputError, TrackTable, read_table
 
 __all__ = ["FORMATS", "Report", "SequenceFiles", "default_threshold", "evaluate_sequences", "evaluate_tables",
@@ -91,14 +92,16 @@ def hota_zero_distance(threshold: float) -> float:
 
 
 def evaluate_tables(gt: TrackTable, hyp: TrackTable, fmt: str = "tracks", threshold: float | None = None,
-                    ignore: TrackTable | None = None) -> ClearMot:
+                    ignore: TrackTable | None = None,
+                    on_frame: Callable[[int, FrameEvents], None] | None = None) -> ClearMot:
     """CLEAR MOT, IDF1 and HOTA of one sequence over the union of the frames of ``gt`` and ``hyp``.
 
     ``ignore`` (optional): people neither required nor penalised, same columns as ``gt``.
     A hypothesis left unmatched by the CLEAR MOT matching but within the gate of one of
     them in the same frame is removed from that frame before any metric counts it.
     HOTA's similarity is IoU for ``motchallenge`` and ``max(0, 1 - d / (2 * threshold))``
-    for ``tracks`` (:func:`hota_zero_distance`).
+    for ``tracks`` (:func:`hota_zero_distance`). ``on_frame(frame, events)``, if given, sees
+    each frame's matches, switches, misses and false positives (for plots).
     """
     threshold = default_threshold(fmt) if threshold is None else threshold
     distance = iou_distances if fmt == "motchallenge" else euclidean_distances
@@ -120,6 +123,8 @@ def evaluate_tables(gt: TrackTable, hyp: TrackTable, fmt: str = "tracks", thresh
         if ignore is not None and frame in ignore_rows and hyp_ids.size:
             ignore_dist = distance(hyp.values[h], ignore.values[ignore_rows[frame]])
         events = acc.update(gt_ids, hyp_ids, dist, ignore_dist)
+        if on_frame is not None:
+            on_frame(int(frame), events)
         hyp_values = hyp.values[h]
         if events.ignored:  # HOTA sees the frame without the dropped hypotheses
             keep = ~np.isin(hyp_ids, events.ignored)

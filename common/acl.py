@@ -25,6 +25,8 @@ from common.keys import DEFAULT_PREFIX, STREAMS, Keys
 
 __all__ = ["Grant", "access_control", "grants"]
 
+#: The common name of the routers' certificate (:func:`common.certs.make_certs`).
+ROUTER_COMMON_NAME = "router"
 _ROBOT = "robot-name"  # stands for any robot, replaced by '*' in the rules
 
 
@@ -121,5 +123,11 @@ def access_control(prefix: str = DEFAULT_PREFIX) -> dict[str, Any]:
         mine = _rules(role, g, prefix)
         rules += mine
         subjects.append({"id": role, "usernames": [role]})
-        policies.append({"id": role, "rules": [r["id"] for r in mine], "subjects": [role]})
+        ids = [role]
+        if g.everything:
+            # The router that opened the link logs in with its password; the one that accepted it
+            # is known to the other side only by its TLS certificate (common name "router").
+            subjects.append({"id": f"{role}-certificate", "cert_common_names": [ROUTER_COMMON_NAME]})
+            ids.append(f"{role}-certificate")
+        policies.append({"id": role, "rules": [r["id"] for r in mine], "subjects": ids})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}

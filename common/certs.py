@@ -26,6 +26,8 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
+from common.acl import ROUTER_COMMON_NAME
+
 __all__ = ["CertsError", "DEFAULT_HOSTS", "ROLES", "make_certs", "issue_certificate", "make_ca"]
 
 #: Who gets a user name and password: each service, the other router, the tools.
@@ -113,7 +115,7 @@ def make_certs(out: Path, hosts: Sequence[str] = (), *, days: int = 825, force: 
     (out / "credentials").mkdir(mode=0o700, exist_ok=True)
     ca = make_ca(out, days=max(days, 3650))
     files = [*ca]
-    files += issue_certificate(out, "router", "router", ca, hosts=hosts, server=True, days=days)
+    files += issue_certificate(out, "router", ROUTER_COMMON_NAME, ca, hosts=hosts, server=True, days=days)
     files += issue_certificate(out, "client", "perception-client", ca, days=days)
     passwords = {role: secrets.token_urlsafe(24) for role in ROLES}
     _write_secret(out / "users.txt", "".join(f"{r}:{p}\n" for r, p in passwords.items()))

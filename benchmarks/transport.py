@@ -6,6 +6,10 @@ Round trips and throughput run between this process and a child process (an echo
 sink), peer to peer and through a `perception router` child, each with Zenoh's
 same-host shared memory on (the default) and off (as between the robot's two PCs).
 Every figure is a median (and p99/p95) over repeated runs; compare them as ratios.
+
+--tls compares, through a router with shared memory off (as between the two PCs), plain
+TCP with the secure deployment's link: TLS with mutual certificates and a password check
+(deploy/secure/, certificates made in a temporary folder). --tls-only runs just that.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from common.codec import _pack_default, _packer, decode, encode  # noqa: E402
 from common.keys import FRAMES, RELIABLE, Delivery, Keys  # noqa: E402
-from common.router_process import RouterProcess, free_port  # noqa: E402
+from common.router_process import RouterProcess, free_port, wait_for_port  # noqa: E402
 from common.samples import example_messages, rgbd_frame  # noqa: E402
 from common.schemas import Header, Message, RGBDFrame, ServiceStatus  # noqa: E402
 from common.zenoh_config import ZenohOptions  # noqa: E402
@@ -222,16 +226,70 @@ def slow_consumer(seconds: float = 3.0) -> None:
           f"started: median {statistics.median(stale):.1f} ms, max {max(stale):.1f} ms; peak RSS grew {(rss1 - rss0) / 1024:.0f} MB")
 
 
+def secure_router(folder: Path) -> tuple[subprocess.Popen[bytes], ZenohOptions]:
+    """A router with deploy/secure's TLS, mutual TLS and password check, and a client's options for it.
+
+    No access control: the benchmark's keys are not among the services'.
+    """
+    import shutil
+
+    from common.certs import make_certs
+
+    secure = Path(__file__).resolve().parent.parent / "deploy" / "secure"
+    for name in ("router-single-pc.json5", "client.json5"):
+        shutil.copy(secure / name, folder / name)
+    make_certs(folder / "certs")
+    port = free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "perception", "-q", "router", f"--listen=tls/127.0.0.1:{port}",
+                             "--config", str(folder / "router-single-pc.json5")],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env={**os.environ, "RUST_LOG": "off"})
+    if not wait_for_port("127.0.0.1", port, 20, proc):
+        proc.kill()
+        raise RuntimeError("the TLS router did not start")
+    opts = ZenohOptions(mode="client", connect=[f"tls/127.0.0.1:{port}"], config_file=folder / "client.json5",
+                        credentials=folder / "certs" / "credentials" / "monitor.txt", shared_memory=False)
+    return proc, opts
+
+
+def tls_table(n_rt: int, n_frames: int) -> None:
+    """Round trip and throughput through a router, plain TCP against TLS (shared memory off)."""
+    import tempfile
+
+    print("\n## TLS against plain TCP, through a router, shared memory off (640x480 RGB-D frames)\n")
+    print("| link | round trip median (ms) | p99 (ms) | throughput (frames/s) | MB/s | lost |\n|---|---|---|---|---|---|")
+    for link in ("tcp", "tls"):
+        with tempfile.TemporaryDirectory(prefix="perception-tls-bench-") as tmp:
+            if link == "tcp":
+                router = RouterProcess().start()
+                opts = ZenohOptions(mode="client", connect=[router.endpoint], shared_memory=False)
+                stop = router.stop
+            else:
+                proc, opts = secure_router(Path(tmp))
+                stop = lambda: (proc.terminate(), proc.wait(10))  # noqa: E731
+            try:
+                rt = round_trips(opts, opts, n_rt)
+                fps, mbs, lost = throughput(opts, opts, n_frames)
+            finally:
+                stop()
+        print(f"| {link} | {statistics.median(rt):.2f} | {pct(rt, 99):.2f} | {fps:.0f} | {mbs:.0f} | {lost} |", flush=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--child", nargs=2, metavar=("ROLE", "OPTS"), help=argparse.SUPPRESS)
     ap.add_argument("--codec-n", type=int, default=2000, help="codec repetitions per small message")
     ap.add_argument("--round-trips", type=int, default=200)
     ap.add_argument("--frames", type=int, default=300, help="frames per throughput run")
+    ap.add_argument("--tls", action="store_true", help="also compare TLS with plain TCP through a router")
+    ap.add_argument("--tls-only", action="store_true", help="only the TLS against TCP comparison")
     args = ap.parse_args()
     if args.child:
         return child(*args.child)
     os.environ.setdefault("RUST_LOG", "error")
+    if args.tls_only:
+        print(f"# Transport benchmark, TLS\n\nmachine: {platform.node()}, {os.cpu_count()} cores, Python {platform.python_version()}")
+        tls_table(args.round_trips, args.frames)
+        return 0
     print(f"# Transport benchmark\n\nmachine: {platform.node()}, {os.cpu_count()} cores, {platform.processor() or platform.machine()}, "
           f"Python {platform.python_version()}")
     codec_table(args.codec_n)
@@ -250,6 +308,8 @@ def main() -> int:
                     router.stop()
             print(f"| {path} | {'on' if shm else 'off'} | {statistics.median(rt):.2f} | {pct(rt, 99):.2f} | {fps:.0f} | {mbs:.0f} | {lost} |",
                   flush=True)
+    if args.tls:
+        tls_table(args.round_trips, args.frames)
     return 0
 
 

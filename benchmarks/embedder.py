@@ -6,6 +6,16 @@ when it is present. Crops are synthetic pedestrians of 60 to 200 px height, so t
 resize cost is included. Prints median and p95 per frame.
 
     .venv/bin/python benchmarks/embedder.py [--repeats 30] [--threads 0]
+    .venv/bin/python benchmarks/embedder.py --reid [--pets-step 5] [--sim-seconds 90]
+
+``--reid`` measures Re-ID instead (``benchmarks/reid_data.py``): rank-1, mAP and pair AUC
+with same-person crops under 5 s apart left out of each query's gallery,
+
+* on ``pets09_dev`` ground-truth crops (every ``--pets-step``-th frame), the ``colour``
+  descriptor beside the 6-stripe HSV-histogram + Bhattacharyya anchor computed here;
+* on the simulated apartment (three scenarios, one frame a second, people at least 60 %
+  visible, each box the person's visible pixels widened by 15 %), ``colour`` with and
+  without the depth mask the embedder applies when frames carry depth.
 """
 
 from __future__ import annotations
@@ -24,6 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository r
 
 from services.embedder.core.backend import Backend  # noqa: E402
 from services.embedder.core.colour import ColourDescriptor  # noqa: E402
+from services.embedder.core.depth_mask import DepthMaskParams, depth_masks  # noqa: E402
 from tests.fixtures.embedder_synthetic import random_outfit, render_person  # noqa: E402
 
 
@@ -46,16 +57,63 @@ def measure(backend: Backend, per_frame: int, repeats: int, rng: np.random.Gener
     return float(np.median(times)), float(np.percentile(times, 95))
 
 
+SIM_SCENARIOS = ("still", "moving-head", "changing-clothes-out-of-view")
+
+
+def reid(pets_step: int, sim_seconds: float) -> None:
+    """Print the Re-ID tables (see the module docstring)."""
+    from benchmarks.reid_data import (bhattacharyya_matrix, euclidean_matrix, hsv_stripes_anchor, pets_crops,
+                                      reid_scores, sim_crops)
+
+    shared = Path(os.environ.get("PERCEPTION_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+    colour = ColourDescriptor()
+    card = colour.card
+    print("| data | descriptor | crops | people | rank-1 | mAP | AUC |")
+    print("|---|---|---:|---:|---:|---:|---:|")
+    root = shared / "pets09_dev"
+    if (root / "gt.txt").is_file():
+        c = pets_crops(root, step=pets_step)
+        n, k = len(c.images), len(set(c.ids.tolist()))
+        a = reid_scores(bhattacharyya_matrix(hsv_stripes_anchor(c.images)), c.ids, c.times_s)
+        print(f"| pets09_dev, every {pets_step}th frame | anchor: 6-stripe HSV 8x4x4, Bhattacharyya | {n} | {k} | "
+              f"{a.rank1:.3f} | {a.mAP:.3f} | {a.auc:.3f} |")
+        e = reid_scores(euclidean_matrix(colour.embed(c.images)), c.ids, c.times_s)
+        print(f"| pets09_dev, every {pets_step}th frame | {card.name} ({card.dim}-D) | {n} | {k} | "
+              f"{e.rank1:.3f} | {e.mAP:.3f} | {e.auc:.3f} |", flush=True)
+    else:
+        print(f"(pets09_dev not found in {root})")
+    params = DepthMaskParams(depth_unit_m=1.0)  # sim_crops gives metres
+    for name in SIM_SCENARIOS:
+        c = sim_crops(name, seconds=sim_seconds, fps=1.0)
+        assert c.depths is not None
+        masks = [depth_masks(d, [(0, 0, d.shape[1], d.shape[0])], params)[0][0] for d in c.depths]
+        n, k = len(c.images), len(set(c.ids.tolist()))
+        a = reid_scores(bhattacharyya_matrix(hsv_stripes_anchor(c.images)), c.ids, c.times_s)
+        print(f"| sim {name}, {sim_seconds:g} s | anchor | {n} | {k} | {a.rank1:.3f} | {a.mAP:.3f} | {a.auc:.3f} |")
+        for label, m in (("no mask", None), ("depth mask", masks)):
+            e = reid_scores(euclidean_matrix(colour.embed(c.images, masks=m)), c.ids, c.times_s)
+            print(f"| sim {name}, {sim_seconds:g} s | {card.name}, {label} ({sum(x is not None for x in masks)} "
+                  f"masked) | {n} | {k} | {e.rank1:.3f} | {e.mAP:.3f} | {e.auc:.3f} |" if m is not None else
+                  f"| sim {name}, {sim_seconds:g} s | {card.name}, {label} | {n} | {k} | {e.rank1:.3f} | "
+                  f"{e.mAP:.3f} | {e.auc:.3f} |", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeats", type=int, default=30)
     parser.add_argument("--threads", type=int, default=0, help="onnxruntime intra-op threads (0: default)")
+    parser.add_argument("--reid", action="store_true", help="Re-ID accuracy instead of speed")
+    parser.add_argument("--pets-step", type=int, default=5, help="--reid: every n-th pets09_dev frame")
+    parser.add_argument("--sim-seconds", type=float, default=90.0, help="--reid: seconds per simulated scenario")
     args = parser.parse_args()
+    if args.reid:
+        reid(max(args.pets_step, 1), args.sim_seconds)
+        return
     from services.embedder.config import OnnxConfig, with_sidecar
     from services.embedder.core.onnx_model import OnnxEmbedder, OnnxParams
     from services.embedder.export_cli import default_model_path
 
-    backends: list[tuple[str, Backend]] = [("colour (128-D)", ColourDescriptor())]
+    backends: list[tuple[str, Backend]] = [(f"colour ({ColourDescriptor.card.dim}-D)", ColourDescriptor())]
     tmp = tempfile.TemporaryDirectory()
     try:
         from tests.fixtures.embedder_onnx_models import conv_model

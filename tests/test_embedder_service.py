@@ -75,7 +75,7 @@ def test_pairs_frame_and_detections_and_maps_indices() -> None:
     assert msg.header == f.header
     assert msg.indices.tolist() == [3, 6]  # the empty box (4) and the one outside (5) are skipped
     assert rig.counters.extra["empty_boxes"] == 2
-    assert msg.model.name == "colour" and msg.model.dim == 128 and msg.model.thresholds is not None
+    assert msg.model.name == "colour" and msg.model.dim == 224 and msg.model.thresholds is not None
     direct = ColourDescriptor().embed([scene(7)[10:138, 20:84], scene(7)[20:148, 150:214]])
     np.testing.assert_allclose(msg.vectors, direct, atol=1e-6)
 

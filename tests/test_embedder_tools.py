@@ -68,10 +68,10 @@ def test_embed_adds_embeddings_and_model(labelled: Path, tmp_path: Path, monkeyp
     assert perception(["embed", str(labelled), "--output", str(out)]) == 0
     lines = [json.loads(x) for x in out.read_text().splitlines()]
     assert len(lines) == 2 and lines[0]["frame"] == 0
-    assert lines[0]["model"]["name"] == "colour" and lines[0]["model"]["dim"] == 128
+    assert lines[0]["model"]["name"] == "colour" and lines[0]["model"]["dim"] == 224
     assert set(lines[0]["model"]["thresholds"]) == {"t_lower", "t_upper", "t_recover"}
     dets = lines[0]["detections"]
-    assert dets[0]["extra"] == "kept" and len(dets[0]["embedding"]) == 128
+    assert dets[0]["extra"] == "kept" and len(dets[0]["embedding"]) == 224
     assert dets[4]["embedding"] is None  # the empty box
     e = np.array([[d["embedding"] for d in line["detections"][:4]] for line in lines])
     d = np.linalg.norm(e[0][:, None] - e[1][None], axis=2)

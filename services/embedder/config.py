@@ -15,15 +15,18 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from common.config import ConfigError
 from services.embedder.core.backend import Backend, EmbedderError
+from services.embedder.core.depth_mask import DepthMaskParams
 from services.embedder.core.onnx_model import OnnxEmbedder, OnnxParams
 
-__all__ = ["EmbedderConfig", "OnnxConfig", "ThresholdsConfig", "build_backend", "sidecar_path", "with_sidecar"]
+__all__ = ["DepthMaskConfig", "EmbedderConfig", "OnnxConfig", "ThresholdsConfig", "build_backend", "sidecar_path",
+           "with_sidecar"]
 
 #: The core's defaults, read by :class:`OnnxConfig` so each is written once, in the core
 #: (tests/test_config_defaults.py checks they agree). ``path`` is required in the core and
 #: "" here until configured: the placeholder is unused. ``thresholds`` and ``providers``
 #: None are "not given" in both (other types here than there).
 _D = OnnxParams(path="")
+_M = DepthMaskParams()
 
 
 class ThresholdsConfig(BaseModel):
@@ -81,6 +84,29 @@ class OnnxConfig(BaseModel):
             providers=tuple(self.providers) if self.providers else None, intra_op_threads=self.intra_op_threads)
 
 
+class DepthMaskConfig(BaseModel):
+    """Depth cuts the background: each crop is masked to the pixels near the person's depth
+    (the localizer's percentile) before it is described, when the frame has depth."""
+
+    model_config = ConfigDict(extra="forbid")
+    enabled: bool = Field(default=True, description="mask crops by depth when the frame carries depth")
+    percentile: float = Field(default=_M.percentile, ge=0.0, le=100.0,
+                              description="the person's depth: this percentile of the box's valid depth")
+    near_m: float = Field(default=_M.near_m, ge=0.0, description="keep pixels this much in front of it")
+    far_m: float = Field(default=_M.far_m, gt=0.0, description="and this much behind it")
+    unknown_weight: float = Field(default=_M.unknown_weight, ge=0.0, le=1.0,
+                                  description="weight of pixels without depth")
+    min_valid_pixels: int = Field(default=_M.min_valid_pixels, ge=1,
+                                  description="fewer valid depth pixels in a box: described unmasked")
+    min_kept_fraction: float = Field(default=_M.min_kept_fraction, ge=0.0, le=1.0,
+                                     description="a mask keeping less of its box is not used")
+    depth_unit_m: float = Field(default=_M.depth_unit_m, gt=0.0, description="metres per unit of integer depth")
+
+    def params(self) -> DepthMaskParams:
+        """The core's parameters."""
+        return DepthMaskParams(**self.model_dump(exclude={"enabled"}))
+
+
 class EmbedderConfig(BaseModel):
     """Settings of ``perception embedder``."""
 
@@ -92,6 +118,9 @@ class EmbedderConfig(BaseModel):
     frame_buffer: int = Field(default=8, ge=1, le=256, description="recent frames kept to pair with detections")
     max_lag_s: float = Field(default=0.5, gt=0.0, description="detections older than the newest frame by more "
                              "than this are dropped as stale instead of being embedded late")
+    min_crop_px: int = Field(default=4, ge=1, description="crops narrower or lower than this are not described "
+                             "(counted as tiny_crops)")
+    depth_mask: DepthMaskConfig = Field(default_factory=DepthMaskConfig)
 
     @model_validator(mode="after")
     def _onnx_path(self) -> EmbedderConfig:

@@ -7,6 +7,14 @@ box is cropped (clamped to the image; empty boxes are skipped and counted) and t
 backend describes all crops of the frame in one call. Work whose frame is more than
 ``max_lag_s`` older than the newest frame is dropped and counted instead of being
 processed late, so a slow model never builds a queue.
+
+When the frame carries depth, each crop is masked to the pixels near the person's depth
+(``depth_mask``, :mod:`services.embedder.core.depth_mask`) before it is described; without
+depth, or when a box has too little depth or its mask keeps nothing, the crop is
+described unmasked. Bad inputs are counted: ``empty_boxes`` (nothing left inside the
+image), ``tiny_crops`` (under ``min_crop_px``: not described), ``clipped_boxes`` (partly
+outside the image: described as cut), ``depth_missing`` and ``mask_empty`` (described
+unmasked), ``masked_crops`` (described with a depth mask).
 """
 
 from __future__ import annotations
@@ -24,7 +32,8 @@ from common.runtime import Counters
 from common.schemas import AppearanceThresholds, Detections, Embeddings, ModelCard, RGBDFrame
 from common.transport import Transport
 from services.embedder.config import EmbedderConfig, build_backend
-from services.embedder.core.backend import Backend, Card, EmbedderError, crop_boxes
+from services.embedder.core.backend import Backend, Card, EmbedderError, box_slices
+from services.embedder.core.depth_mask import apply_mask, depth_masks
 
 __all__ = ["EmbedderService", "model_card"]
 
@@ -55,6 +64,7 @@ class EmbedderService(Node):
         self.config = config
         self.backend = backend if backend is not None else build_backend(config)
         self.card = model_card(self.backend.card)
+        self._mask_params = config.depth_mask.params()
         cam = config.camera
         self.frames_sub = self.io.subscribe(keys.frames(cam), RGBDFrame, FRAMES)
         self.dets_sub = self.io.subscribe(keys.detections(cam), Detections, RELIABLE)
@@ -124,17 +134,30 @@ class EmbedderService(Node):
         if dets.image_width and dets.image_height and (dets.image_width, dets.image_height) != image.shape[1::-1]:
             boxes *= np.array([image.shape[1] / dets.image_width, image.shape[0] / dets.image_height] * 2)
             self.counters.count("rescaled_frames")
-        crops, kept = crop_boxes(image, boxes)
+        slices, usable, clipped = box_slices(boxes, image.shape[1], image.shape[0])
+        size = np.minimum(slices[:, 2] - slices[:, 0], slices[:, 3] - slices[:, 1])
+        kept = np.flatnonzero(usable & (size >= self.config.min_crop_px))
         indices = np.array([dets.detections[i].index for i in kept], np.int32)
         if len(np.unique(indices)) != len(indices):
             self.counters.invalid += 1
             log.warning("frame %d: detections carry duplicate indices; not published", frame.header.seq)
             return None
-        if len(kept) < len(boxes):
-            self.counters.count("empty_boxes", len(boxes) - len(kept))
+        if (~usable).any():
+            self.counters.count("empty_boxes", int((~usable).sum()))
+        if (usable & (size < self.config.min_crop_px)).any():
+            self.counters.count("tiny_crops", int((usable & (size < self.config.min_crop_px)).sum()))
+        if clipped[kept].any():
+            self.counters.count("clipped_boxes", int(clipped[kept].sum()))
+        crops = [image[y0:y1, x0:x1] for x0, y0, x1, y1 in slices[kept]]
+        masks = self._masks(frame, slices[kept]) if len(kept) else None
         t0 = time.perf_counter()
         try:
-            vectors = self.backend.embed(crops)
+            if masks is None:
+                vectors = self.backend.embed(crops)
+            elif getattr(self.backend, "accepts_masks", False):
+                vectors = self.backend.embed(crops, masks=masks)  # type: ignore[call-arg]
+            else:
+                vectors = self.backend.embed([apply_mask(c, m) for c, m in zip(crops, masks)])
         except EmbedderError as exc:
             self.counters.drop("backend_error")
             log.error("embedding frame %d failed: %s", frame.header.seq, exc)
@@ -144,3 +167,20 @@ class EmbedderService(Node):
         self.counters.count("descriptors", len(kept))
         return Embeddings(header=frame.header.model_copy(), model=self.card, indices=indices,
                           vectors=vectors.astype(np.float32, copy=False).reshape(len(kept), self.card.dim))
+
+    def _masks(self, frame: RGBDFrame, slices: np.ndarray) -> list[np.ndarray | None] | None:
+        """Depth masks of the crops at ``slices`` (K, 4), or None without depth (or when turned off)."""
+        if not self.config.depth_mask.enabled or frame.depth is None:
+            return None
+        try:
+            depth = frame.depth.to_array()
+        except ValueError as exc:
+            self.counters.count("depth_invalid")
+            log.warning("frame %s/%d: cannot decode the depth image, crops unmasked: %s", frame.header.source,
+                        frame.header.seq, exc)
+            return None
+        masks, reasons = depth_masks(depth.reshape(depth.shape[:2]), [tuple(int(v) for v in s) for s in slices],
+                                     self._mask_params)
+        for reason in reasons:
+            self.counters.count(reason if reason is not None else "masked_crops")
+        return masks

@@ -66,7 +66,7 @@ class AppearanceConfig(BaseModel):
 #    (services/embedder/core/colour.py, COLOUR_THRESHOLDS; a test keeps them equal).
 DEFAULT_APPEARANCE: dict[str, dict[str, float]] = {
     "trinet": {"t_lower": 300.0, "t_upper": 700.0, "t_recover": 400.0, "s_max": 0.05},
-    "colour": {"t_lower": 0.35, "t_upper": 0.85, "t_recover": 0.40},
+    "colour": {"t_lower": 0.31, "t_upper": 0.75, "t_recover": 0.38},
 }
 # --------------------------------------------------------------------------------------
 

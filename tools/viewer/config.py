@@ -18,6 +18,6 @@ class ViewerConfig(BaseModel):
     map_frame: str = Field(default="map", min_length=1, description="the frame of the map and the tracks")
     base_frame: str = Field(default="base_link", min_length=1, description="the robot's body frame")
     trail_s: float = Field(default=5.0, gt=0.0, le=120.0, description="how long a track's trail is (s)")
-    state_hz: float = Field(default=15.0, gt=0.0, le=60.0, description="most page states per second")
+    state_hz: float = Field(default=10.0, gt=0.0, le=60.0, description="most page states per second")
     image_hz: float = Field(default=10.0, gt=0.0, le=60.0, description="most camera images encoded per second")
     jpeg_quality: int = Field(default=75, ge=10, le=100)

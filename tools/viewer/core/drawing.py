@@ -90,15 +90,18 @@ class StageMeter:
 
     def rate_hz(self, now: float, span_s: float = 3.0) -> float:
         """Messages per second over the last ``span_s`` (0 when fewer than two arrived)."""
-        recent = [t for t in self._arrivals if now - t <= span_s]
+        t = np.fromiter(self._arrivals, np.float64, len(self._arrivals))
+        recent = t[now - t <= span_s]
         if len(recent) < 2:
             return 0.0
-        return (len(recent) - 1) / max(recent[-1] - recent[0], 1e-6)
+        return (len(recent) - 1) / max(float(recent[-1] - recent[0]), 1e-6)
 
     def latency_ms(self, q: float, now: float, span_s: float = 10.0) -> float | None:
         """The ``q``-th percentile latency of the last ``span_s`` seconds, or None."""
-        recent = [lat for t, lat in zip(self._arrivals, self._latencies_ms) if now - t <= span_s]
-        return float(np.percentile(recent, q)) if recent else None
+        t = np.fromiter(self._arrivals, np.float64, len(self._arrivals))
+        lat = np.fromiter(self._latencies_ms, np.float64, len(self._latencies_ms))
+        recent = lat[now - t <= span_s]
+        return float(np.percentile(recent, q)) if len(recent) else None
 
 
 def project_to_image(points: np.ndarray, camera_to_frame: np.ndarray, K: np.ndarray, width: int,

@@ -482,6 +482,8 @@ class Tracks(Message):
     appearance_available: bool = True
     embedding_model: str = ""
     note: str = Field(default="", description="a query's answer when it has no track: why (e.g. not found)")
+    input_stamp_ns: int = Field(default=0, ge=0, description="stamp of the newest input frame applied; at a fixed "
+                                "output rate header.stamp_ns is the publish time the tracks are predicted to")
 
 
 @message("perception.ForgetReply", 1)

@@ -159,6 +159,7 @@ tracks_msgs = st.builds(
     appearance_available=st.booleans(),
     embedding_model=st.text(max_size=8),
     note=st.text(max_size=20),
+    input_stamp_ns=stamps,
 )
 forget_msgs = st.builds(
     ForgetReply, header=headers, forgotten_ids=st.lists(st.integers(0, 10**6), max_size=4),

@@ -95,6 +95,7 @@ def look(who: int, dim: int = DIM) -> np.ndarray:
 
 
 def config(tmp_path: Path, profile: str = "robust", **kw: typing.Any) -> TrackerConfig:
+    kw.setdefault("output_rate_hz", 0.0)  # once per frame: these tests follow each frame's output
     return TrackerConfig(profile=profile, memory_path=tmp_path / "memory.npz", **kw)
 
 

@@ -78,6 +78,7 @@ class Rig:
 def config(tmp_path: Path, **kw: object) -> TrackerConfig:
     """The thesis profile unless ``profile`` says otherwise (these tests pin its timings)."""
     kw.setdefault("profile", "thesis")
+    kw.setdefault("output_rate_hz", 0.0)  # once per frame: these tests follow each frame's output
     return TrackerConfig(memory_path=tmp_path / "memory.npz", **kw)  # type: ignore[arg-type]
 
 

@@ -209,6 +209,9 @@ class TrackerConfig(BaseModel):
     # --- service
     camera: str = Field(default="head", min_length=1, description="camera whose streams to track ('*' for all)")
     frame_id: str = Field(default="map", min_length=1, description="tracking frame; inputs in another frame are dropped")
+    output_rate_hz: float = Field(
+        default=10.0, ge=0.0, le=1000.0,
+        description="Tracks published at this rate, predicted to the publish time (seed 001); 0: once per input frame")
     join_wait_s: float = Field(default=0.1, ge=0.0, le=10.0,
                                description="how long localized detections wait for their embeddings")
     reorder_window_s: float = Field(default=0.5, ge=0.0, le=10.0,

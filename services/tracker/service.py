@@ -152,6 +152,11 @@ class TrackerService(Node):
         for track_id in memory.entries:
             self._seen.setdefault(track_id, start)
         self._forgotten: set[int] = set()  # forgotten IDs of tracks still live: the query answers "not found"
+        # the fixed output rate (seed 001): None publishes once per input frame
+        self._period = 1.0 / config.output_rate_hz if config.output_rate_hz > 0 else None
+        self._next_pub: float | None = None
+        self._latest: tuple[_Frame, FrameResult] | None = None
+        self._offset_ns: int | None = None  # sensor clock - this clock, at the newest frame
         self._last_expiry = -1e18
 
     def describe(self) -> str:
@@ -309,6 +314,7 @@ class TrackerService(Node):
         h = frame.loc.header
         header = Header(stamp_ns=h.stamp_ns, frame_id=self.config.frame_id, seq=h.seq, source=h.source)
         msg = tracks_message(result, self.tracker.reported(result), header, self.model or "", self._epoch_ns)
+        msg.input_stamp_ns = h.stamp_ns
         self.publisher.put(msg)
         self.counters.gauge("tracks_confirmed", len(result.confirmed))
         self.counters.gauge("tracks_live", len(result.tracks))
@@ -321,6 +327,8 @@ class TrackerService(Node):
         with self._lock:
             published = self._drain(now)
             published += self._apply_ready(now)
+            if self._period is not None:
+                published += self._tick(now)
             self._expire(now)
             self._persist(now)
         return published
@@ -346,12 +354,49 @@ class TrackerService(Node):
             if len(results) > 1:
                 self.counters.count("rewinds")
             newest = self.buffer.latest() or (key, frame)
-            published.append(self._publish(newest[1], results[-1]))
+            if self._period is None:
+                published.append(self._publish(newest[1], results[-1]))
+            else:  # published at the fixed rate, predicted to the publish time (poll: _tick)
+                self._latest = (newest[1], results[-1])
+                self._offset_ns = newest[1].loc.header.stamp_ns - int(now * 1e9)
         return published
 
+    def _tick(self, now: float) -> list[Tracks]:
+        """At the fixed output rate: the latest tracks predicted to now in the sensor's clock
+        (the newest frame's stamp plus the time since it was applied), whatever arrived."""
+        assert self._period is not None
+        if self._latest is None or self._offset_ns is None or self._epoch_ns is None:
+            return []
+        if self._next_pub is None:
+            self._next_pub = now
+        if now < self._next_pub:
+            return []
+        self._next_pub += self._period
+        if self._next_pub <= now:  # fell behind (a long frame): no burst, the next tick a period on
+            self._next_pub = now + self._period
+        frame, result = self._latest
+        stamp_ns = int(now * 1e9) + self._offset_ns
+        dt = max(0.0, (stamp_ns - self._epoch_ns) / 1e9 - result.stamp)
+        views = self.tracker.predict_views(self.tracker.reported(result), dt)
+        h = frame.loc.header
+        # the newest frame's seq and source, so a consumer can tell which input the tracks include
+        header = Header(stamp_ns=max(stamp_ns, h.stamp_ns), frame_id=self.config.frame_id, seq=h.seq, source=h.source)
+        msg = tracks_message(result, views, header, self.model or "", self._epoch_ns)
+        msg.input_stamp_ns = h.stamp_ns
+        self.publisher.put(msg)
+        self.counters.gauge("tracks_confirmed", len(result.confirmed))
+        self.counters.gauge("tracks_live", len(result.tracks))
+        self.counters.gauge("ids_remembered", len(self.tracker.memory))
+        self.counters.gauge("ids_evicted", self.tracker.memory.evicted)
+        return [msg]
+
     def deadline(self, now: float) -> float | None:
-        """Seconds until the earliest pending frame stops waiting for its embeddings."""
-        return self.join.next_deadline(now)
+        """Seconds until the earliest pending frame stops waiting for its embeddings, or the
+        next fixed-rate output is due."""
+        waits = [w for w in (self.join.next_deadline(now),) if w is not None]
+        if self._period is not None and self._next_pub is not None and self._latest is not None:
+            waits.append(max(0.0, self._next_pub - now))
+        return min(waits) if waits else None
 
     # ------------------------------------------------------------- persistence
     def _persist(self, now: float, force: bool = False) -> None:

@@ -167,7 +167,10 @@ class Observer:
                 e.last_stamp_ns = max(e.last_stamp_ns, t.stamp_ns)
             return
         source = msg.header.source or camera
-        if stream in ("frames", "detections", "localized", "embeddings", "tracks"):
+        if stream == "tracks" and isinstance(msg, Tracks) and msg.input_stamp_ns:
+            # at a fixed output rate the stamp is the publish time: key the newest input frame
+            self.stages[source][stream].setdefault((msg.input_stamp_ns, msg.header.source, msg.header.seq), recv_ns)
+        elif stream in ("frames", "detections", "localized", "embeddings", "tracks"):
             self.stages[source][stream].setdefault(msg.header.join_key, recv_ns)
         if isinstance(msg, RGBDFrame):
             self.offsets[camera].append(recv_ns - msg.header.stamp_ns)

@@ -561,6 +561,15 @@ class RobustTracker:
             self.forget(i)
         return ids
 
+    def predict_views(self, views: list[TrackView], dt: float) -> list[TrackView]:
+        """``views`` moved ``dt`` seconds ahead by the constant-velocity model (for output at
+        a fixed rate between frames); the tracker's state does not change."""
+        if not views or dt <= 0:
+            return list(views)
+        means, covs = kalman.predict(np.stack([v.mean for v in views]), np.stack([v.cov for v in views]), dt,
+                                     self._q(dt))
+        return [replace(v, mean=m, cov=c) for v, m, c in zip(views, means, covs)]
+
     def restart_clock(self) -> list[int]:
         """End every live track and forget the clock, keeping the ID memory (a clock jump:
         a replay that loops, a sensor clock reset). Each confirmed track's gallery goes to

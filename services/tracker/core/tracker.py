@@ -21,7 +21,7 @@ Time step (``TrackerParams.time_step``):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 from typing import Literal
 
@@ -395,6 +395,19 @@ class Tracker:
             self.forget(i)
         return ids
 
+    def predict_views(self, views: list[TrackView], dt: float) -> list[TrackView]:
+        """``views`` moved ``dt`` seconds ahead by the motion model (for output at a fixed
+        rate between frames); the tracker's state does not change."""
+        if not views or dt <= 0:
+            return list(views)
+        if self.params.time_step == "frame":
+            step, scale = dt / self.params.frame_period_s, dt / self.params.frame_period_s
+        else:
+            step, scale = dt, dt / self.params.frame_period_s
+        means, covs = kalman.predict(np.stack([v.mean for v in views]), np.stack([v.cov for v in views]), step,
+                                     np.diag(self._q_frame * scale))
+        return [replace(v, mean=m, cov=c) for v, m, c in zip(views, means, covs)]
+
     def restart_clock(self) -> list[int]:
         """End every live track and forget the clock, keeping the ID memory (a clock jump:
         a replay that loops, a sensor clock reset). Each track's gallery goes to the memory,
@@ -419,8 +432,6 @@ class Tracker:
 
 
 def _replace(params: TrackerParams, **changes: object) -> TrackerParams:
-    from dataclasses import replace
-
     return replace(params, **changes)  # type: ignore[arg-type]
 
 

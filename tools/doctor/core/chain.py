@@ -84,7 +84,13 @@ def _stage_counts(obs: Observation, camera: str) -> tuple[dict[str, int], list[t
     passes = []
     for stream, node, source in CHAIN[1:]:
         eligible = [k for k, t in stages.get(source, {}).items() if t <= cutoff]
-        passed = sum(1 for k in eligible if k in stages.get(stream, {}))
+        if stream == "tracks":
+            # at a fixed output rate not every frame has its own Tracks message: a frame has
+            # passed when tracks including it (up to its stamp) were published
+            newest = max((k[0] for k in stages.get(stream, {})), default=None)
+            passed = sum(1 for k in eligible if newest is not None and k[0] <= newest)
+        else:
+            passed = sum(1 for k in eligible if k in stages.get(stream, {}))
         passes.append((stream, node, source, passed, len(eligible)))
     return counts, passes
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = ["ViewerConfig"]
 
@@ -13,11 +13,19 @@ class ViewerConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     camera: str = Field(default="head", description="camera name in the keys")
-    host: str = Field(default="127.0.0.1", description="address the page is served on")
-    port: int = Field(default=8080, ge=0, le=65535, description="the page's HTTP port (0: a free one)")
+    host: str = Field(default="127.0.0.1", description="address the page and the Foxglove server bind to")
+    port: int | None = Field(default=8080, ge=0, le=65535, description="the page's HTTP port (0: a free one; None: no page)")
+    foxglove_port: int | None = Field(default=None, ge=0, le=65535,
+                                      description="Foxglove WebSocket port (None: no Foxglove server)")
     map_frame: str = Field(default="map", min_length=1, description="the frame of the map and the tracks")
     base_frame: str = Field(default="base_link", min_length=1, description="the robot's body frame")
     trail_s: float = Field(default=5.0, gt=0.0, le=120.0, description="how long a track's trail is (s)")
     state_hz: float = Field(default=10.0, gt=0.0, le=60.0, description="most page states per second")
     image_hz: float = Field(default=10.0, gt=0.0, le=60.0, description="most camera images encoded per second")
     jpeg_quality: int = Field(default=75, ge=10, le=100)
+
+    @model_validator(mode="after")
+    def _something_to_serve(self) -> ViewerConfig:
+        if self.port is None and self.foxglove_port is None:
+            raise ValueError("nothing to serve: give --port or --foxglove-port")
+        return self

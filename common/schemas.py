@@ -472,6 +472,11 @@ class TrackState(_Model):
     age_s: float = Field(ge=0.0)
     misses: int = Field(default=0, ge=0)
     appearance_available: bool = True
+    posture: list[float] = Field(default_factory=lambda: [1 / 3] * 3, min_length=3, max_length=3,
+                                 description="P(standing, sitting, lying); uniform: unknown")
+    orientation: list[float] = Field(default_factory=lambda: [1 / 8] * 8, min_length=8, max_length=8,
+                                     description="P(upper body faces bin k), bin k centred on k * 45 degrees in the "
+                                                 "tracking frame (0 along +x); uniform: unknown")
 
 
 @message("perception.Tracks", 1)

@@ -19,6 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from services.tracker.core import AppearanceGate, TrackerParams
 from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.identity import IdentityMemory
+from services.tracker.core.posture import PostureParams
 from services.tracker.core.robust import (
     AppearanceModel,
     RobustParams,
@@ -124,6 +125,29 @@ class ClassifierConfig(BaseModel):
         return ClassifierParams(self.rate, self.l2, self.clip, self.weight, self.recover_score) if self.enabled else None
 
 
+_PO = PostureParams()
+
+
+class PostureConfig(BaseModel):
+    """Seed 001's posture and orientation filters (services/tracker/core/posture.py)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    enabled: bool = Field(default=True, description="estimate posture and orientation per track")
+    posture_tau_s: float = Field(default=_PO.posture_tau_s, gt=0.0, description="drift of posture to unknown (s)")
+    orientation_tau_s: float = Field(default=_PO.orientation_tau_s, gt=0.0,
+                                     description="drift of orientation to unknown (s)")
+    min_speed: float = Field(default=_PO.min_speed, ge=0.0, description="walking slower says nothing of orientation (m/s)")
+    kappa_per_mps: float = Field(default=_PO.kappa_per_mps, gt=0.0, description="von Mises concentration per m/s")
+    max_kappa: float = Field(default=_PO.max_kappa, gt=0.0, description="its cap")
+
+    def params(self) -> PostureParams | None:
+        if not self.enabled:
+            return None
+        return PostureParams(self.posture_tau_s, self.orientation_tau_s, self.min_speed, self.kappa_per_mps,
+                             self.max_kappa)
+
+
 class RobustConfig(BaseModel):
     """The ``robust`` profile's settings (services/tracker/README.md explains each)."""
 
@@ -161,11 +185,12 @@ class RobustConfig(BaseModel):
                                     description="a track whose (x, y) variance trace passes this is deleted (m^2)")
     gallery_size: int = Field(default=_R.gallery_size, ge=1, le=100_000, description="max descriptors per track")
     classifier: ClassifierConfig = Field(default_factory=ClassifierConfig)
+    posture: PostureConfig = Field(default_factory=PostureConfig)
 
     def params(self, appearance: AppearanceModel | None, memory_size: int) -> RobustParams:
-        fields = self.model_dump(exclude={"scores", "use_detection_covariance", "classifier"})
+        fields = self.model_dump(exclude={"scores", "use_detection_covariance", "classifier", "posture"})
         return RobustParams(**fields, appearance=appearance, scores=self.scores.model(), memory_size=memory_size,
-                            classifier=self.classifier.params())
+                            classifier=self.classifier.params(), posture=self.posture.params())
 
 
 class TrackerConfig(BaseModel):

@@ -68,6 +68,8 @@ def track_state(view: TrackView, appearance: bool, epoch_ns: int = 0) -> TrackSt
         age_s=view.age_s,
         misses=view.misses,
         appearance_available=appearance and view.gallery_size > 0,
+        **({"posture": view.posture.tolist()} if view.posture is not None else {}),
+        **({"orientation": view.orientation.tolist()} if view.orientation is not None else {}),
     )
 
 

@@ -283,7 +283,10 @@ class TrackerService(Node):
         if self.config.uses_detection_covariance:  # unusable ones: the profile's fixed R (counted on arrival)
             covs_used = np.where(usable_covariances(covs)[:, None, None], covs, self.config.covariance_fallback + _R_EPS)
         scores = np.array([d.score for d in loc.detections], np.float64)
-        result = self.tracker.update(stamp, positions, descriptors, covs_used, scores, view=field_of_view(loc))
+        boxes = np.array([d.bbox_xyxy for d in loc.detections], np.float64).reshape(-1, 4)
+        aspects = (boxes[:, 3] - boxes[:, 1]) / np.maximum(boxes[:, 2] - boxes[:, 0], 1e-6)  # for posture
+        result = self.tracker.update(stamp, positions, descriptors, covs_used, scores, view=field_of_view(loc),
+                                     aspects=aspects)
         self._ever_confirmed.update(v.id for v in result.confirmed)
         self.counters.count("updates")
         if not result.appearance_available and loc.detections:

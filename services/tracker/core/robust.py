@@ -61,7 +61,9 @@ from services.tracker.core import classifier as clf
 from services.tracker.core import kalman, ukf
 from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.gallery import Gallery
+from services.tracker.core import posture as pose
 from services.tracker.core.identity import IdentityMemory
+from services.tracker.core.posture import PostureParams
 from services.tracker.core.tracker import FrameResult, TrackStatus, TrackView
 from services.tracker.core.view import FieldOfView
 
@@ -154,6 +156,8 @@ class RobustParams:
     memory_size: int = 500
     #: seed 002's online per-track appearance classifiers; None: off
     classifier: ClassifierParams | None = field(default_factory=ClassifierParams)
+    #: seed 001's posture and orientation filters; None: off
+    posture: PostureParams | None = field(default_factory=PostureParams)
 
     def __post_init__(self) -> None:
         if self.n_init < 1:
@@ -190,6 +194,8 @@ class _Track:
     clf: np.ndarray | None = None  # online classifier weights (D + 1), once trained
     clf_steps: int = 0
     forgotten: bool = False  # its person was forgotten: it learns and leaves no appearance
+    posture: np.ndarray = field(default_factory=lambda: pose.uniform(3))
+    orientation: np.ndarray = field(default_factory=lambda: pose.uniform(pose.ORIENTATION_BINS))
 
     def copy(self) -> _Track:
         return replace(self, mean=self.mean.copy(), cov=self.cov.copy(),
@@ -229,6 +235,7 @@ class RobustTracker:
         self._d2: dict[tuple[int, int], np.ndarray] = {}  # this frame's pair distances to galleries
         self._q_dt, self._q_last = -1.0, np.zeros((6, 6))  # the last step's process noise
         self._r_cache: dict[int, np.ndarray] = {}
+        self._pose_dt, self._pose_m = -1.0, (np.eye(3), np.eye(pose.ORIENTATION_BINS))  # drift matrices of the last dt
 
     # ------------------------------------------------------------------ helpers
     def set_gate(self, appearance: AppearanceModel | None) -> None:
@@ -254,11 +261,13 @@ class RobustTracker:
     # ------------------------------------------------------------------ update
     def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
                measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
-               view: FieldOfView | None = None) -> FrameResult:
+               view: FieldOfView | None = None, aspects: np.ndarray | None = None) -> FrameResult:
         """Process one frame: ``stamp`` in seconds, ``positions`` (N, 3), ``descriptors``
         (N, D) or None (a NaN row: no descriptor), ``measurement_cov`` (N, 3, 3) or None,
         ``scores`` (N,) or None (the detector's confidences), ``view`` what the camera could
-        see (None: unknown): a coasting track out of view is kept but not reported."""
+        see (None: unknown): a coasting track out of view is kept but not reported; ``aspects``
+        (N,) each detection's box height / width (None: no boxes; posture is then not
+        estimated, since the positions' z need not be a height above the floor either)."""
         p = self.params
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         n = len(positions)
@@ -285,6 +294,7 @@ class RobustTracker:
         result = FrameResult(stamp=stamp, appearance_available=appearance)
         matches = self._associate(log_odds, confident)
         self._update_matched(matches, positions, r, descriptors, has_desc, p_det, confident, stamp)
+        self._update_pose(matches, positions, aspects)
         self._train_classifiers(matches, descriptors, has_desc, confident)
         matched_d = {d for d, _ in matches}
         self._age(stamp, result, appearance)
@@ -338,6 +348,17 @@ class RobustTracker:
         for t, m, c in zip(self.tracks, means, covs):
             t.mean, t.cov = m, c
             t.is_person = 0.5 + (t.is_person - 0.5) * fade
+        pp = self.params.posture
+        if pp is not None:  # every track's posture and orientation drift in two products
+            step = round(dt, 3)  # to the millisecond: the matrices are rebuilt only when the rate changes
+            if step != self._pose_dt:
+                self._pose_dt = step
+                self._pose_m = (pose.transition(3, step, pp.posture_tau_s),
+                                pose.transition(pose.ORIENTATION_BINS, step, pp.orientation_tau_s, circular=True))
+            postures = np.array([t.posture for t in self.tracks]) @ self._pose_m[0]
+            orientations = np.array([t.orientation for t in self.tracks]) @ self._pose_m[1]
+            for t, p_, o_ in zip(self.tracks, postures, orientations):
+                t.posture, t.orientation = p_, o_
 
     def _pair_log_odds(self, positions: np.ndarray, r: np.ndarray, descriptors: np.ndarray | None,
                        has_desc: np.ndarray, p_det: np.ndarray) -> np.ndarray:
@@ -445,6 +466,18 @@ class RobustTracker:
             if has_desc[d] and descriptors is not None and confident[d]:
                 self._add_descriptor(t, descriptors[d], self._d2.get((d, j)))
 
+    def _update_pose(self, matches: list[tuple[int, int]], positions: np.ndarray, aspects: np.ndarray | None) -> None:
+        """Seed 001: posture from the body height and box shape, orientation from walking."""
+        pp = self.params.posture
+        if pp is None:
+            return
+        for d, j in matches:
+            t = self.tracks[j]
+            if aspects is not None:
+                t.posture = pose.update(t.posture, pose.posture_evidence(float(positions[d, 2]), float(aspects[d])))
+            if t.status is not TrackStatus.TENTATIVE:  # a young track's velocity is its prior
+                t.orientation = pose.update(t.orientation, pose.orientation_evidence(t.mean[3:5], pp))
+
     def _age(self, stamp: float, result: FrameResult, appearance: bool) -> None:
         p = self.params
         keep = []
@@ -535,8 +568,10 @@ class RobustTracker:
         # the arrays are shared: the tracker never writes into a track's mean or cov, every
         # predict and update makes new ones
         mean, cov = (t.mean[:6], t.cov[:6, :6]) if self._ukf else (t.mean, t.cov)  # (x, y, z, vx, vy, vz)
+        on = self.params.posture is not None
         return TrackView(t.id, t.status, mean, cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp),
-                         t.last_update, len(t.gallery) if t.gallery else 0, t.ever_confirmed)
+                         t.last_update, len(t.gallery) if t.gallery else 0, t.ever_confirmed,
+                         posture=t.posture if on else None, orientation=t.orientation if on else None)
 
     def forget(self, track_id: int) -> dict[str, int | bool]:
         """Forget a person: their remembered descriptors and classifier go, and a live track

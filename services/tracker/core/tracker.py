@@ -119,6 +119,9 @@ class TrackView:
     ever_confirmed: bool = False
     #: whether the camera could see the track's position at this update (None: not known)
     in_view: bool | None = None
+    #: P(standing, sitting, lying) (3,) and P(orientation bin) (8,); None: not estimated
+    posture: np.ndarray | None = None
+    orientation: np.ndarray | None = None
 
     @property
     def position(self) -> np.ndarray:
@@ -200,7 +203,7 @@ class Tracker:
     # ------------------------------------------------------------------ update
     def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
                measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
-               view: object | None = None) -> FrameResult:
+               view: object | None = None, aspects: np.ndarray | None = None) -> FrameResult:
         """Process one frame.
 
         ``stamp`` in seconds (sensor time). ``positions`` (N, 3) in the tracking frame.
@@ -208,7 +211,8 @@ class Tracker:
         detection without a descriptor. ``measurement_cov`` (N, 3, 3) replaces the
         thesis's fixed ``R`` per detection when given. ``scores`` are accepted for the
         robust profile's interface and unused: the thesis has no detector confidence;
-        ``view`` (the camera's field of view) likewise: the thesis reports Confirmed tracks only.
+        ``view`` (the camera's field of view) and ``aspects`` (box shapes, for posture)
+        likewise: the thesis reports Confirmed tracks only and estimates no posture.
         """
         positions, descriptors = _checked_inputs(positions, descriptors)
         appearance = descriptors is not None and self.params.gate is not None

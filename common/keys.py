@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
-__all__ = ["DEFAULT_PREFIX", "DEFAULT_ROBOT", "STREAMS", "AliveKey", "Delivery", "Keys", "Stream", "validate_chunk"]
+__all__ = ["COMMANDS", "DEFAULT_PREFIX", "DEFAULT_ROBOT", "STREAMS", "AliveKey", "Delivery", "Keys", "Stream", "validate_chunk"]
 
 DEFAULT_PREFIX = "pp"
 DEFAULT_ROBOT = "robot"
@@ -51,6 +51,8 @@ class Delivery:
 FRAMES = Delivery(latest=True, queue=1, congestion="drop", express=True)
 RELIABLE = Delivery(latest=False, queue=256, congestion="block")
 STATUS = Delivery(latest=False, queue=64, congestion="drop")
+#: Commands to an actuator: only the newest matters, and it must not wait behind older ones.
+COMMANDS = Delivery(latest=True, queue=1, congestion="drop", express=True)
 
 
 @dataclass(frozen=True)
@@ -81,6 +83,9 @@ STREAMS: tuple[Stream, ...] = (
     Stream("track_query", "query/track", "query `?id=K` → TrackState", "tracker (queryable)", "any client", None, "query"),
     Stream("forget_query", "query/forget", "query `?id=K` or `?all=1` → ForgetReply", "tracker (queryable)",
            "perception forget", None, "query"),
+    Stream("head_command", "head/command", "HeadCommand", "attention", "the head's driver, simulator", COMMANDS),
+    Stream("attention_query", "query/attention", "query `?target=K`, `nearest` or `none` (none: the state) → AttentionReply",
+           "attention (queryable)", "perception look, HRI", None, "query"),
 )
 
 
@@ -161,6 +166,14 @@ class Keys:
 
     def forget_query(self) -> str:
         return self._join("query", "forget")
+
+    def head_command(self) -> str:
+        """Pan/tilt velocity commands for the robot's head (the attention node's output)."""
+        return self._join("head", "command")
+
+    def attention_query(self) -> str:
+        """Whom the attention node looks at: ``?target=K``, ``?target=nearest``, ``?target=none``."""
+        return self._join("query", "attention")
 
     def all(self) -> str:
         return self._join("**")

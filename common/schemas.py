@@ -31,9 +31,11 @@ __all__ = [
     "CameraInfo",
     "CameraView",
     "Detection",
+    "AttentionReply",
     "Detections",
     "Embeddings",
     "ForgetReply",
+    "HeadCommand",
     "Header",
     "Image",
     "LocalizedDetection",
@@ -501,6 +503,45 @@ class ForgetReply(Message):
     live_tracks_cleared: list[int] = Field(default_factory=list,
                                            description="live tracks that keep their ID but lost their appearance")
     error: str = Field(default="", description="why nothing was done (a malformed request, an unknown ID)")
+
+
+# ------------------------------------------------------------------------- attention
+
+
+@message("perception.HeadCommand", 1)
+class HeadCommand(Message):
+    """Pan/tilt velocities for the robot's head, from the attention node (``keys.head_command()``).
+
+    ``header.stamp_ns`` is the sensor time the command was computed for (the tracks'
+    stamp); ``header.frame_id`` the frame whose z axis is the pan axis (``base_link``).
+    """
+
+    pan_rate: float = Field(default=0.0, description="rad/s about the base's z axis; positive turns the head left")
+    tilt_rate: float = Field(default=0.0, description="rad/s about the head's y axis; positive looks down")
+    mode: Literal["track", "hold", "rest", "idle", "blind"] = Field(
+        default="idle", description="track: servoing on target_id; hold: target lost, waiting; rest: returning to the "
+                                    "rest pose; idle: at rest; blind: no camera info or transform, standing still")
+    target_id: int = Field(default=-1, ge=-1, description="the person followed (track, hold), -1 for none")
+    error_px: tuple[float, float] = Field(default=(0.0, 0.0),
+                                          description="the target's image position minus the image centre (track)")
+    timeout_s: float = Field(default=0.5, gt=0.0, description="the head stops if no newer command comes within this")
+    input_stamp_ns: int = Field(default=0, ge=0, description="stamp of the Tracks message this command answers")
+
+    @model_validator(mode="after")
+    def _check(self) -> HeadCommand:
+        _finite([self.pan_rate, self.tilt_rate, *self.error_px, self.timeout_s], "pan_rate, tilt_rate and error_px")
+        return self
+
+
+@message("perception.AttentionReply", 1)
+class AttentionReply(Message):
+    """The attention node's answer to a query on ``keys.attention_query()``: its state after the request."""
+
+    mode: Literal["none", "nearest", "id"] = Field(default="none", description="what the node is told to look at")
+    requested_id: int = Field(default=-1, ge=-1, description="the ID asked for in mode 'id'")
+    following_id: int = Field(default=-1, ge=-1, description="the person the head follows now, -1 for none")
+    known_ids: list[int] = Field(default_factory=list, description="the IDs in the latest tracks")
+    error: str = Field(default="", description="why the request was refused (an unknown ID, a malformed target)")
 
 
 # ---------------------------------------------------------------------------- status

@@ -12,8 +12,10 @@ from common.schemas import (
     CameraView,
     Detection,
     Detections,
+    AttentionReply,
     Embeddings,
     ForgetReply,
+    HeadCommand,
     Header,
     Image,
     LocalizedDetection,
@@ -166,6 +168,15 @@ forget_msgs = st.builds(
     descriptors_removed=st.integers(0, 10**6), classifiers_removed=st.integers(0, 100),
     live_tracks_cleared=st.lists(st.integers(0, 10**6), max_size=4), error=st.text(max_size=20),
 )
+head_command_msgs = st.builds(
+    HeadCommand, header=headers, pan_rate=finite, tilt_rate=finite,
+    mode=st.sampled_from(["track", "hold", "rest", "idle", "blind"]), target_id=st.integers(-1, 10**6),
+    error_px=st.tuples(finite, finite), timeout_s=st.floats(1e-3, 10.0), input_stamp_ns=stamps,
+)
+attention_reply_msgs = st.builds(
+    AttentionReply, header=headers, mode=st.sampled_from(["none", "nearest", "id"]), requested_id=st.integers(-1, 10**6),
+    following_id=st.integers(-1, 10**6), known_ids=st.lists(st.integers(0, 10**6), max_size=4), error=st.text(max_size=20),
+)
 status_msgs = st.builds(
     ServiceStatus, header=headers, name=names, instance=st.text(max_size=10), host=st.text(max_size=10),
     pid=st.integers(0, 2**22), version=st.text(max_size=8), uptime_s=st.floats(0, 1e7),
@@ -197,6 +208,8 @@ MESSAGE_STRATEGIES = {
     "perception.Embeddings": embeddings_msgs(),
     "perception.Tracks": tracks_msgs,
     "perception.ForgetReply": forget_msgs,
+    "perception.HeadCommand": head_command_msgs,
+    "perception.AttentionReply": attention_reply_msgs,
     "perception.ServiceStatus": status_msgs,
     "perception.PeopleGroundTruth": groundtruth_msgs,
 }

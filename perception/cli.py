@@ -26,6 +26,7 @@ COMMAND_PACKAGES = (
     "services.localizer",
     "services.embedder",
     "services.tracker",
+    "services.attention",
     "tools.evaluation",
     "tools.replay",
     "tools.simulator",

@@ -1,0 +1,25 @@
+"""The flags of ``perception attention`` and the settings they override."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from common.node import add_node_arguments
+
+__all__ = ["add_arguments", "overrides"]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    g = parser.add_argument_group("attention")
+    g.add_argument("--target", default=None, metavar="ID|nearest|none",
+                   help="whom to look at from the start (default none; change it with perception look)")
+    g.add_argument("--camera", default=None, help="the camera on the head, for its camera info (default head)")
+    g.add_argument("--gain", type=float, default=None, metavar="PER_S", help="control gain (default 1.2 per s)")
+    g.add_argument("--hold", dest="hold_s", type=float, default=None, metavar="S",
+                   help="a lost target: hold still this long, then return to rest (default 2 s)")
+    add_node_arguments(parser, "attention")
+
+
+def overrides(args: argparse.Namespace) -> dict[str, Any]:
+    return {"target": args.target, "camera": args.camera, "gain": args.gain, "hold_s": args.hold_s}

@@ -13,7 +13,7 @@ from services.detector.core.boxes import iou_matrix, nms
 from services.detector.core.hog import HogDetector, HogParams, vote_boxes
 
 #: Measured with these settings on the four frames: precision 1.00 (15/15), recall 0.83 (15/18).
-#: (The default threshold 0.5 finds 4 more boxes there, people the four frames' ground truth lacks among them.)
+#: (Threshold 0.5 finds 4 more boxes there, people the four frames' ground truth lacks among them.)
 PETS09 = HogParams(upsample=2.25, hit_threshold=1.0)
 PRECISION_FLOOR = 0.90
 RECALL_FLOOR = 0.75

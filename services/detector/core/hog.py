@@ -34,7 +34,7 @@ class HogParams:
     """Settings of :class:`HogDetector` (defaults tuned on PETS09 S2.L1, see the README)."""
 
     upsample: float = 1.0
-    hit_threshold: float = 0.5
+    hit_threshold: float = 1.0
     win_stride: int = 8
     scale: float = 1.05
     padding: int = 8

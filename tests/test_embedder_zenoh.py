@@ -15,6 +15,7 @@ from common.keys import FRAMES, RELIABLE, Keys
 from common.router_process import RouterProcess
 from common.schemas import Detections, Embeddings, RGBDFrame
 from common.zenoh_transport import ZenohTransport
+from services.embedder.core.colour import DIM as COLOUR_DIM
 from tests.test_embedder_service import BOX_GREEN, BOX_RED, detections, frame
 
 pytestmark = pytest.mark.zenoh
@@ -44,7 +45,7 @@ def test_embedder_process_round_trip(router: RouterProcess, zenoh_client: Callab
                 break
         assert got is not None, "no embeddings came back"
         assert got.msg.model.name == "colour" and got.msg.indices.tolist() == [0, 1]
-        assert got.msg.vectors.shape == (2, 128)
+        assert got.msg.vectors.shape == (2, COLOUR_DIM)
     finally:
         proc.send_signal(signal.SIGINT)
         try:

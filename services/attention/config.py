@@ -31,7 +31,13 @@ class AttentionConfig(BaseModel):
     target: str = Field(default="none", description="at start: a track ID, 'nearest' or 'none' (change it with "
                                                     "perception look or the attention query)")
     hold_s: float = Field(default=2.0, ge=0.0, le=600.0, description="a lost target: hold still this long, then rest (s)")
-    switch_margin_m: float = Field(default=1.0, ge=0.0, description="'nearest': another person must be this much nearer")
+    switch_margin_m: float = Field(default=1.5, ge=0.0, description="'nearest': another person must be this much nearer")
+    reacquire_radius_m: float = Field(default=0.8, ge=0.0, description="'nearest': a person this near where the one "
+                                                                       "followed was last seen is taken as them")
+    aim_height_m: float | None = Field(
+        default=1.15, gt=0.0, le=3.0,
+        description="aim at this height in the tracking frame (a standing adult's torso) instead of the track's z, which follows the "
+                    "box centre and drifts when the box is clipped by the image; null: the track's z")
     # --- the control law (seed 003, Eq 19)
     gain: float = Field(default=_S.gain, gt=0.0, le=20.0, description="1/s: the centring error decays as exp(-gain t)")
     feedforward: float = Field(default=_S.feedforward, ge=0.0, le=2.0,

@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from common.geometry import FrameTreeError, PinholeCamera, TransformBuffer, TransformError
+from common.geometry import FrameTreeError, PinholeCamera, RigidTransform, TransformBuffer, TransformError
 from common.geometry_messages import add_transform, camera_from_info
 from common.keys import COMMANDS, FRAMES, RELIABLE, Keys
 from common.node import Node
@@ -39,6 +39,9 @@ __all__ = ["AttentionService"]
 
 log = logging.getLogger(__name__)
 
+#: The base's motion (for the feed-forward) is measured over this interval of its transforms.
+BASE_DT_S = 0.1
+
 
 class AttentionService(Node):
     name = "attention"
@@ -47,7 +50,7 @@ class AttentionService(Node):
         super().__init__(transport, keys, counters)
         self.config = config
         self.params = config.servo_params()
-        self.chooser = Chooser(config.hold_s, config.switch_margin_m)
+        self.chooser = Chooser(config.hold_s, config.switch_margin_m, config.reacquire_radius_m)
         mode, track_id = parse_target(config.target)
         self.chooser.request(mode, track_id)  # type: ignore[arg-type]
         self.buffer = TransformBuffer(history_s=config.tf_history_s, tolerance_s=config.tf_tolerance_s)
@@ -102,7 +105,7 @@ class AttentionService(Node):
                 self.counters.count("nan_tracks")
                 self._log.warning("nan", "track %d has a non-finite position or velocity: ignored", t.id)
                 continue
-            people.append(Person(t.id, np.asarray(t.position, float), np.asarray(t.velocity, float),
+            people.append(Person(t.id, np.array(t.position, float), np.array(t.velocity, float),
                                  t.status in ("confirmed", "coasting")))
         return people
 
@@ -113,7 +116,7 @@ class AttentionService(Node):
         header = Header(stamp_ns=stamp_ns, frame_id=cfg.base_frame, source=self.name)
         base = dict(header=header, timeout_s=cfg.command_timeout_s, input_stamp_ns=self._tracks_stamp_ns,
                     target_id=max(decision.target_id, -1))
-        if decision.phase == "hold":
+        if decision.phase == "hold" and decision.target is None:
             return HeadCommand(**base, mode="hold")
         try:
             base_tilt = self.buffer.lookup(cfg.base_frame, cfg.tilt_frame, None)
@@ -142,8 +145,11 @@ class AttentionService(Node):
             return HeadCommand(**base, mode="blind")
         ahead_s = 0.0 if tf_stamp is None else min(max((tf_stamp - self._tracks_stamp_ns) * 1e-9, 0.0), cfg.max_predict_s)
         target = decision.target
-        X = cam_from_map.apply(target.position + ahead_s * target.velocity)
-        X_dot = cam_from_map.rotation.apply(target.velocity)
+        aim = target.position + ahead_s * target.velocity
+        if cfg.aim_height_m is not None:
+            aim[2] = cfg.aim_height_m
+        X = cam_from_map.apply(aim)
+        X_dot = cam_from_map.rotation.apply(target.velocity) + self._base_motion(aim, frame_id, tf_stamp, cam_from_base, X)
         geometry = HeadGeometry(pan_axis=cam_from_base.matrix[:3, 2], pan_pivot=cam_from_pan.translation,
                                 tilt_axis=cam_from_tilt.matrix[:3, 1], tilt_pivot=cam_from_tilt.translation)
         cam = self.camera
@@ -154,7 +160,21 @@ class AttentionService(Node):
         error = (0.0, 0.0) if not all(map(math.isfinite, result.error_px)) else result.error_px
         if all(map(math.isfinite, result.error_px)):
             self.counters.gauge("error_px", float(np.hypot(*error)))
-        return HeadCommand(**base, mode="track", pan_rate=result.pan_rate, tilt_rate=result.tilt_rate, error_px=error)
+        mode = "track" if decision.phase == "track" else "hold"
+        return HeadCommand(**base, mode=mode, pan_rate=result.pan_rate, tilt_rate=result.tilt_rate, error_px=error)
+
+    def _base_motion(self, aim: np.ndarray, frame_id: str, tf_stamp: int | None, cam_from_base: RigidTransform,
+                     X: np.ndarray) -> np.ndarray:
+        """(3,) the target point's velocity in the camera frame caused by the base's own motion
+        (the head's joints held), from the base's pose over the last ``BASE_DT_S``; zero if unknown."""
+        if tf_stamp is None:
+            return np.zeros(3)
+        before = tf_stamp - int(BASE_DT_S * 1e9)
+        try:
+            base_from_map = self.buffer.lookup(self.config.base_frame, frame_id, before)
+        except TransformError:
+            return np.zeros(3)
+        return (X - cam_from_base.apply(base_from_map.apply(aim))) / BASE_DT_S
 
     def _step(self, now: float, frame_id: str, stamp_ns: int) -> HeadCommand:
         origin = np.zeros(3)

@@ -21,6 +21,8 @@ from common.keys import RELIABLE, Keys
 from common.memory import MemoryBus
 from common.schemas import Embeddings, LocalizedDetections, Message, PeopleGroundTruth, Tracks
 from common.transport import Subscription
+from services.attention.config import AttentionConfig
+from services.attention.service import AttentionService
 from services.detector.config import DetectorConfig
 from services.detector.service import DetectorService
 from services.embedder.config import EmbedderConfig
@@ -29,8 +31,10 @@ from services.localizer.config import LocalizerConfig
 from services.localizer.service import LocalizerService
 from services.tracker.config import TrackerConfig
 from services.tracker.service import TrackerService
+from tools.demo.attention import AttentionScore
 from tools.demo.scoring import score_rows
 from tools.simulator.config import SimulatorConfig
+from tools.simulator.core.render import default_camera
 from tools.simulator.service import SimulatorService
 
 __all__ = ["ChainResult", "run_chain"]
@@ -41,22 +45,27 @@ class ChainResult:
     report: dict[str, Any]
     table: str
     frames: int
+    attention: dict[str, Any] | None = None
 
 
 def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, width: int = 320, height: int = 240,
               seed: int = 0, tracker: TrackerConfig | None = None, detector: str = "depth",
-              record: Callable[[Message], None] | None = None, plot: Path | None = None) -> ChainResult:
+              record: Callable[[Message], None] | None = None, plot: Path | None = None,
+              attention: AttentionConfig | None = None) -> ChainResult:
     """Run ``scenario`` through the four nodes and score the tracks (Table II).
 
     ``record``, if given, is called with every ``PeopleGroundTruth``, ``LocalizedDetections``,
     ``Embeddings`` and ``Tracks`` message of the run, after each simulated frame, each
     stream in the order it was published (ground truth, localized, embeddings, tracks).
     ``plot``, if given, is where the top-down plot of the run is drawn (PNG).
+    ``attention``, if given, adds the attention node after the tracker and lets it steer the
+    simulated head (closed loop, one frame of delay); the result then has the attention figures.
     """
     keys = Keys(robot="inprocess")
     bus = MemoryBus()
     sim = SimulatorService(bus.transport(), keys, SimulatorConfig(
-        scenario=scenario, seed=seed, fps=fps, width=width, height=height, duration_s=duration_s, start_ns=10**18))
+        scenario=scenario, seed=seed, fps=fps, width=width, height=height, duration_s=duration_s, start_ns=10**18,
+        head_control=attention is not None))
     # once per camera frame, as the demo: Table II scores every frame against its ground truth
     tracker_config = (tracker or TrackerConfig()).model_copy(update={"memory_path": None, "output_rate_hz": 0.0})
     nodes = [
@@ -65,6 +74,9 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         EmbedderService(bus.transport(), keys, EmbedderConfig()),
         TrackerService(bus.transport(), keys, tracker_config),
     ]
+    if attention is not None:
+        nodes.append(AttentionService(bus.transport(), keys, attention))
+    looked = AttentionScore(default_camera(width, height)) if attention is not None else None
     watcher = bus.transport()
     gt_sub = watcher.subscribe(keys.groundtruth(), PeopleGroundTruth, RELIABLE)
     tracks_sub = watcher.subscribe(keys.tracks(), Tracks, RELIABLE)
@@ -75,7 +87,10 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     hyp: list[Tracks] = []
     clock = 0.0
     while not sim.done:
-        sim.step()
+        published = sim.step()
+        if looked is not None:
+            for _, msg in published:
+                looked.add(msg)
         clock += 1.0 / fps
         for node in nodes:
             node.poll(clock)
@@ -101,4 +116,6 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items() for p in msg.counted()]
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in hyp for tr in t.tracks if t.header.seq in gt]
     report, table = score_rows(gt_rows, hyp_rows, scenario, plot)
-    return ChainResult(report, table, sim.seq)
+    if looked is not None:
+        report["attention"] = looked.report()
+    return ChainResult(report, table, sim.seq, report.get("attention"))

@@ -31,6 +31,8 @@ class SimulatorConfig(BaseModel):
     depth_noise: bool = True
     start_ns: int | None = Field(default=None, ge=0, description="stamp of frame 0 (default: the wall clock at start)")
     static_period_s: float = Field(default=1.0, gt=0.0, description="how often tf_static is re-sent for late joiners")
+    head_control: bool = Field(default=False, description="the head obeys HeadCommand on head/command (the attention "
+                                                          "node's) instead of the scenario's head motion")
     faults: list[str] = Field(default_factory=list, description="setup mistakes to make on purpose (tools/simulator/faults.py)")
 
     @field_validator("faults")

@@ -71,6 +71,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-depth-noise", dest="depth_noise", action="store_false", default=None, help="exact depth (for debugging)"
     )
     parser.add_argument("--start-ns", type=int, default=None, help="stamp of frame 0 (default: now)")
+    parser.add_argument("--head-control", action="store_true", default=None,
+                        help="the head obeys HeadCommand (perception attention) instead of the scenario's motion")
     parser.add_argument("--fault", dest="faults", action="append", default=None, choices=sorted(FAULTS),
                         help="make a setup mistake on purpose, repeatable, to see what `perception doctor` "
                              "says: " + "; ".join(f"{k}: {v}" for k, v in FAULTS.items()))
@@ -106,6 +108,7 @@ def _config(args: argparse.Namespace) -> SimulatorConfig:
             "min_visible",
             "depth_noise",
             "start_ns",
+            "head_control",
             "faults",
         )
     }

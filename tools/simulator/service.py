@@ -6,9 +6,9 @@ import logging
 import time
 from typing import Any
 
-from common.keys import FRAMES, RELIABLE, Keys
+from common.keys import COMMANDS, FRAMES, RELIABLE, Keys
 from common.runtime import Counters, Shutdown
-from common.schemas import Detections, Message, PeopleGroundTruth, RGBDFrame, TransformBatch
+from common.schemas import Detections, HeadCommand, Message, PeopleGroundTruth, RGBDFrame, TransformBatch
 from common.transport import Publisher, Transport
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.groundtruth import GroundTruthCsv
@@ -51,6 +51,7 @@ class SimulatorService:
         self._detections = (
             transport.subscribe(keys.detections(config.camera), Detections, RELIABLE) if config.max_speed else None
         )
+        self._head = transport.subscribe(keys.head_command(), HeadCommand, COMMANDS) if config.head_control else None
 
     @property
     def done(self) -> bool:
@@ -59,6 +60,10 @@ class SimulatorService:
 
     def step(self) -> list[tuple[str, Message]]:
         """Render and publish the next frame; returns what was published."""
+        if self._head is not None and (got := self._head.try_recv()) is not None:  # the newest command only
+            cmd = got.msg
+            self.stream.command_head(self.seq, cmd.pan_rate, cmd.tilt_rate, cmd.timeout_s)
+            self.counters.count("head_commands")
         t0 = time.perf_counter()
         _, pairs = self.stream.messages(self.seq)
         self.counters.gauge("render_ms", (time.perf_counter() - t0) * 1000.0)
@@ -121,5 +126,6 @@ class SimulatorService:
     def close(self) -> None:
         for pub in self.publishers.values():
             pub.close()
-        if self._detections is not None:
-            self._detections.close()
+        for sub in (self._detections, self._head):
+            if sub is not None:
+                sub.close()

@@ -9,6 +9,7 @@ from common.keys import Keys
 from common.schemas import Message, PeopleGroundTruth
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.render import default_camera
+from tools.simulator.core.head_servo import CommandedHead
 from tools.simulator.core.scenarios import SCENARIOS, build_world
 from tools.simulator.core.simulation import FrameData, Simulation
 from tools.simulator.faults import OLD_STAMPS_S, apply_faults
@@ -24,6 +25,10 @@ class SimulatedStream:
         self.config = config
         self.keys = keys
         self.world = build_world(config.scenario, config.seed, config.alike)
+        if config.head_control:  # the head starts at the scenario's pose, then obeys commands
+            pan, tilt = self.world.robot.head.angles(0.0)
+            self.world.robot.servo = CommandedHead(pan=pan, tilt=tilt)
+            self.world.head_moves = True
         self.camera = default_camera(config.width, config.height)
         self.simulation = Simulation(
             self.world, self.camera, config.fps, config.seed, config.min_visible, config.depth_noise
@@ -38,6 +43,14 @@ class SimulatedStream:
 
     def stamp_ns(self, seq: int) -> int:
         return self.start_ns + round(seq * 1e9 / self.config.fps)
+
+    def command_head(self, seq: int, pan_rate: float, tilt_rate: float, timeout_s: float) -> bool:
+        """Apply a head velocity command from frame ``seq``'s time on; False without head control."""
+        servo = self.world.robot.servo
+        if servo is None:
+            return False
+        servo.command(seq / self.config.fps, pan_rate, tilt_rate, timeout_s)
+        return True
 
     def messages(self, seq: int) -> tuple[FrameData, list[tuple[str, Message]]]:
         """Render frame ``seq``: its (key, message) pairs in publishing order (static

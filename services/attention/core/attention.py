@@ -3,10 +3,13 @@
 Three requests: look at track ``k``, look at the nearest person, look at no one. The
 chooser keeps its target while it is tracked; when it is gone the head holds still for
 ``hold_s`` (the tracker often gets a person back within a moment, with the same ID), then
-returns to its rest pose. In 'nearest' mode the nearest confirmed person is taken when
+returns to its rest pose. Holding means looking at the place the person was last seen
+(so a moving base does not sweep the gaze away). In 'nearest' mode the nearest confirmed person is taken when
 there is none to follow (at the start and after the hold), and another person replaces
 the one followed only when nearer by ``switch_margin_m``, so two people at about the same
-distance do not make the head swing between them.
+distance do not make the head swing between them, and a confirmed person within
+``reacquire_radius_m`` of where the followed one was last seen is taken as them (the
+tracker gave them a new ID).
 """
 
 from __future__ import annotations
@@ -35,16 +38,19 @@ class Person:
 @dataclass(frozen=True)
 class Decision:
     phase: Phase
-    target: Person | None = None  # the person to servo on (track)
+    target: Person | None = None  # the person to servo on (track), or where the lost one was last seen (hold)
     target_id: int = -1  # the person followed or waited for (track, hold)
 
 
 class Chooser:
     """The person-of-interest state machine; ``now`` is in seconds on any monotonic clock."""
 
-    def __init__(self, hold_s: float = 2.0, switch_margin_m: float = 1.0) -> None:
+    def __init__(self, hold_s: float = 2.0, switch_margin_m: float = 1.5, reacquire_radius_m: float = 0.8) -> None:
         self.hold_s = hold_s
         self.switch_margin_m = switch_margin_m
+        self.reacquire_radius_m = reacquire_radius_m
+        self._last_seen: Person | None = None
+        self._others: set[int] = set()  # the IDs tracked beside the one followed, when last seen
         self.mode: Request = "none"
         self.requested_id = -1
         self.following_id = -1  # the person followed now (track or hold), -1 for none
@@ -56,12 +62,22 @@ class Chooser:
         self.requested_id = track_id if mode == "id" else -1
         self.following_id = track_id if mode == "id" else -1
         self._lost_at = None
+        self._last_seen = None
 
     def _nearest(self, people: list[Person], origin: np.ndarray) -> Person | None:
         confirmed = [p for p in people if p.confirmed]
         if not confirmed:
             return None
         return min(confirmed, key=lambda p: float(np.linalg.norm(p.position[:2] - origin[:2])))
+
+    def _reacquire(self, people: list[Person]) -> Person | None:
+        """'nearest': a new confirmed person (not one tracked beside the followed one) where the
+        one followed was last seen (the tracker gave them a new ID), or None."""
+        assert self._last_seen is not None
+        near = [p for p in people if p.confirmed and p.id not in self._others and float(np.linalg.norm(
+            p.position[:2] - self._last_seen.position[:2])) <= self.reacquire_radius_m]
+        return min(near, key=lambda p: float(np.linalg.norm(p.position[:2] - self._last_seen.position[:2]))) \
+            if near else None  # type: ignore[union-attr]
 
     def decide(self, people: list[Person], origin: np.ndarray, now: float) -> Decision:
         """What to do with the people tracked now; ``origin`` (3,): the camera's position."""
@@ -77,14 +93,21 @@ class Chooser:
                 if d_near + self.switch_margin_m < d_cur:
                     current = nearest
                     self.following_id = nearest.id
+        if current is None and self.mode == "nearest" and self._last_seen is not None:
+            current = self._reacquire(people)
         if current is not None:
             self._lost_at = None
+            self._last_seen = current
+            self._others = {p.id for p in people if p.id != current.id}
+            self.following_id = current.id
             return Decision("track", current, current.id)
         if self.following_id >= 0:  # the person followed is gone: hold, then give up on them
             if self._lost_at is None:
                 self._lost_at = now
             if now - self._lost_at < self.hold_s:
-                return Decision("hold", None, self.following_id)
+                last = self._last_seen
+                still = None if last is None else Person(last.id, last.position, np.zeros(3), last.confirmed)
+                return Decision("hold", still, self.following_id)
             if self.mode == "nearest":
                 self.following_id = -1
         if self.mode == "nearest":
@@ -92,5 +115,6 @@ class Chooser:
             if nearest is not None:
                 self.following_id = nearest.id
                 self._lost_at = None
+                self._last_seen = nearest
                 return Decision("track", nearest, nearest.id)
         return Decision("rest")

@@ -13,6 +13,7 @@ from typing import Callable
 import numpy as np
 
 from tools.simulator.core.apartment import Apartment
+from tools.simulator.core.head_servo import CommandedHead
 from common.poses import OPTICAL_FROM_BODY, make_pose, planar_pose, pose_inverse, rot_y, rot_z
 
 __all__ = [
@@ -183,11 +184,13 @@ class Odometry:
 
 @dataclass
 class Robot:
-    """The robot's true base motion, its odometry and its head."""
+    """The robot's true base motion, its odometry and its head; with ``servo`` the head obeys
+    velocity commands instead of ``head``'s motion."""
 
     trajectory: BaseTrajectory
     head: HeadMotion
     odometry: Odometry
+    servo: CommandedHead | None = None
 
     def base_pose(self, t: float) -> np.ndarray:
         """(4, 4) true T_map_base."""
@@ -195,6 +198,8 @@ class Robot:
 
     def head_joint(self, t: float) -> np.ndarray:
         """(4, 4) T_base_head: the pan/tilt joint."""
+        if self.servo is not None:
+            return make_pose(rot_z(self.servo.angles(t)[0]) @ rot_y(self.servo.tilt), HEAD_OFFSET)
         pan, tilt = self.head.angles(t)
         if self.head.look_at is not None:
             x, y, yaw = self.trajectory(t)

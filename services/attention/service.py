@@ -3,8 +3,8 @@ person-of-interest visual servoing).
 
 * ``tracks`` (Tracks): the people, in the tracking frame (``map``);
 * ``frames/{camera}`` (RGBDFrame, latest-only): only its camera info is used, read at most
-  every ``camera_info_period_s`` (the frames in between are overwritten in the ring of one,
-  undecoded, and the subscription counts them as dropped);
+  every ``camera_info_period_s`` (the frames in between are discarded undecoded; the ring
+  of one counts the ones overwritten before a poll as dropped);
 * ``tf``, ``tf_static``: where the camera and the head's joints are;
 * the queryable ``query/attention?target=K|nearest|none`` sets whom to look at and answers
   with an :class:`AttentionReply` (an unknown ID is refused, saying which IDs are known).
@@ -88,7 +88,8 @@ class AttentionService(Node):
                         self._log.warning("tf_tree", "rejected transform from %s: %s", got.key, exc)
 
     def _take_camera_info(self, now: float) -> None:
-        if now - self._last_info_at < self.config.camera_info_period_s or not self.sub_frames.pending():
+        if now - self._last_info_at < self.config.camera_info_period_s:
+            self.sub_frames.try_recv_raw()  # not due: discard the frame undecoded (a waiting one would wake the loop)
             return
         if (got := self.sub_frames.try_recv()) is not None:
             info = got.msg.camera_info

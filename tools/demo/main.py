@@ -29,9 +29,11 @@ from common.schemas import ServiceStatus
 from common.transport import Transport
 from common.zenoh_config import ZenohOptions
 from common.zenoh_transport import TransportError, open_transport
+from tools.demo.attention import AttentionLog
 from tools.demo.monitor import Monitor
 from tools.demo.scoring import GroundTruthLog, score
 from tools.launcher.supervisor import ProcessSpec, Supervisor
+from tools.simulator.core.render import default_camera
 
 DESCRIPTION = """\
 Run the whole system on a simulated RGB-D apartment with the embedded defaults: a local
@@ -68,6 +70,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also serve the live page (perception view) and open it in a browser when there is a display")
     parser.add_argument("--view-port", type=int, default=8080, metavar="PORT",
                         help="the page's port with --view (default 8080)")
+    parser.add_argument("--attention", action="store_true",
+                        help="also run the attention node (target: the nearest person) and let it steer the simulated "
+                             "head; the JSON gains attention: centring error and visible share of person 1")
     parser.add_argument("--json", action="store_true", help="print the final metrics as JSON")
     parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
                         help="where the top-down plot of the run goes (default: tracks.png in the log dir)")
@@ -94,6 +99,9 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
     for name in SERVICES:
         specs.append(ProcessSpec(name, _perception(name, *common, *extra[name]), env, restart="on-failure",
                                  backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
+    if args.attention:
+        specs.append(ProcessSpec("attention", _perception("attention", *common, "--target", "nearest"), env,
+                                 restart="on-failure", backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
     if args.view:
         specs.append(ProcessSpec("viewer", _perception("view", *common, "--port", str(args.view_port)), env,
                                  restart="on-failure", backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
@@ -110,13 +118,13 @@ def _open_page(url: str) -> None:
 
 
 def _wait_alive(transport: Transport, keys: Keys, supervisor_thread: threading.Thread, shutdown: Shutdown,
-                timeout: float) -> list[str]:
+                timeout: float, services: tuple[str, ...] = SERVICES) -> list[str]:
     """The services alive once all four are (or whatever is alive at the timeout)."""
     deadline = time.monotonic() + timeout
     alive: list[str] = []
     while time.monotonic() < deadline and supervisor_thread.is_alive() and not shutdown.is_set():
         alive = sorted({keys.parse_alive(k).service for k in transport.alive(keys.alive(), timeout=0.5)})
-        if all(s in alive for s in SERVICES):
+        if all(s in alive for s in services):
             return alive
         shutdown.wait(0.2)
     return alive
@@ -140,6 +148,7 @@ def main(args: argparse.Namespace) -> int:
     codes: list[int] = []
     sup_thread = threading.Thread(target=lambda: codes.append(supervisor.run()), name="supervisor", daemon=True)
     sim: subprocess.Popen[bytes] | None = None
+    looked: AttentionLog | None = None
     print(f"starting the router and the four services (log: {log_dir / 'processes.log'}) ...", flush=True)
     with Shutdown() as shutdown:
         sup_thread.start()
@@ -152,15 +161,17 @@ def main(args: argparse.Namespace) -> int:
         try:
             monitor = Monitor(transport, keys)
             gt = GroundTruthLog(transport, keys)
-            alive = _wait_alive(transport, keys, sup_thread, shutdown, 60.0)
-            if not all(s in alive for s in SERVICES):
+            wanted = (*SERVICES, "attention") if args.attention else SERVICES
+            looked = AttentionLog(transport, keys, default_camera(args.width, args.height)) if args.attention else None
+            alive = _wait_alive(transport, keys, sup_thread, shutdown, 60.0, wanted)
+            if not all(s in alive for s in wanted):
                 if shutdown.is_set():
                     return 130
                 raise CliError(f"services did not come up (alive: {', '.join(alive) or 'none'}); see {log_dir / 'processes.log'}")
             sim = subprocess.Popen(
                 _perception("simulate", "--scenario", args.scenario, "--duration", str(args.duration), "--seed", str(args.seed),
                             "--width", str(args.width), "--height", str(args.height), "--fps", str(args.fps),
-                            "--connect", endpoint, "--robot", robot),
+                            "--connect", endpoint, "--robot", robot, *(("--head-control",) if args.attention else ())),
                 stdout=log_file, stderr=subprocess.STDOUT, start_new_session=True,
                 env={**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "error")},
             )
@@ -170,12 +181,14 @@ def main(args: argparse.Namespace) -> int:
                 print(f"the live page is on http://127.0.0.1:{args.view_port}/", flush=True)
                 _open_page(f"http://127.0.0.1:{args.view_port}/")
             pids = {m.name: m.pid for _, m in transport.query(keys.status(), timeout=2.0) if isinstance(m, ServiceStatus)}
-            cpu_start = {n: (pid, _cpu_seconds(pid)) for n, pid in pids.items() if n in SERVICES}
+            cpu_start = {n: (pid, _cpu_seconds(pid)) for n, pid in pids.items() if n in (*SERVICES, "attention")}
             tty = sys.stdout.isatty() and not args.no_view
             last_line = 0.0
             while not shutdown.is_set():
                 monitor.poll()
                 gt.poll()
+                if looked is not None:
+                    looked.poll()
                 elapsed = time.monotonic() - started
                 if sim.poll() is not None and gt.idle_for(1.5):
                     break  # the scenario is over and the pipeline has drained
@@ -212,6 +225,8 @@ def main(args: argparse.Namespace) -> int:
             log_file.close()
     plot = args.plot or log_dir / "tracks.png"
     report, table = score(gt, monitor, args.scenario, plot=plot)
+    if looked is not None:
+        report["attention"] = looked.report()
     plotted = str(plot) if plot.is_file() else None
     if args.json:
         print(json.dumps({"scenario": args.scenario, "log": str(log_dir / "processes.log"), "plot": plotted,
@@ -220,6 +235,10 @@ def main(args: argparse.Namespace) -> int:
         print(f"\nTable II for this run (ground truth from the simulator; logs in {log_dir}):\n")
         print(table)
         print("\nCPU per service: " + ", ".join(f"{n} {v}%" for n, v in cpu.items() if v is not None))
+        if "attention" in report:
+            a = report["attention"]
+            print(f"attention (person {a['person_id']}): centring error p50 {a['center_error_px_p50']} px, "
+                  f"p95 {a['center_error_px_p95']} px; visible {a['target_visible_fraction']} of {a['frames']} frames")
         if plotted:
             print(f"plot of the run (tracks against the ground truth): {plotted}")
     return 0

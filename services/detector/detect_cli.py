@@ -17,9 +17,10 @@ import cv2
 import numpy as np
 
 from common.cli_util import CliError
-from services.detector.flags import add_backend_arguments, detector_from_args, load_service_config
+from common.progress import progress
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
+from services.detector.flags import add_backend_arguments, detector_from_args, load_service_config
 
 DESCRIPTION = """\
 Detect people in image files (PNG, JPEG, ...) and write one JSON line per image:
@@ -66,7 +67,7 @@ def detect_file(detector: Detector, path: Path) -> dict[str, Any]:
 def write_records(detector: Detector, images: list[Path], out: TextIO) -> int:
     """Detect in every image and write its line; the number of detections."""
     total = 0
-    for path in images:
+    for path in progress(images, total=len(images), desc="detect", unit="image"):
         record = detect_file(detector, path)
         total += len(record["detections"])
         out.write(json.dumps(record) + "\n")

@@ -9,9 +9,10 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any, TextIO
 
+from common.progress import progress
 from services.embedder.core.backend import Card
-from services.embedder.jsonl import crops_of_line, read_lines
 from services.embedder.flags import add_backend_arguments, backend_from_config, config_from_args
+from services.embedder.jsonl import crops_of_line, read_lines
 
 DESCRIPTION = """\
 Read the JSON lines written by 'perception detect'
@@ -43,7 +44,7 @@ def main(args: argparse.Namespace) -> int:
     base = Path(args.detections).resolve().parent
     out: TextIO = open(args.output, "w") if args.output else sys.stdout
     try:
-        for n, line in read_lines(args.detections):
+        for n, line in progress(read_lines(args.detections), desc="embed", unit="image"):
             crops, kept = crops_of_line(line, f"{args.detections}:{n}", base)
             vectors = backend.embed(crops)
             for det in line.get("detections", []):

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common.progress import progress
 from services.tracker.config import TrackerConfig
 from services.tracker.core import Tracker, TrackerParams
 from services.tracker.core.robust import RobustTracker
@@ -90,12 +91,13 @@ def frame_stamps(dets: Detections) -> tuple[np.ndarray, np.ndarray]:
     return all_frames, np.interp(all_frames, known, dets.stamps[first_row])
 
 
-def track(dets: Detections, tracker: Tracker | RobustTracker | TrackerParams) -> list[Row]:
+def track(dets: Detections, tracker: Tracker | RobustTracker | TrackerParams,
+          show_progress: bool = False) -> list[Row]:
     """Run ``tracker`` over every frame; one row ``(frame, stamp, id, x, y, z, status)`` per
     reported track per frame (Confirmed, and for the robust profile recently coasting ones).
 
     ``TrackerParams`` builds the thesis's tracker. Each detection's score is passed on
-    (the robust profile uses it).
+    (the robust profile uses it). ``show_progress``: a bar on a terminal (``common.progress``).
     """
     if isinstance(tracker, TrackerParams):
         tracker = Tracker(tracker)
@@ -103,7 +105,8 @@ def track(dets: Detections, tracker: Tracker | RobustTracker | TrackerParams) ->
     starts = np.searchsorted(dets.frames, frames, side="left")
     ends = np.searchsorted(dets.frames, frames, side="right")
     rows: list[Row] = []
-    for frame, stamp, a, b in zip(frames.tolist(), stamps.tolist(), starts.tolist(), ends.tolist()):
+    steps = zip(frames.tolist(), stamps.tolist(), starts.tolist(), ends.tolist())
+    for frame, stamp, a, b in progress(steps, total=len(frames), desc="track", unit="frame") if show_progress else steps:
         desc = dets.descriptors[a:b] if dets.descriptors is not None else None
         result = tracker.update(stamp, dets.positions[a:b], desc, None, dets.scores[a:b])
         for view in tracker.reported(result):

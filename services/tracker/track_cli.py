@@ -64,7 +64,7 @@ def main(args: argparse.Namespace) -> int:
     else:
         log.info("no embedding columns: tracking position-only")
     start = time.perf_counter()
-    rows = track(dets, config.build_tracker(thresholds))
+    rows = track(dets, config.build_tracker(thresholds), show_progress=True)
     elapsed = time.perf_counter() - start
     try:
         write_tracks(args.output, rows, status=args.status)

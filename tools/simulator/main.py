@@ -8,6 +8,7 @@ from pathlib import Path
 
 from common.cli_util import CliError, add_key_arguments, keys_from_args
 from common.config import ConfigError, load_config
+from common.progress import progress
 from common.runtime import Counters, ServiceRuntime, Shutdown, package_version
 from common.zenoh_config import add_zenoh_arguments, options_from_args
 from common.zenoh_transport import TransportError, open_transport
@@ -141,7 +142,7 @@ def _record(config: SimulatorConfig, args: argparse.Namespace, gt: GroundTruthCs
     if stream.frame_count is None:
         raise CliError("--duration 0 (until Ctrl-C) cannot be written to a file; give a duration in seconds")
     with McapRecorder(args.output, key_exprs=[keys.all()], writer_version=package_version()) as sink, Shutdown() as shutdown:
-        for seq in range(stream.frame_count):
+        for seq in progress(range(stream.frame_count), total=stream.frame_count, desc="simulate", unit="frame"):
             if shutdown.is_set():
                 break
             _, pairs = stream.messages(seq)

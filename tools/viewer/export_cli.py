@@ -7,6 +7,7 @@ from pathlib import Path
 
 from common.cli_util import CliError
 from common.codec import DecodeError, decode
+from common.progress import progress
 
 DESCRIPTION = """\
 Convert a recording (MCAP of perception record or simulate --output, or a ROS bag that
@@ -52,7 +53,7 @@ def main(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from exc
     writer = bridge.fg.open_mcap(str(args.output), allow_overwrite=True, context=bridge.context)
     try:
-        for item in source.items():
+        for item in progress(source.items(), desc="export", unit="msg"):
             try:
                 msg = item.message if item.message is not None else decode(item.model, item.encoded())
             except DecodeError:

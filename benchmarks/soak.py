@@ -31,7 +31,6 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 from common.keys import RELIABLE, Keys
@@ -41,6 +40,7 @@ from common.zenoh_config import ZenohOptions
 from common.zenoh_transport import open_transport
 from services.tracker.config import TrackerConfig
 from tools.demo.main import SERVICES, _cpu_seconds, _perception, _specs
+from tools.demo.main import add_arguments as add_demo_arguments
 from tools.launcher.supervisor import Supervisor
 
 PROCESSES = ("router", *SERVICES)
@@ -96,10 +96,12 @@ def main() -> int:
     endpoint = f"tcp/127.0.0.1:{port}"
     robot = f"soak{os.getpid()}"
     keys = Keys(robot=robot)
-    demo_args = SimpleNamespace(detector="depth", view=False, view_port=0)
+    demo_parser = argparse.ArgumentParser()
+    add_demo_arguments(demo_parser)
+    demo_args = demo_parser.parse_args([])  # the demo's defaults: depth detector, no page, no attention
     log_file = open(log_dir / "processes.log", "wb")  # noqa: SIM115
     memory = log_dir / "id-memory.npz"
-    supervisor = Supervisor(_specs(endpoint, port, robot, demo_args, memory), log_file, handle_signals=False)  # type: ignore[arg-type]
+    supervisor = Supervisor(_specs(endpoint, port, robot, demo_args, memory), log_file, handle_signals=False)
     sup_thread = threading.Thread(target=supervisor.run, name="supervisor", daemon=True)
     sup_thread.start()
     transport = open_transport(ZenohOptions(mode="client", connect=[endpoint], connect_timeout_s=30))

@@ -589,6 +589,8 @@ class PersonGroundTruth(_Model):
     height_m: float = Field(default=0.0, ge=0.0)
     clothing: str = Field(default="", description="what the person wears, in words")
     outfit: int = Field(default=0, ge=0, description="index of the outfit worn; changes when the person changes clothes")
+    facing_rad: float | None = Field(default=None, description="the direction the body faces in the map frame "
+                                     "(rad, 0 along +x); None: not known")
 
     @model_validator(mode="after")
     def _check(self) -> PersonGroundTruth:

@@ -32,7 +32,7 @@ from services.localizer.service import LocalizerService
 from services.tracker.config import TrackerConfig
 from services.tracker.service import TrackerService
 from tools.demo.attention import AttentionScore
-from tools.demo.scoring import score_rows
+from tools.demo.scoring import pose_line, pose_scores, score_rows
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.render import default_camera
 from tools.simulator.service import SimulatorService
@@ -116,6 +116,8 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items() for p in msg.counted()]
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in hyp for tr in t.tracks if t.header.seq in gt]
     report, table = score_rows(gt_rows, hyp_rows, scenario, plot)
+    report["pose"] = pose_scores(gt, hyp)
+    table += "\n\n" + pose_line(report["pose"])
     if looked is not None:
         report["attention"] = looked.report()
     return ChainResult(report, table, sim.seq, report.get("attention"))

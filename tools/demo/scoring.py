@@ -16,14 +16,16 @@ from typing import Any
 import numpy as np
 
 from common.keys import Delivery, Keys
-from common.schemas import PeopleGroundTruth
+from common.schemas import PeopleGroundTruth, Tracks
 from common.transport import Transport
 from tools.demo.monitor import Monitor
 from tools.evaluation.evaluate import evaluate_tables, format_table, make_report
 from tools.evaluation.plot import PlotUnavailable, SequencePlot, plot_sequences
 from tools.evaluation.readers import TrackTable
 
-__all__ = ["GroundTruthLog", "score", "score_rows"]
+__all__ = ["GroundTruthLog", "pose_scores", "score", "score_rows"]
+
+_POSTURES = ("standing", "sitting", "lying")
 
 log = logging.getLogger(__name__)
 
@@ -58,7 +60,57 @@ def score(gt: GroundTruthLog, monitor: Monitor, name: str, plot: Path | None = N
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.frames.items() for p in msg.counted()]
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in monitor.all_tracks for tr in t.tracks
                 if t.header.seq in gt.frames]
-    return score_rows(gt_rows, hyp_rows, name, plot)
+    report, table = score_rows(gt_rows, hyp_rows, name, plot)
+    report["pose"] = pose_scores(gt.frames, monitor.all_tracks)
+    return report, table + "\n\n" + pose_line(report["pose"])
+
+
+def pose_scores(gt: dict[int, PeopleGroundTruth], tracks: list[Tracks], gate_m: float = 1.0) -> dict[str, Any]:
+    """Posture accuracy and orientation error of the tracks against the simulator's truth.
+
+    Per frame, each counted person is paired with the nearest track within ``gate_m`` on
+    the ground plane (greedy, nearest pairs first). A track whose distribution is uniform
+    (unknown) is left out: ``posture_accuracy`` is the share of the others whose most likely
+    posture is the true one, ``orientation_error_deg_p50`` the median angle between the most
+    likely orientation bin's centre and the direction the person faces.
+    """
+    right = known_posture = 0
+    errors: list[float] = []
+    for msg in tracks:
+        truth = gt.get(msg.header.seq)
+        if truth is None or not msg.tracks:
+            continue
+        people = truth.counted()
+        pairs = sorted((float(np.linalg.norm(p.position[:2] - t.position[:2])), i, j)
+                       for i, p in enumerate(people) for j, t in enumerate(msg.tracks))
+        used_p: set[int] = set()
+        used_t: set[int] = set()
+        for d, i, j in pairs:
+            if d > gate_m or i in used_p or j in used_t:
+                continue
+            used_p.add(i)
+            used_t.add(j)
+            person, track = people[i], msg.tracks[j]
+            posture = np.asarray(track.posture)
+            if np.ptp(posture) > 1e-6 and person.posture in _POSTURES:
+                known_posture += 1
+                right += int(int(np.argmax(posture)) == _POSTURES.index(person.posture))
+            orientation = np.asarray(track.orientation)
+            if np.ptp(orientation) > 1e-6 and person.facing_rad is not None:
+                centre = int(np.argmax(orientation)) * 2 * np.pi / len(orientation)
+                diff = (centre - person.facing_rad + np.pi) % (2 * np.pi) - np.pi
+                errors.append(abs(float(np.degrees(diff))))
+    return {"posture_pairs": known_posture,
+            "posture_accuracy": round(right / known_posture, 4) if known_posture else None,
+            "orientation_pairs": len(errors),
+            "orientation_error_deg_p50": round(float(np.median(errors)), 1) if errors else None}
+
+
+def pose_line(pose: dict[str, Any]) -> str:
+    """The pose scores as one line of text."""
+    acc, err = pose["posture_accuracy"], pose["orientation_error_deg_p50"]
+    return (f"posture: {'-' if acc is None else f'{100 * acc:.1f} %'} right ({pose['posture_pairs']} pairs); "
+            f"orientation: median error {'-' if err is None else f'{err:.1f} deg'} ({pose['orientation_pairs']} pairs)")
 
 
 def score_rows(gt_rows: list[tuple[int, int, np.ndarray]], hyp_rows: list[tuple[int, int, np.ndarray]],

@@ -79,6 +79,7 @@ def groundtruth_message(fd: FrameData, stamp_ns: int, camera: str, min_visible: 
             height_m=p.height_m,
             clothing=p.clothing.description,
             outfit=p.outfit,
+            facing_rad=p.facing_rad,
         )
         for p in fd.people
     ]

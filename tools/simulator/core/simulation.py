@@ -38,6 +38,7 @@ class PersonTruth:
     height_m: float
     clothing: Clothing
     outfit: int
+    facing_rad: float = 0.0  # the direction the body faces in the map (0 along +x)
 
 
 @dataclass
@@ -94,9 +95,9 @@ class Simulation:
 
     def people_solids(
         self, t: float
-    ) -> tuple[Ellipsoids, list[tuple[int, np.ndarray, np.ndarray, str, float, Clothing, int]]]:
+    ) -> tuple[Ellipsoids, list[tuple[int, np.ndarray, np.ndarray, str, float, Clothing, int, float]]]:
         """All people's solids at ``t``, and per person: (id, torso centre (3,), velocity (3,),
-        posture, height, clothing, outfit index)."""
+        posture, height, clothing, outfit index, facing yaw)."""
         solids, info = [], []
         for k, (walker, pid) in enumerate(zip(self.world.walkers, self.world.ids)):
             pose, outfit, vel = walker.state(t)
@@ -111,6 +112,7 @@ class Simulation:
                     walker.height,
                     clothing,
                     outfit,
+                    float(pose.yaw),
                 )
             )
         return Ellipsoids.concat(solids), info
@@ -127,10 +129,11 @@ class Simulation:
         solids, info = self.people_solids(t)
         result = self.renderer.render(map_cam, solids)
         people = []
-        for k, (pid, centre, vel, posture, height, clothing, outfit) in enumerate(info):
+        for k, (pid, centre, vel, posture, height, clothing, outfit, yaw) in enumerate(info):
             vis, in_view = visible_fraction(solids.sample_points(k), k, map_cam, self.camera, result.owner)
             people.append(
-                PersonTruth(pid, centre, vel, vis, in_view, vis >= self.min_visible, posture, height, clothing, outfit)
+                PersonTruth(pid, centre, vel, vis, in_view, vis >= self.min_visible, posture, height, clothing, outfit,
+                            yaw)
             )
         return FrameData(
             seq,

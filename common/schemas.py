@@ -445,10 +445,15 @@ class Embeddings(Message):
     model: ModelCard
     indices: NDArray(np.int32, (None,))  # type: ignore[valid-type]
     vectors: NDArray(np.float32, (None, None))  # type: ignore[valid-type]
+    #: optional (N, 8) probabilities of the upper body's orientation relative to the camera
+    #: (bin k: facing k * 45 degrees anticlockwise from towards the camera), per index
+    orientation: NDArray(np.float32, (None, 8)) | None = None  # type: ignore[valid-type]
 
     @model_validator(mode="after")
     def _check(self) -> Embeddings:
         n = len(self.indices)
+        if self.orientation is not None and self.orientation.shape[0] != n:
+            raise ValueError(f"orientation: {self.orientation.shape[0]} rows for {n} indices")
         if self.vectors.shape[0] != n:
             raise ValueError(f"vectors: {self.vectors.shape[0]} rows for {n} indices")
         if n and self.vectors.shape[1] != self.model.dim:

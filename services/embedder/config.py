@@ -17,6 +17,7 @@ from common.config import ConfigError
 from services.embedder.core.backend import Backend, EmbedderError
 from services.embedder.core.depth_mask import DepthMaskParams
 from services.embedder.core.onnx_model import OnnxEmbedder, OnnxParams
+from services.embedder.core.orientation import OrientationParams
 
 __all__ = ["DepthMaskConfig", "EmbedderConfig", "OnnxConfig", "ThresholdsConfig", "build_backend", "sidecar_path",
            "with_sidecar"]
@@ -107,6 +108,24 @@ class DepthMaskConfig(BaseModel):
         return DepthMaskParams(**self.model_dump(exclude={"enabled"}))
 
 
+class OrientationConfig(BaseModel):
+    """An optional ONNX classifier of the upper body's orientation on each crop (seed 001):
+    (N, 3, H, W) in, (N, 8) scores out, bins relative to the camera (see
+    services/embedder/core/orientation.py)."""
+
+    model_config = ConfigDict(extra="forbid")
+    path: str | None = Field(default=None, description="the ONNX model; null: no orientation classifier")
+    input_size: tuple[int, int] = Field(default=(128, 64), description="network input (H, W)")
+    channel_order: Literal["rgb", "bgr"] = "rgb"
+    outputs: Literal["logits", "probabilities"] = Field(default="logits", description="what the model outputs")
+
+    def params(self) -> OrientationParams | None:
+        if not self.path:
+            return None
+        return OrientationParams(path=self.path, input_size=self.input_size, channel_order=self.channel_order,
+                                 outputs=self.outputs)
+
+
 class EmbedderConfig(BaseModel):
     """Settings of ``perception embedder``."""
 
@@ -121,6 +140,7 @@ class EmbedderConfig(BaseModel):
     min_crop_px: int = Field(default=4, ge=1, description="crops narrower or lower than this are not described "
                              "(counted as tiny_crops)")
     depth_mask: DepthMaskConfig = Field(default_factory=DepthMaskConfig)
+    orientation: OrientationConfig = Field(default_factory=OrientationConfig)
 
     @model_validator(mode="after")
     def _onnx_path(self) -> EmbedderConfig:

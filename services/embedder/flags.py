@@ -12,6 +12,7 @@ from common.config import ConfigError
 from common.node import add_node_arguments, load_node_config
 from services.embedder.config import EmbedderConfig, build_backend
 from services.embedder.core.backend import Backend, EmbedderError
+from services.embedder.core.orientation import OrientationClassifier
 
 __all__ = ["add_arguments", "add_backend_arguments", "backend_from_config", "config_from_args", "overrides", "prepare"]
 
@@ -35,6 +36,8 @@ def add_backend_arguments(parser: argparse.ArgumentParser, *, service_config: bo
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Every flag of ``perception embedder``."""
     parser.add_argument("--camera", default=None, help="camera name in the keys (default head)")
+    parser.add_argument("--orientation-model", default=None, metavar="FILE.onnx",
+                        help="optional upper-body orientation classifier on each crop ((N, 3, H, W) -> (N, 8))")
     add_backend_arguments(parser, service_config=False)
     add_node_arguments(parser, "embedder")
 
@@ -51,6 +54,8 @@ def overrides(args: argparse.Namespace, extra: dict[str, Any] | None = None) -> 
     out: dict[str, Any] = {"backend": args.backend, "camera": getattr(args, "camera", None), **(extra or {})}
     if onnx:
         out["onnx"] = onnx
+    if getattr(args, "orientation_model", None):
+        out["orientation"] = {"path": args.orientation_model}
     return out
 
 
@@ -66,11 +71,18 @@ def backend_from_config(config: EmbedderConfig) -> Backend:
 
 
 def prepare(config: EmbedderConfig) -> dict[str, Any]:
-    """Load the model before the transport opens, so a missing file stops the node at once."""
+    """Load the models before the transport opens, so a missing file stops the node at once."""
     backend = backend_from_config(config)
+    params = config.orientation.params()
+    orientation = None
+    if params is not None:
+        try:
+            orientation = OrientationClassifier(params)
+        except EmbedderError as exc:
+            raise CliError(f"orientation model: {exc}") from exc
     card = backend.card
     log.info("backend %s: %d-D %s, thresholds %s", card.name, card.dim, card.metric, card.thresholds)
     if card.thresholds is None:
         log.warning("model %s has no recommended tracker thresholds; run 'perception calibrate-embedder' "
                     "and set embedder.thresholds", card.name)
-    return {"backend": backend}
+    return {"backend": backend, "orientation": orientation}

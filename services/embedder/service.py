@@ -34,6 +34,7 @@ from common.transport import Transport
 from services.embedder.config import EmbedderConfig, build_backend
 from services.embedder.core.backend import Backend, Card, EmbedderError, box_slices
 from services.embedder.core.depth_mask import apply_mask, depth_masks
+from services.embedder.core.orientation import OrientationClassifier
 
 __all__ = ["EmbedderService", "model_card"]
 
@@ -59,11 +60,15 @@ class EmbedderService(Node):
     name = "embedder"
 
     def __init__(self, transport: Transport, keys: Keys, config: EmbedderConfig, counters: Counters | None = None,
-                 backend: Backend | None = None) -> None:
+                 backend: Backend | None = None, orientation: OrientationClassifier | None = None) -> None:
         super().__init__(transport, keys, counters)
         self.config = config
         self.backend = backend if backend is not None else build_backend(config)
         self.card = model_card(self.backend.card)
+        params = config.orientation.params()
+        if orientation is None and params is not None:
+            orientation = OrientationClassifier(params)
+        self.orientation = orientation
         self._mask_params = config.depth_mask.params()
         cam = config.camera
         self.frames_sub = self.io.subscribe(keys.frames(cam), RGBDFrame, FRAMES)
@@ -162,11 +167,19 @@ class EmbedderService(Node):
             self.counters.drop("backend_error")
             log.error("embedding frame %d failed: %s", frame.header.seq, exc)
             return None
+        orientation = None
+        if self.orientation is not None:
+            try:
+                orientation = self.orientation.classify(crops)
+            except EmbedderError as exc:
+                self.counters.count("orientation_errors")
+                log.error("orientation of frame %d failed: %s", frame.header.seq, exc)
         ms = (time.perf_counter() - t0) * 1e3
         self.counters.gauge("embed_ms", round(ms, 3))
         self.counters.count("descriptors", len(kept))
         return Embeddings(header=frame.header.model_copy(), model=self.card, indices=indices,
-                          vectors=vectors.astype(np.float32, copy=False).reshape(len(kept), self.card.dim))
+                          vectors=vectors.astype(np.float32, copy=False).reshape(len(kept), self.card.dim),
+                          orientation=orientation)
 
     def _masks(self, frame: RGBDFrame, slices: np.ndarray) -> list[np.ndarray | None] | None:
         """Depth masks of the crops at ``slices`` (K, 4), or None without depth (or when turned off)."""

@@ -8,7 +8,8 @@ from common.schemas import Embeddings, Header, LocalizedDetections, TrackState, 
 from services.tracker.core.tracker import FrameResult, TrackView
 from services.tracker.core.view import FieldOfView
 
-__all__ = ["descriptors_for", "field_of_view", "positions_of", "track_state", "tracks_message", "usable_covariances"]
+__all__ = ["descriptors_for", "field_of_view", "orientations_for", "positions_of", "track_state", "tracks_message",
+           "usable_covariances"]
 
 
 def field_of_view(loc: LocalizedDetections) -> FieldOfView | None:
@@ -48,6 +49,30 @@ def descriptors_for(loc: LocalizedDetections, emb: Embeddings) -> np.ndarray:
         r = row_of.get(det.index)
         if r is not None:
             out[n] = emb.vectors[r]
+    return out
+
+
+def orientations_for(loc: LocalizedDetections, emb: Embeddings | None) -> np.ndarray | None:
+    """The embedder's orientation probabilities (N, 8) in the order of ``loc.detections``,
+    turned from camera-relative bins into the tracking frame's (bin j centred on j * 45
+    degrees), NaN rows where there is none; None without orientations or a camera view.
+
+    Camera bin k faces k * 45 degrees anticlockwise from "towards the camera", i.e. the
+    direction ``view_yaw + 180 + k * 45`` degrees in the map, ``view_yaw`` being the
+    heading of the camera's optical axis: a roll of the bins by that offset, rounded to
+    the nearest bin.
+    """
+    if emb is None or emb.orientation is None or loc.view is None:
+        return None
+    axis = loc.view.camera_to_frame[:3, 2]
+    towards_camera = np.arctan2(axis[1], axis[0]) + np.pi
+    shift = int(np.round(towards_camera / (np.pi / 4))) % 8
+    out = np.full((len(loc.detections), 8), np.nan)
+    row_of = {int(i): r for r, i in enumerate(emb.indices.tolist())}
+    for n, det in enumerate(loc.detections):
+        r = row_of.get(det.index)
+        if r is not None:
+            out[n] = np.roll(emb.orientation[r], shift)
     return out
 
 

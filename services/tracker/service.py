@@ -49,6 +49,7 @@ from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import (
     descriptors_for,
     field_of_view,
+    orientations_for,
     positions_of,
     track_state,
     tracks_message,
@@ -286,7 +287,7 @@ class TrackerService(Node):
         boxes = np.array([d.bbox_xyxy for d in loc.detections], np.float64).reshape(-1, 4)
         aspects = (boxes[:, 3] - boxes[:, 1]) / np.maximum(boxes[:, 2] - boxes[:, 0], 1e-6)  # for posture
         result = self.tracker.update(stamp, positions, descriptors, covs_used, scores, view=field_of_view(loc),
-                                     aspects=aspects)
+                                     aspects=aspects, orientations=orientations_for(loc, frame.emb))
         self._ever_confirmed.update(v.id for v in result.confirmed)
         self.counters.count("updates")
         if not result.appearance_available and loc.detections:

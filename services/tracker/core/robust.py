@@ -261,13 +261,17 @@ class RobustTracker:
     # ------------------------------------------------------------------ update
     def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
                measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
-               view: FieldOfView | None = None, aspects: np.ndarray | None = None) -> FrameResult:
+               view: FieldOfView | None = None, aspects: np.ndarray | None = None,
+               orientations: np.ndarray | None = None) -> FrameResult:
         """Process one frame: ``stamp`` in seconds, ``positions`` (N, 3), ``descriptors``
         (N, D) or None (a NaN row: no descriptor), ``measurement_cov`` (N, 3, 3) or None,
         ``scores`` (N,) or None (the detector's confidences), ``view`` what the camera could
         see (None: unknown): a coasting track out of view is kept but not reported; ``aspects``
         (N,) each detection's box height / width (None: no boxes; posture is then not
-        estimated, since the positions' z need not be a height above the floor either)."""
+        estimated, since the positions' z need not be a height above the floor either);
+        ``orientations`` (N, 8) an orientation classifier's probabilities per detection in the
+        tracking frame's bins (NaN rows: none), used while the person is too slow for the
+        walking direction to tell."""
         p = self.params
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         n = len(positions)
@@ -294,7 +298,7 @@ class RobustTracker:
         result = FrameResult(stamp=stamp, appearance_available=appearance)
         matches = self._associate(log_odds, confident)
         self._update_matched(matches, positions, r, descriptors, has_desc, p_det, confident, stamp)
-        self._update_pose(matches, positions, aspects)
+        self._update_pose(matches, positions, aspects, orientations)
         self._train_classifiers(matches, descriptors, has_desc, confident)
         matched_d = {d for d, _ in matches}
         self._age(stamp, result, appearance)
@@ -466,8 +470,10 @@ class RobustTracker:
             if has_desc[d] and descriptors is not None and confident[d]:
                 self._add_descriptor(t, descriptors[d], self._d2.get((d, j)))
 
-    def _update_pose(self, matches: list[tuple[int, int]], positions: np.ndarray, aspects: np.ndarray | None) -> None:
-        """Seed 001: posture from the body height and box shape, orientation from walking."""
+    def _update_pose(self, matches: list[tuple[int, int]], positions: np.ndarray, aspects: np.ndarray | None,
+                     orientations: np.ndarray | None = None) -> None:
+        """Seed 001: posture from the body height and box shape, orientation from walking or,
+        standing still, from the crop classifier."""
         pp = self.params.posture
         if pp is None:
             return
@@ -475,8 +481,13 @@ class RobustTracker:
             t = self.tracks[j]
             if aspects is not None:
                 t.posture = pose.update(t.posture, pose.posture_evidence(float(positions[d, 2]), float(aspects[d])))
-            if t.status is not TrackStatus.TENTATIVE:  # a young track's velocity is its prior
-                t.orientation = pose.update(t.orientation, pose.orientation_evidence(t.mean[3:5], pp))
+            if t.status is TrackStatus.TENTATIVE:  # a young track's velocity is its prior
+                continue
+            walking = pose.orientation_evidence(t.mean[3:5], pp)
+            if walking is not None:
+                t.orientation = pose.update(t.orientation, walking)
+            elif orientations is not None and np.all(np.isfinite(orientations[d])):
+                t.orientation = pose.update(t.orientation, np.asarray(orientations[d], float) + 1e-3)
 
     def _age(self, stamp: float, result: FrameResult, appearance: bool) -> None:
         p = self.params

@@ -203,7 +203,8 @@ class Tracker:
     # ------------------------------------------------------------------ update
     def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
                measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
-               view: object | None = None, aspects: np.ndarray | None = None) -> FrameResult:
+               view: object | None = None, aspects: np.ndarray | None = None,
+               orientations: np.ndarray | None = None) -> FrameResult:
         """Process one frame.
 
         ``stamp`` in seconds (sensor time). ``positions`` (N, 3) in the tracking frame.
@@ -211,8 +212,9 @@ class Tracker:
         detection without a descriptor. ``measurement_cov`` (N, 3, 3) replaces the
         thesis's fixed ``R`` per detection when given. ``scores`` are accepted for the
         robust profile's interface and unused: the thesis has no detector confidence;
-        ``view`` (the camera's field of view) and ``aspects`` (box shapes, for posture)
-        likewise: the thesis reports Confirmed tracks only and estimates no posture.
+        ``view`` (the camera's field of view), ``aspects`` and ``orientations`` (for posture
+        and orientation) likewise: the thesis reports Confirmed tracks only and estimates no
+        posture.
         """
         positions, descriptors = _checked_inputs(positions, descriptors)
         appearance = descriptors is not None and self.params.gate is not None

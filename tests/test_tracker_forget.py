@@ -16,7 +16,6 @@ from common.memory import MemoryBus
 from common.schemas import ForgetReply, Tracks
 from services.tracker.config import PROFILES
 from services.tracker.memory_file import read_classifiers, read_last_seen, read_memory
-from services.tracker.service import TrackerService
 from tests.test_tracker_bad_inputs import KEYS, PERIOD_NS, T0, Person, Rig, config, ids_by_x
 
 S = 1_000_000_000

@@ -95,35 +95,41 @@ def read_memory(path: str | Path, capacity: int | None = None) -> tuple[Identity
     return IdentityMemory.from_blocks(capacity, next_id, ids, counts, data), model
 
 
+def _optional_pair(path: str | Path, ids_key: str, values_key: str, what: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """The (ids, values) arrays of an optional block of the file, None if the file has none;
+    ``ValueError`` naming the file and ``what`` when they are unreadable or differ in length."""
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            if values_key not in f.files:
+                return None
+            ids, values = f[ids_key], f[values_key]
+    except (OSError, KeyError, EOFError, ValueError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path}: unreadable {what} in the ID memory file: {exc}") from exc
+    if len(ids) != len(values):
+        raise ValueError(f"{path}: inconsistent {what} in the ID memory file ({len(ids)} ids, {len(values)} values)")
+    return ids, values
+
+
 def read_classifiers(path: str | Path) -> dict[int, np.ndarray]:
     """The online classifiers stored by :func:`save_memory` (empty for a file without them).
 
     Raises ``ValueError`` naming the file when they are unreadable or inconsistent.
     """
-    try:
-        with np.load(path, allow_pickle=False) as f:
-            if "classifiers" not in f.files:
-                return {}
-            ids, weights = f["classifier_ids"], f["classifiers"]
-    except (OSError, KeyError, EOFError, ValueError, zipfile.BadZipFile) as exc:
-        raise ValueError(f"{path}: unreadable classifiers in the ID memory file: {exc}") from exc
-    if len(ids) != len(weights) or (len(ids) and weights.ndim != 2) or not np.all(np.isfinite(weights)):
+    block = _optional_pair(path, "classifier_ids", "classifiers", "classifiers")
+    if block is None:
+        return {}
+    ids, weights = block
+    if (len(ids) and weights.ndim != 2) or not np.all(np.isfinite(weights)):
         raise ValueError(f"{path}: inconsistent classifiers in the ID memory file ({len(ids)} ids, shape {weights.shape})")
     return {int(i): w.astype(np.float64) for i, w in zip(ids.tolist(), weights)}
 
 
 def read_last_seen(path: str | Path) -> dict[int, float]:
     """ID -> Unix time last seen, as stored by :func:`save_memory` (empty for a file without it)."""
-    try:
-        with np.load(path, allow_pickle=False) as f:
-            if "seen_ids" not in f.files:
-                return {}
-            ids, at = f["seen_ids"], f["seen_at"]
-    except (OSError, KeyError, EOFError, ValueError, zipfile.BadZipFile) as exc:
-        raise ValueError(f"{path}: unreadable last-seen times in the ID memory file: {exc}") from exc
-    if len(ids) != len(at):
-        raise ValueError(f"{path}: inconsistent last-seen times in the ID memory file")
-    return {int(i): float(t) for i, t in zip(ids.tolist(), at.tolist())}
+    block = _optional_pair(path, "seen_ids", "seen_at", "last-seen times")
+    if block is None:
+        return {}
+    return {int(i): float(t) for i, t in zip(block[0].tolist(), block[1].tolist())}
 
 
 def load_memory(config: TrackerConfig) -> tuple[IdentityMemory, str | None]:

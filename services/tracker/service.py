@@ -55,7 +55,7 @@ from services.tracker.convert import (
     tracks_message,
     usable_covariances,
 )
-from services.tracker.core.tracker import FrameResult, TrackerState, TrackStatus
+from services.tracker.core.tracker import FrameResult, TrackerState, TrackStatus, TrackView
 from services.tracker.memory_file import (
     descriptor_dim,
     load_memory,
@@ -313,11 +313,16 @@ class TrackerService(Node):
         """Whether an earlier track with this ID was ever Confirmed (its ID was recovered)."""
         return track_id in self._ever_confirmed
 
-    def _publish(self, frame: _Frame, result: FrameResult) -> Tracks:
+    def _publish(self, frame: _Frame, result: FrameResult, views: list[TrackView] | None = None,
+                 stamp_ns: int | None = None) -> Tracks:
+        """Publish ``result``'s output (``views``: predicted to ``stamp_ns`` at the fixed rate).
+        The header names the newest input frame (seq, source, ``input_stamp_ns``)."""
         assert self._epoch_ns is not None
         h = frame.loc.header
-        header = Header(stamp_ns=h.stamp_ns, frame_id=self.config.frame_id, seq=h.seq, source=h.source)
-        msg = tracks_message(result, self.tracker.reported(result), header, self.model or "", self._epoch_ns)
+        header = Header(stamp_ns=h.stamp_ns if stamp_ns is None else max(stamp_ns, h.stamp_ns),
+                        frame_id=self.config.frame_id, seq=h.seq, source=h.source)
+        reported = self.tracker.reported(result) if views is None else views
+        msg = tracks_message(result, reported, header, self.model or "", self._epoch_ns)
         msg.input_stamp_ns = h.stamp_ns
         self.publisher.put(msg)
         self.counters.gauge("tracks_confirmed", len(result.confirmed))
@@ -382,17 +387,7 @@ class TrackerService(Node):
         stamp_ns = int(now * 1e9) + self._offset_ns
         dt = max(0.0, (stamp_ns - self._epoch_ns) / 1e9 - result.stamp)
         views = self.tracker.predict_views(self.tracker.reported(result), dt)
-        h = frame.loc.header
-        # the newest frame's seq and source, so a consumer can tell which input the tracks include
-        header = Header(stamp_ns=max(stamp_ns, h.stamp_ns), frame_id=self.config.frame_id, seq=h.seq, source=h.source)
-        msg = tracks_message(result, views, header, self.model or "", self._epoch_ns)
-        msg.input_stamp_ns = h.stamp_ns
-        self.publisher.put(msg)
-        self.counters.gauge("tracks_confirmed", len(result.confirmed))
-        self.counters.gauge("tracks_live", len(result.tracks))
-        self.counters.gauge("ids_remembered", len(self.tracker.memory))
-        self.counters.gauge("ids_evicted", self.tracker.memory.evicted)
-        return [msg]
+        return [self._publish(frame, result, views, stamp_ns)]
 
     def deadline(self, now: float) -> float | None:
         """Seconds until the earliest pending frame stops waiting for its embeddings, or the
@@ -452,9 +447,7 @@ class TrackerService(Node):
                 if done["live_track"]:
                     reply.live_tracks_cleared.append(i)
                     self._forgotten.add(i)
-                self._seen.pop(i, None)
-                with self._state_lock:
-                    self._last_state.pop(i, None)
+                self._unlist(i)
             if track_id is not None and not reply.forgotten_ids:
                 reply.error = f"not found: the tracker knows no ID {track_id} (never seen, or already forgotten)"
                 return reply
@@ -468,6 +461,12 @@ class TrackerService(Node):
             self._persist(self.clock(), force=True)
             return reply
 
+    def _unlist(self, track_id: int) -> None:
+        """A forgotten ID leaves the last-seen times and the query table."""
+        self._seen.pop(track_id, None)
+        with self._state_lock:
+            self._last_state.pop(track_id, None)
+
     def _expire(self, now: float) -> None:
         """Forget the remembered IDs not seen for ``retention_s`` (checked about once a minute)."""
         if now - self._last_expiry < 60.0:
@@ -479,9 +478,7 @@ class TrackerService(Node):
         old += [i for i in self.tracker.memory.entries if i not in self._seen and i not in live]
         for i in sorted(set(old)):
             self.tracker.forget(i)
-            self._seen.pop(i, None)
-            with self._state_lock:
-                self._last_state.pop(i, None)
+            self._unlist(i)
         if old:
             self.counters.count("ids_expired", len(set(old)))
             log.info("forgot IDs %s: not seen for %.0f s (retention_s)", sorted(set(old)), self.config.retention_s)

@@ -515,7 +515,7 @@ class RobustTracker:
             self.memory.archive(t.id, t.gallery.descriptors)
         if t.clf_steps and t.clf is not None:
             self.classifiers[t.id] = t.clf
-        if len(self.classifiers) > self.params.memory_size:  # follow the memory's evictions
+        if len(self.classifiers) > len(self.memory):  # follow the memory's evictions and forgetting
             self.classifiers = {i: w for i, w in self.classifiers.items() if i in self.memory}
 
     def _birth(self, dets: list[int], positions: np.ndarray, descriptors: np.ndarray | None, has_desc: np.ndarray,

@@ -10,6 +10,7 @@ pixels as one ``bin`` value. Nothing is ever sent as lists of numbers.
 
 from __future__ import annotations
 
+import math
 import re
 import struct
 import threading
@@ -31,7 +32,11 @@ DEFAULT_MAX_BYTES = 64 * 1024 * 1024
 _EXT_NDARRAY = 1
 _ARRAY_HEAD = struct.Struct("<BB")  # len(dtype string), ndim
 _MAX_NDIM = 8
+#: the shape of an array of each allowed number of dimensions, as little-endian uint64s
+_SHAPES = [struct.Struct(f"<{n}Q") for n in range(_MAX_NDIM + 1)]
 _DTYPE_RE = re.compile(r"[<>|=]?(b1|[iu][1248]|f[248])")
+#: dtypes already read, by their bytes in the array header (only ones the pattern allows)
+_DTYPES: dict[bytes, np.dtype[Any]] = {}
 _local = threading.local()
 
 
@@ -72,14 +77,17 @@ def _unpack_ext(code: int, data: bytes) -> Any:
     if ndim > _MAX_NDIM:
         raise ValueError(f"array with {ndim} dimensions")
     off = _ARRAY_HEAD.size
-    dtype_str = data[off : off + dlen].decode("ascii")
-    if not _DTYPE_RE.fullmatch(dtype_str):
-        raise ValueError(f"array dtype {dtype_str!r} is not a plain numeric dtype")
-    dtype = np.dtype(dtype_str)
+    dtype_bytes = bytes(data[off : off + dlen])
+    dtype = _DTYPES.get(dtype_bytes)
+    if dtype is None:
+        dtype_str = dtype_bytes.decode("ascii")
+        if not _DTYPE_RE.fullmatch(dtype_str):
+            raise ValueError(f"array dtype {dtype_str!r} is not a plain numeric dtype")
+        dtype = _DTYPES[dtype_bytes] = np.dtype(dtype_str)  # a small, closed set (the pattern's)
     off += dlen
-    shape = struct.unpack_from(f"<{ndim}Q", data, off)
+    shape = _SHAPES[ndim].unpack_from(data, off)
     off += 8 * ndim
-    count = int(np.prod(shape, dtype=np.uint64)) if ndim else 1
+    count = math.prod(shape)
     if count * dtype.itemsize != len(data) - off:
         raise ValueError(f"array of shape {shape} and dtype {dtype} does not match its {len(data) - off} bytes")
     return np.frombuffer(data, dtype=dtype, offset=off).reshape(shape)

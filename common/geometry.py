@@ -139,31 +139,91 @@ class PinholeCamera:
 # -------------------------------------------------------------------- rigid transforms
 
 
-@dataclass(frozen=True)
-class RigidTransform:
-    """A rotation and a translation: ``apply(p) = R @ p + t``."""
+def _quat_mul(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+    """Hamilton product ``a * b`` of (x, y, z, w) quaternions: rotate by ``b``, then ``a``."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz)
 
-    rotation: Rotation
+
+def _quat_matrix(q: tuple[float, float, float, float]) -> np.ndarray:
+    x, y, z, w = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+class RigidTransform:
+    """A rotation and a translation: ``apply(p) = R @ p + t``.
+
+    The rotation is held as a unit quaternion and its matrix; composing, inverting and
+    applying are plain float and numpy arithmetic (a transform lookup along a robot's
+    chain of frames is a few microseconds, not the hundreds that scipy's per-call
+    overhead costs). :attr:`rotation` gives the scipy :class:`Rotation` when needed.
+    Immutable.
+    """
+
+    __slots__ = ("_q", "_m", "_rotation", "translation")
+
+    _q: tuple[float, float, float, float]
+    _m: np.ndarray
+    _rotation: Rotation | None
     translation: np.ndarray
 
-    def __post_init__(self) -> None:
-        t = np.asarray(self.translation, dtype=np.float64).reshape(3)
-        if not np.all(np.isfinite(t)):
+    def __init__(self, rotation: Rotation, translation: np.ndarray) -> None:
+        x, y, z, w = (float(v) for v in rotation.as_quat())
+        self._init((x, y, z, w), translation)
+        object.__setattr__(self, "_rotation", rotation)
+
+    def _init(self, q: tuple[float, float, float, float], translation: np.ndarray) -> None:
+        t = np.asarray(translation, dtype=np.float64).reshape(3)
+        if not np.isfinite(t).all():
             raise ValueError("translation must be finite")
+        m = _quat_matrix(q)
+        m.flags.writeable = False
+        t = t.copy() if t is translation else t
+        t.flags.writeable = False
+        object.__setattr__(self, "_q", q)
+        object.__setattr__(self, "_m", m)
+        object.__setattr__(self, "_rotation", None)
         object.__setattr__(self, "translation", t)
 
     @classmethod
+    def _of(cls, q: tuple[float, float, float, float], translation: np.ndarray) -> RigidTransform:
+        """From a unit quaternion (x, y, z, w) and a translation, without going through scipy."""
+        out = cls.__new__(cls)
+        out._init(q, translation)
+        return out
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError(f"RigidTransform is immutable (cannot set {name!r})")
+
+    def __repr__(self) -> str:
+        return f"RigidTransform(quat_xyzw={list(self._q)}, translation={self.translation.tolist()})"
+
+    @property
+    def rotation(self) -> Rotation:
+        """The rotation as a scipy :class:`Rotation` (built on first use)."""
+        if self._rotation is None:
+            object.__setattr__(self, "_rotation", Rotation.from_quat(self._q))
+        return self._rotation  # type: ignore[return-value]
+
+    @classmethod
     def identity(cls) -> RigidTransform:
-        return cls(Rotation.identity(), np.zeros(3))
+        return cls._of((0.0, 0.0, 0.0, 1.0), np.zeros(3))
 
     @classmethod
     def from_quat(cls, translation: np.ndarray, quat_xyzw: np.ndarray) -> RigidTransform:
         """From a translation (3,) and a quaternion (4,) in (x, y, z, w) order (normalised here)."""
         q = np.asarray(quat_xyzw, dtype=np.float64).reshape(4)
-        norm = float(np.linalg.norm(q))
+        x, y, z, w = (float(v) for v in q)
+        norm = (x * x + y * y + z * z + w * w) ** 0.5
         if not np.isfinite(norm) or norm < 1e-9:
             raise ValueError(f"quaternion {q.tolist()} cannot be normalised")
-        return cls(Rotation.from_quat(q / norm), translation)
+        return cls._of((x / norm, y / norm, z / norm, w / norm), translation)
 
     @classmethod
     def from_matrix(cls, matrix: np.ndarray) -> RigidTransform:
@@ -172,33 +232,38 @@ class RigidTransform:
         return cls(Rotation.from_matrix(m[:3, :3]), m[:3, 3])
 
     @property
+    def rotation_matrix(self) -> np.ndarray:
+        """The (3, 3) rotation matrix (read-only)."""
+        return self._m
+
+    @property
     def quat_xyzw(self) -> np.ndarray:
-        return self.rotation.as_quat()
+        return np.array(self._q)
 
     @property
     def matrix(self) -> np.ndarray:
         """Homogeneous (4, 4) matrix."""
         m = np.eye(4)
-        m[:3, :3] = self.rotation.as_matrix()
+        m[:3, :3] = self._m
         m[:3, 3] = self.translation
         return m
 
     def __matmul__(self, other: RigidTransform) -> RigidTransform:
         """Composition: ``(a @ b).apply(p) == a.apply(b.apply(p))``."""
-        return RigidTransform(self.rotation * other.rotation, self.rotation.apply(other.translation) + self.translation)
+        return RigidTransform._of(_quat_mul(self._q, other._q), self._m @ other.translation + self.translation)
 
     def inverse(self) -> RigidTransform:
-        inv = self.rotation.inv()
-        return RigidTransform(inv, -inv.apply(self.translation))
+        x, y, z, w = self._q
+        return RigidTransform._of((-x, -y, -z, w), -(self._m.T @ self.translation))
 
     def apply(self, points: np.ndarray) -> np.ndarray:
         """Transformed points, (N, 3) -> (N, 3) or (3,) -> (3,)."""
         p = np.asarray(points, dtype=np.float64)
-        return self.rotation.apply(p) + self.translation
+        return p @ self._m.T + self.translation
 
     def rotate_covariances(self, covs: np.ndarray) -> np.ndarray:
         """``R @ C @ R.T`` for covariances (N, 3, 3) or (3, 3) (translation does not change them)."""
-        r = self.rotation.as_matrix()
+        r = self._m
         return np.einsum("ij,...jk,lk->...il", r, np.asarray(covs, dtype=np.float64), r)
 
 

@@ -4,7 +4,8 @@
 
 A router process and a publisher (this process) sending the pipeline's streams for one
 camera at --fps: 320x240 RGB frames, detections, localized detections, embeddings, tracks
-of two people, transforms and a status (tests/fixtures/viewer_scene.py). First without a
+of two people, transforms, and a status once a second as each node publishes it
+(tests/fixtures/viewer_scene.py). First without a
 viewer, then with ``perception view`` and headless Chromium showing its page. Prints the
 CPU time of the viewer process and of the router (per cent of one core) in each phase:
 the viewer's overhead is its own CPU plus the router's increase. Chromium's own CPU is
@@ -56,7 +57,7 @@ def main() -> int:
     router = RouterProcess()
     router.start()
     transport = open_transport(ZenohOptions(mode="client", connect=[router.endpoint], connect_timeout_s=5.0))
-    pub = ScenePublisher(transport, keys)
+    pub = ScenePublisher(transport, keys, status_every_s=1.0)  # as the nodes publish theirs
     stop = threading.Event()
     sent = [0]
 

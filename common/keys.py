@@ -36,15 +36,22 @@ class Delivery:
     consumer always works on the freshest frame and never builds a queue.
     Otherwise subscribers keep a FIFO of ``queue`` samples and count what overflows.
     ``congestion``: what the publisher does when the network cannot keep up.
+    ``wake``: False for a subscriber that reads on its own schedule (a page refreshed ten
+    times a second): samples wait inside the transport, the newest ``queue`` of them, and no
+    thread is woken per sample; :meth:`~common.transport.Subscription.recv` does not wait on
+    them and what overflows is not counted.
     """
 
     latest: bool
     queue: int
     congestion: Literal["drop", "block"]
     express: bool = False
+    wake: bool = True
 
     def describe(self) -> str:
         sub = "latest-only (ring of 1)" if self.latest else f"FIFO of {self.queue}, overflow counted"
+        if not self.wake:
+            sub = f"read when polled (ring of {1 if self.latest else self.queue})"
         return f"{sub}; publisher {self.congestion}s on congestion" + ("; express" if self.express else "")
 
 

@@ -57,6 +57,10 @@ class Inbox:
     """Where a transport's receive thread leaves raw payloads for one subscription."""
 
     def __init__(self, delivery: Delivery, notify: threading.Condition) -> None:
+        self.delivery = delivery
+        #: Set by a transport that keeps samples itself until they are read (``delivery.wake``
+        #: False): returns the next ``(key, payload, recv_ns)`` or None.
+        self.pull: Callable[[], tuple[str, Any, int] | None] | None = None
         self._latest = delivery.latest
         self._items: deque[tuple[str, bytes | Any, int]] = deque(maxlen=1 if delivery.latest else delivery.queue)
         self._cond = notify
@@ -72,7 +76,12 @@ class Inbox:
 
     def pop(self) -> tuple[str, Any, int] | None:
         with self._cond:
-            return self._items.popleft() if self._items else None
+            if self._items:
+                return self._items.popleft()
+        if self.pull is not None and (item := self.pull()) is not None:
+            self.stats.received += 1
+            return item
+        return None
 
     def __len__(self) -> int:
         return len(self._items)
@@ -103,18 +112,39 @@ class Subscription(Generic[M]):
     def try_recv(self) -> Received[M] | None:
         """The next message if one is waiting (invalid payloads are counted and skipped)."""
         while (item := self._inbox.pop()) is not None:
-            key, payload, recv_ns = item
-            data = payload if isinstance(payload, (bytes, bytearray)) else payload.payload.to_bytes()
-            try:
-                msg = decode(self.model, data, max_bytes=self._max_bytes) if self.model else decode_any(data, max_bytes=self._max_bytes)
-            except DecodeError as exc:
-                self._inbox.stats.invalid += 1
-                self.last_error = exc
-                self._log.warning("invalid", "dropping invalid payload on %s (%d so far): %s", key,
-                                  self._inbox.stats.invalid, exc)
-                continue
-            return Received(msg, key, recv_ns)  # type: ignore[arg-type]
+            if (got := self._decode(*item)) is not None:
+                return got
         return None
+
+    def _decode(self, key: str, payload: Any, recv_ns: int) -> Received[M] | None:
+        data = payload if isinstance(payload, (bytes, bytearray)) else payload.payload.to_bytes()
+        try:
+            msg = decode(self.model, data, max_bytes=self._max_bytes) if self.model else decode_any(data, max_bytes=self._max_bytes)
+        except DecodeError as exc:
+            self._inbox.stats.invalid += 1
+            self.last_error = exc
+            self._log.warning("invalid", "dropping invalid payload on %s (%d so far): %s", key,
+                              self._inbox.stats.invalid, exc)
+            return None
+        return Received(msg, key, recv_ns)  # type: ignore[arg-type]
+
+    def take_newest(self) -> tuple[Received[M] | None, list[int]]:
+        """Everything pending at once: the newest decodable message, and every arrival's
+        ``recv_ns`` (oldest first).
+
+        For readers that show only the latest state but still count every arrival (the
+        viewer): older payloads are dropped without being decoded, which is most of the cost
+        of a stream of images. Nothing is counted as dropped; an undecodable newest payload
+        is counted as invalid and the one before it is tried.
+        """
+        items: list[tuple[str, Any, int]] = []
+        while (item := self._inbox.pop()) is not None:
+            items.append(item)
+        arrivals = [recv_ns for _, _, recv_ns in items]
+        for item in reversed(items):
+            if (got := self._decode(*item)) is not None:
+                return got, arrivals
+        return None, arrivals
 
     def try_recv_raw(self) -> tuple[str, bytes, int] | None:
         """The next payload as it arrived, ``(key, bytes, recv_ns)``, without decoding it.

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import time
 from typing import Any, Callable
 
 import zenoh
@@ -55,6 +56,14 @@ def _secured(conf: zenoh.Config) -> bool:
     return any(conf.get_json(k) != "null" for k in ("transport/auth/usrpwd/user", "transport/link/tls/root_ca_certificate"))
 
 
+def _arrival_ns(sample: zenoh.Sample) -> int:
+    """UNIX ns of the sample's timestamp (Zenoh's NTP64 counts from the UNIX epoch), or now."""
+    ts = sample.timestamp
+    if ts is None:
+        return time.time_ns()
+    return int(ts.get_time_as_ntp64().as_nanos())
+
+
 def _matching(pub: Any) -> bool:
     status = pub.matching_status
     return bool(getattr(status, "matching", status))
@@ -88,11 +97,30 @@ class ZenohTransport(Transport):
         return wrapped
 
     def _subscribe(self, key: str, inbox: Inbox) -> Callable[[], None]:
+        if not inbox.delivery.wake:
+            return self._subscribe_polled(key, inbox)
+
         def on_sample(sample: zenoh.Sample) -> None:
             if sample.kind == zenoh.SampleKind.PUT:
                 inbox.push(str(sample.key_expr), sample)
 
         sub = self.session.declare_subscriber(key, on_sample)
+        return sub.undeclare
+
+    def _subscribe_polled(self, key: str, inbox: Inbox) -> Callable[[], None]:
+        """Samples wait in Zenoh's ring channel (the newest ``queue``) until the inbox is read:
+        no Python callback runs per sample. The arrival time is the router's timestamp of the
+        sample when it has one (samples through a router do), else the time it is read."""
+        delivery = inbox.delivery
+        sub = self.session.declare_subscriber(key, zenoh.handlers.RingChannel(1 if delivery.latest else delivery.queue))
+
+        def pull() -> tuple[str, Any, int] | None:
+            while (sample := sub.try_recv()) is not None:
+                if sample.kind == zenoh.SampleKind.PUT:
+                    return str(sample.key_expr), sample, _arrival_ns(sample)
+            return None
+
+        inbox.pull = pull
         return sub.undeclare
 
     def declare_token(self, key: str) -> Token:

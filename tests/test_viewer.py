@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import base64
 import json
 import threading
 import urllib.request
@@ -151,3 +152,14 @@ def test_a_busy_port_is_a_start_up_error() -> None:
             WebServer("127.0.0.1", port, LatestState())
     finally:
         first.close()
+
+
+def test_the_state_carries_the_newest_image_only_when_the_browser_lacks_it() -> None:
+    state = LatestState()
+    state.set_state({"tracks": [], "image": {"seq": 5, "width": 2, "height": 2}})
+    assert "jpeg" not in json.loads(state.wait_state(0, 0.0, have_image=-1))  # no image yet
+    state.set_image(b"\xff\xd8fake", seq=5)
+    got = json.loads(state.wait_state(0, 0.0, have_image=-1))
+    assert base64.b64decode(got["jpeg"]) == b"\xff\xd8fake" and got["image"]["seq"] == 5
+    assert "jpeg" not in json.loads(state.wait_state(0, 0.0, have_image=5))  # it has this one
+    assert "jpeg" not in json.loads(state.wait_state(0, 0.0))  # a client that asks for no image

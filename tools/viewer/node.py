@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import replace
 from typing import Any, Callable, Protocol
 
 import numpy as np
@@ -30,17 +31,26 @@ from tools.viewer.web import LatestState
 
 __all__ = ["STAGES", "Sink", "ViewerNode", "jpeg_of"]
 
-#: Small messages the viewer reads: a short FIFO, overflow counted (it only needs the newest).
-_LOOSE = Delivery(latest=False, queue=64, congestion="drop")
-#: Frames: the few that arrive between two polls, so the camera's rate is measured on each
-#: of them; older ones are dropped and counted.
-_FEW_FRAMES = Delivery(latest=False, queue=4, congestion="drop", express=True)
-#: The viewer wakes at most this often (Hz): each wake-up drains every stream at once.
+# The viewer reads on its own schedule (``wake=False``): samples wait in the transport until
+# a poll, and no thread is woken per sample.
+#: Small messages the viewer reads: the newest 64 (it only needs the newest).
+_LOOSE = Delivery(latest=False, queue=64, congestion="drop", wake=False)
+#: Frames: the few that arrive between two polls, so the camera's rate counts each of them
+#: (only the newest is decoded); older ones are dropped and counted.
+_FEW_FRAMES = Delivery(latest=False, queue=16, congestion="drop", express=True, wake=False)
+#: Transforms and statuses: every one is read.
+_EVERY_TF = replace(RELIABLE, wake=False)
+_EVERY_STATUS = replace(STATUS, wake=False)
+#: With a sink (the Foxglove bridge) the viewer wakes at most this often (Hz) and forwards
+#: every message; without one it wakes as often as the page refreshes. Each wake-up drains
+#: every stream at once.
 POLL_HZ = 20.0
 #: The stages whose rate and latency the page shows, in pipeline order ("camera": the frames).
 STAGES = ("camera", "detector", "localizer", "embedder", "tracker")
 #: Images are encoded only while a browser has asked for something within this long (s).
 _IMAGE_INTEREST_S = 2.0
+#: The stages' rates and latencies in the page state are recomputed this often (s).
+_STAGES_EVERY_S = 1.0
 
 
 class Sink(Protocol):
@@ -76,6 +86,8 @@ class ViewerNode(Node):
         self.config = config
         self.state = state
         self.sinks = sinks
+        #: Wake-ups per second: the page needs no more than its own refresh rates.
+        self.poll_hz = POLL_HZ if sinks else max(config.state_hz, config.image_hz)
         cam = config.camera
         self.subs: dict[str, Subscription[Any]] = {
             "camera": self.io.subscribe(keys.frames(cam), RGBDFrame, _FEW_FRAMES),
@@ -83,9 +95,9 @@ class ViewerNode(Node):
             "localizer": self.io.subscribe(keys.localized(cam), LocalizedDetections, _LOOSE),
             "embedder": self.io.subscribe(keys.embeddings(cam), Embeddings, _LOOSE),
             "tracker": self.io.subscribe(keys.tracks(), Tracks, _LOOSE),
-            "tf": self.io.subscribe(keys.tf(), TransformBatch, RELIABLE),
-            "tf_static": self.io.subscribe(keys.tf_static(), TransformBatch, RELIABLE),
-            "status": self.io.subscribe(keys.status(), ServiceStatus, STATUS),
+            "tf": self.io.subscribe(keys.tf(), TransformBatch, _EVERY_TF),
+            "tf_static": self.io.subscribe(keys.tf_static(), TransformBatch, _EVERY_TF),
+            "status": self.io.subscribe(keys.status(), ServiceStatus, _EVERY_STATUS),
         }
         self.meters = {stage: StageMeter() for stage in STAGES}
         self.trails = Trails(span_s=config.trail_s)
@@ -99,6 +111,8 @@ class ViewerNode(Node):
         self._last_image = -1e9
         self._image_seq = -1
         self._image_info: dict[str, int] | None = None
+        self._stages_cache: dict[str, dict[str, Any]] | None = None
+        self._stages_at = -1e9
         self._on_close: list[Any] = []
         self._unwatch = transport.watch_alive(keys.alive(), self._on_alive)
 
@@ -117,6 +131,9 @@ class ViewerNode(Node):
 
     def _take(self, now: float) -> None:
         for stream, sub in self.subs.items():
+            if stream in self.meters and not self.sinks:
+                self._take_newest(stream, sub, now)
+                continue
             while (got := sub.try_recv()) is not None:
                 msg = got.msg
                 self._dirty = True
@@ -126,8 +143,7 @@ class ViewerNode(Node):
                     self.meters[stream].add(now, (got.recv_ns - msg.header.stamp_ns) / 1e6)
                     self.latest[stream] = msg
                 if isinstance(msg, Tracks):
-                    for t in msg.tracks:
-                        self.trails.add(t.id, now, float(t.position[0]), float(t.position[1]))
+                    self._trail(msg, now)
                 elif isinstance(msg, TransformBatch):
                     add_batch(self.buffer, msg, static=stream == "tf_static")
                 elif isinstance(msg, ServiceStatus):
@@ -147,6 +163,28 @@ class ViewerNode(Node):
             self.nodes.setdefault((name, instance), NodeSeen(name, instance)).alive = alive
             self._dirty = True
 
+    def _take_newest(self, stream: str, sub: Subscription[Any], now: float) -> None:
+        """A stream the page shows only the newest of: every arrival counts towards its rate,
+        but only the newest is decoded (with no sink, that is the viewer's main saving: it
+        decodes at most one camera frame per wake-up, not each of 30 a second)."""
+        got, arrivals = sub.take_newest()
+        if not arrivals:
+            return
+        wall_ns = time.time_ns()
+        meter = self.meters[stream]
+        meter.arrived(now - (wall_ns - recv_ns) / 1e9 for recv_ns in arrivals)
+        if got is None:
+            return
+        self._dirty = True
+        meter.sample(now, (got.recv_ns - got.msg.header.stamp_ns) / 1e6)
+        self.latest[stream] = got.msg
+        if isinstance(got.msg, Tracks):
+            self._trail(got.msg, now)
+
+    def _trail(self, tracks: Tracks, now: float) -> None:
+        for t in tracks.tracks:
+            self.trails.add(t.id, now, float(t.position[0]), float(t.position[1]))
+
     # ------------------------------------------------------------------ outputs
 
     def _robot(self) -> dict[str, float] | None:
@@ -154,7 +192,7 @@ class ViewerNode(Node):
             tf = self.buffer.lookup(self.config.map_frame, self.config.base_frame, None)
         except (TransformError, KeyError):
             return None
-        return {"x": float(tf.translation[0]), "y": float(tf.translation[1]), "yaw": yaw_of(tf.rotation.as_matrix())}
+        return {"x": float(tf.translation[0]), "y": float(tf.translation[1]), "yaw": yaw_of(tf.rotation_matrix)}
 
     def _boxes(self) -> list[dict[str, Any]]:
         dets: Detections | None = self.latest.get("detector")
@@ -197,11 +235,21 @@ class ViewerNode(Node):
             "appearance_available": tracks.appearance_available if tracks else None,
             "image": self._image_info,
             "boxes": self._boxes(),
-            "stages": [{"name": s, "count": m.count, "rate_hz": round(m.rate_hz(now), 2),
-                        "latency_p50_ms": _round(m.latency_ms(50, now)), "latency_p95_ms": _round(m.latency_ms(95, now))}
-                       for s, m in self.meters.items()],
+            "stages": self._stages(now),
             "nodes": nodes,
         }
+
+    def _stages(self, now: float) -> list[dict[str, Any]]:
+        """Each stage's count, rate and latency. Rates and latencies are windows of seconds and
+        are recomputed at most once a second (their percentiles were the page state's largest
+        cost); the counts are current."""
+        if self._stages_cache is None or now - self._stages_at >= _STAGES_EVERY_S:
+            self._stages_cache = {s: {"rate_hz": round(m.rate_hz(now), 2),
+                                      "latency_p50_ms": _round(m.latency_ms(50, now)),
+                                      "latency_p95_ms": _round(m.latency_ms(95, now))}
+                                  for s, m in self.meters.items()}
+            self._stages_at = now
+        return [{"name": s, "count": m.count, **self._stages_cache[s]} for s, m in self.meters.items()]
 
     def poll(self, now: float) -> list[Any]:
         self._take(now)
@@ -211,7 +259,7 @@ class ViewerNode(Node):
         wants_image = time.monotonic() - self.state.watched_at < _IMAGE_INTEREST_S
         if (frame is not None and frame.header.seq != self._image_seq and wants_image
                 and now - self._last_image >= 1.0 / self.config.image_hz):
-            self.state.set_image(jpeg_of(frame, self.config.jpeg_quality))
+            self.state.set_image(jpeg_of(frame, self.config.jpeg_quality), frame.header.seq)
             self._image_seq, self._last_image = frame.header.seq, now
             self._image_info = {"seq": frame.header.seq, "width": frame.camera_info.width,
                                 "height": frame.camera_info.height}
@@ -222,13 +270,13 @@ class ViewerNode(Node):
         return []
 
     def run(self, shutdown: Shutdown, clock: Callable[[], float] = time.monotonic) -> None:
-        """Poll at most :data:`POLL_HZ` times a second: a page refreshed at ``state_hz`` needs
-        no wake-up per message, and batching them is most of the viewer's CPU saving."""
+        """Poll at most ``poll_hz`` times a second: a page refreshed at ``state_hz`` needs no
+        wake-up per message, and batching them is much of the viewer's CPU saving."""
         while not shutdown.is_set():
             started = clock()
             self.poll(started)
             wait = self.deadline(clock())
-            shutdown.wait(max(1.0 / POLL_HZ - (clock() - started), 0.0 if wait is None else min(wait, 0.2)))
+            shutdown.wait(max(1.0 / self.poll_hz - (clock() - started), 0.0 if wait is None else min(wait, 0.2)))
 
     def deadline(self, now: float) -> float | None:
         return max(0.0, self._last_state + 1.0 / self.config.state_hz - now) if self._dirty else None

@@ -1,14 +1,17 @@
 """The operator's page over HTTP: static assets from the package and the latest state.
 
 Every browser pulls at its own pace and always gets the newest state: ``/api/state?after=V``
-waits (up to ``LONG_POLL_S``) until the state is newer than version ``V`` and returns it;
-``/api/image.jpg`` returns the newest camera image. Nothing is queued per browser, so a
-slow browser skips states instead of falling behind. The server is the standard
+waits (up to ``LONG_POLL_S``) until the state is newer than version ``V`` and returns it.
+With ``&image=S`` the reply also carries the newest camera image (``jpeg``, base64) when it
+is not image ``S``, so the page needs one request per refresh, not two. ``/api/image.jpg``
+returns the newest camera image on its own. Nothing is queued per browser, so a slow
+browser skips states instead of falling behind. The server is the standard
 library's threading HTTP server, bound to one address; the page needs no internet.
 """
 
 from __future__ import annotations
 
+import base64
 import json
 import logging
 import threading
@@ -36,6 +39,8 @@ class LatestState:
         self.version = 0
         self._state = b"{}"
         self._image: bytes | None = None
+        self._image_seq: int | None = None
+        self._image_b64: bytes = b""
         #: monotonic s of the last request from a browser (state or image): someone watches
         self.watched_at = 0.0
         self.closed = False
@@ -47,21 +52,31 @@ class LatestState:
             self._state = json.dumps(state, separators=(",", ":")).encode()
             self._cond.notify_all()
 
-    def set_image(self, jpeg: bytes) -> None:
+    def set_image(self, jpeg: bytes, seq: int | None = None) -> None:
+        """The newest camera image; ``seq`` is the frame's sequence number, named in the state."""
+        b64 = base64.b64encode(jpeg)
         with self._cond:
-            self._image = jpeg
+            self._image, self._image_seq, self._image_b64 = jpeg, seq, b64
 
     def image(self) -> bytes | None:
         self.watched_at = time.monotonic()
         with self._cond:
             return self._image
 
-    def wait_state(self, after: int, timeout: float) -> bytes:
-        """The state once its version is above ``after`` (or at ``timeout``, or on close)."""
+    def wait_state(self, after: int, timeout: float, have_image: int | None = None) -> bytes:
+        """The state once its version is above ``after`` (or at ``timeout``, or on close).
+
+        With ``have_image`` (the seq of the image the browser shows), the newest image is
+        added as ``"jpeg"`` (base64) when it is another one.
+        """
         self.watched_at = time.monotonic()
         with self._cond:
             self._cond.wait_for(lambda: self.version > after or self.closed, timeout)
-            return self._state
+            state, seq, b64 = self._state, self._image_seq, self._image_b64
+        if have_image is None or seq is None or seq == have_image or not b64 or not state.endswith(b"}"):
+            return state
+        sep = b"," if len(state) > 2 else b""
+        return state[:-1] + sep + b'"jpeg":"' + b64 + b'"}'
 
     def close(self) -> None:
         with self._cond:
@@ -99,12 +114,14 @@ class _Handler(BaseHTTPRequestHandler):
         url = urlsplit(self.path)
         state = self.server.state
         if url.path == "/api/state":
+            query = parse_qs(url.query)
             try:
-                after = int(parse_qs(url.query).get("after", ["0"])[0])
+                after = int(query.get("after", ["0"])[0])
+                have_image = int(query["image"][0]) if "image" in query else None
             except ValueError:
-                self._send(HTTPStatus.BAD_REQUEST, b"after must be an integer", "text/plain")
+                self._send(HTTPStatus.BAD_REQUEST, b"after and image must be integers", "text/plain")
                 return
-            self._send(HTTPStatus.OK, state.wait_state(after, LONG_POLL_S), "application/json")
+            self._send(HTTPStatus.OK, state.wait_state(after, LONG_POLL_S, have_image), "application/json")
         elif url.path == "/api/image.jpg":
             jpeg = state.image()
             if jpeg is None:

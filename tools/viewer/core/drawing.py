@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
+from typing import Iterable
 
 import numpy as np
 
@@ -73,20 +74,35 @@ class Trails:
 
 @dataclass
 class StageMeter:
-    """Recent arrivals of one stream: rate (Hz) and latency from the sensor stamp (ms)."""
+    """Recent arrivals of one stream: rate (Hz) and latency from the sensor stamp (ms).
+
+    Arrivals and latencies are kept apart: every arrival counts towards the rate, while the
+    latency may be sampled (the viewer decodes only the newest message of each poll).
+    """
 
     window: int = 300
     count: int = 0
     _arrivals: deque[float] = field(default_factory=deque)
-    _latencies_ms: deque[float] = field(default_factory=deque)
+    _latencies: deque[tuple[float, float]] = field(default_factory=deque)
 
     def add(self, now: float, latency_ms: float) -> None:
-        self.count += 1
-        self._arrivals.append(now)
-        self._latencies_ms.append(latency_ms)
+        """One message that arrived at ``now`` and is ``latency_ms`` older than its stamp."""
+        self.arrived([now])
+        self.sample(now, latency_ms)
+
+    def arrived(self, times: Iterable[float]) -> None:
+        """Arrivals (seconds on the caller's clock, oldest first) whose latency is not measured."""
+        for t in times:
+            self.count += 1
+            self._arrivals.append(t)
         while len(self._arrivals) > self.window:
             self._arrivals.popleft()
-            self._latencies_ms.popleft()
+
+    def sample(self, now: float, latency_ms: float) -> None:
+        """One message's latency, measured at ``now``."""
+        self._latencies.append((now, latency_ms))
+        while len(self._latencies) > self.window:
+            self._latencies.popleft()
 
     def rate_hz(self, now: float, span_s: float = 3.0) -> float:
         """Messages per second over the last ``span_s`` (0 when fewer than two arrived)."""
@@ -98,10 +114,14 @@ class StageMeter:
 
     def latency_ms(self, q: float, now: float, span_s: float = 10.0) -> float | None:
         """The ``q``-th percentile latency of the last ``span_s`` seconds, or None."""
-        t = np.fromiter(self._arrivals, np.float64, len(self._arrivals))
-        lat = np.fromiter(self._latencies_ms, np.float64, len(self._latencies_ms))
-        recent = lat[now - t <= span_s]
-        return float(np.percentile(recent, q)) if len(recent) else None
+        recent = sorted(ms for t, ms in self._latencies if now - t <= span_s)
+        if not recent:
+            return None
+        # numpy's default (linear) percentile, without numpy's per-call overhead
+        pos = (len(recent) - 1) * q / 100.0
+        lo = int(pos)
+        hi = min(lo + 1, len(recent) - 1)
+        return recent[lo] + (recent[hi] - recent[lo]) * (pos - lo)
 
 
 def project_to_image(points: np.ndarray, camera_to_frame: np.ndarray, K: np.ndarray, width: int,

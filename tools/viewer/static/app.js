@@ -1,12 +1,12 @@
-// The operator's page: pulls the newest state (long poll) and the newest camera image.
-// A slow browser simply asks less often; the server never queues states for it.
+// The operator's page: pulls the newest state (long poll), with the newest camera image in
+// the same reply when it is not the one shown. A slow browser simply asks less often; the
+// server never queues states for it.
 "use strict";
 
 const $ = (id) => document.getElementById(id);
 let version = 0;
 let state = null;
 let imageSeq = -1;
-let imageLoading = false;
 
 function setConnection(ok, text) {
   const el = $("connection");
@@ -17,12 +17,13 @@ function setConnection(ok, text) {
 async function pull() {
   for (;;) {
     try {
-      const res = await fetch(`/api/state?after=${version}`, { cache: "no-store" });
+      const res = await fetch(`/api/state?after=${version}&image=${imageSeq}`, { cache: "no-store" });
       if (!res.ok) throw new Error(`HTTP ${res.status}`);
       const next = await res.json();
       if (next.version !== undefined) {
         version = next.version;
         state = next;
+        if (next.jpeg && next.image) showImage(next.image.seq, next.jpeg);
         render();
       }
       setConnection(true, "live");
@@ -67,7 +68,6 @@ function render() {
   renderStages();
   renderNodes();
   drawMap();
-  refreshImage();
   drawOverlay();
 }
 
@@ -132,17 +132,11 @@ function drawMap() {
   }
 }
 
-function refreshImage() {
-  if (state.image && state.image.seq !== imageSeq) fetchImage();
-}
-
-function fetchImage() {
-  if (imageLoading) return; // one request at a time: a slow browser skips images
-  imageLoading = true;
+function showImage(seq, jpeg) {
   const img = $("camera");
-  const seq = state.image.seq;
-  img.onload = img.onerror = () => { imageLoading = false; imageSeq = seq; drawOverlay(); };
-  img.src = `/api/image.jpg?seq=${seq}&t=${Date.now()}`;
+  img.onload = img.onerror = () => drawOverlay();
+  imageSeq = seq;
+  img.src = `data:image/jpeg;base64,${jpeg}`;
 }
 
 function drawOverlay() {

@@ -402,7 +402,9 @@ class CameraView(_Model):
 class LocalizedDetections(Message):
     """People positions of one source frame.
 
-    ``header.stamp_ns``/``header.seq``/``header.source`` are the source frame's;
+    ``header.stamp_ns``/``header.seq`` are the source frame's; ``header.source`` is the
+    stream's name: the camera's, or the name a second detector on that camera publishes
+    under (two detectors' results of one frame must not share a join key);
     ``header.frame_id`` is the frame the positions are in (``map``).
     """
 
@@ -410,6 +412,7 @@ class LocalizedDetections(Message):
     detections: list[LocalizedDetection] = Field(default_factory=list)
     rejected: dict[str, int] = Field(default_factory=dict, description="boxes rejected in this frame, by reason")
     view: CameraView | None = Field(default=None, description="the camera's view at this frame (None: not known)")
+    detector: str = Field(default="", description="the detector whose boxes these are (Detections.detector)")
 
 
 # ------------------------------------------------------------------------ embeddings

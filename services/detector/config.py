@@ -15,6 +15,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from common.keys import validate_chunk
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
 from services.detector.core.darknet import DarknetDetector, DarknetParams
@@ -156,6 +157,9 @@ class DetectorConfig(_Section):
     """The detector service's configuration (section ``detector`` of a deploy file)."""
 
     camera: str = Field(default="head", min_length=1, description="camera name in the frame and detection keys")
+    stream: str | None = Field(
+        default=None, description="name of its output, detections/{stream}, when another detector on the same camera "
+                                  "publishes detections/{camera} (e.g. head-hog); None: the camera's name")
     backend: Backend = "hog"
     depth_available: bool = Field(default=True, description="whether the camera publishes registered depth")
     hog: HogConfig = Field(default_factory=HogConfig)
@@ -163,8 +167,15 @@ class DetectorConfig(_Section):
     yolo: YoloOnnxConfig = Field(default_factory=YoloOnnxConfig)
     darknet: DarknetConfig = Field(default_factory=DarknetConfig)
 
+    @property
+    def output(self) -> str:
+        """The name its detections are published under: ``stream``, else the camera's."""
+        return self.stream or self.camera
+
     @model_validator(mode="after")
     def _backend_inputs(self) -> DetectorConfig:
+        if self.stream is not None:
+            validate_chunk(self.stream, "stream")
         if self.backend == "depth" and not self.depth_available:
             raise ValueError("backend 'depth' needs depth images but depth_available is false; "
                              "choose backend hog, yolo-onnx or darknet, or publish registered depth")

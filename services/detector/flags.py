@@ -34,6 +34,9 @@ def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Every flag of ``perception detector``."""
     parser.add_argument("--camera", default=None, help="camera name in the keys (default 'head')")
+    parser.add_argument("--stream", default=None, metavar="NAME",
+                        help="publish detections/NAME instead of detections/{camera}: a second detector on the same "
+                             "camera (e.g. a slow hog or yolo-onnx next to depth; its localizer takes --stream NAME too)")
     parser.add_argument("--no-depth", action="store_true", help="the camera publishes no depth (refuses backend depth)")
     add_backend_arguments(parser)
     add_node_arguments(parser, "detector")
@@ -41,7 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def node_overrides(args: argparse.Namespace) -> dict[str, Any]:
     """The node's settings from its flags."""
-    return overrides(args, {"camera": args.camera, "depth_available": False if args.no_depth else None})
+    return overrides(args, {"camera": args.camera, "stream": args.stream,
+                            "depth_available": False if args.no_depth else None})
 
 
 def prepare(config: DetectorConfig) -> dict[str, Any]:

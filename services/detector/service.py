@@ -45,7 +45,7 @@ class DetectorService(Node):
         self.config = config
         self.detector = detector if detector is not None else build_detector(config)
         self.frames = self.io.subscribe(keys.frames(config.camera), RGBDFrame, FRAMES)
-        self.publisher = self.io.publisher(keys.detections(config.camera), Detections, RELIABLE)
+        self.publisher = self.io.publisher(keys.detections(config.output), Detections, RELIABLE)
         self.processed = 0
         self._total_ms = 0.0
         self._log = RateLimitedLog(log)

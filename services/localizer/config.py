@@ -31,6 +31,9 @@ class LocalizerConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     camera: str = Field(default="head", description="camera name in the keys (frames/{camera}, detections/{camera})")
+    stream: str | None = Field(
+        default=None, description="a second detector's stream on this camera: reads detections/{stream} and publishes "
+                                  "localized/{stream} with header.source {stream}; None: the camera's name")
     target_frame: str = Field(default="map", min_length=1, description="frame the positions are published in")
     camera_frame: str = Field(
         default="", description="camera frame id used when a frame's header and camera_info carry none"
@@ -78,6 +81,16 @@ class LocalizerConfig(BaseModel):
     @classmethod
     def _chunk(cls, v: str) -> str:
         return validate_chunk(v, "camera")
+
+    @field_validator("stream")
+    @classmethod
+    def _stream_chunk(cls, v: str | None) -> str | None:
+        return None if v is None else validate_chunk(v, "stream")
+
+    @property
+    def output(self) -> str:
+        """The stream it reads detections of and publishes: ``stream``, else the camera's name."""
+        return self.stream or self.camera
 
     @model_validator(mode="after")
     def _range(self) -> LocalizerConfig:

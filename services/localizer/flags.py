@@ -12,6 +12,8 @@ __all__ = ["add_arguments", "overrides"]
 #: flag -> (setting, type, metavar, help)
 _FLAGS: dict[str, tuple[str, type, str | None, str]] = {
     "--camera": ("camera", str, None, "camera name in the keys (default head)"),
+    "--stream": ("stream", str, "NAME", "a second detector's stream on this camera: detections/NAME in, "
+                                        "localized/NAME out (default: the camera's name)"),
     "--target-frame": ("target_frame", str, None, "frame to publish positions in (default map)"),
     "--camera-frame": ("camera_frame", str, None, "camera frame id when the frames carry none"),
     "--percentile": ("percentile", float, None, "depth percentile inside each box (default 25)"),

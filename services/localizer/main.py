@@ -16,7 +16,8 @@ depth frame, cast the ray through the box centre to that depth, and transform th
 point (with its covariance) to --target-frame at the frame's time.
 
 Subscribes to frames/{camera}, detections/{camera}, tf and tf_static; publishes
-LocalizedDetections on localized/{camera}. Settings come from the defaults, then a
+LocalizedDetections on localized/{camera}. With --stream NAME (a second detector on the
+same camera) it reads detections/NAME and publishes localized/NAME, source NAME. Settings come from the defaults, then a
 --service-config YAML/JSON file (its 'localizer' section, or the whole file), then
 PERCEPTION_LOCALIZER__FIELD environment variables, then the flags below. See
 services/localizer/README.md for every setting and the transforms it needs."""

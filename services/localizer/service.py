@@ -102,8 +102,8 @@ class LocalizerService(Node):
         self.sub_tf = self.io.subscribe(keys.tf(), TransformBatch, RELIABLE)
         frame_fifo = dataclasses.replace(FRAMES, latest=False, queue=max(4, config.frame_buffer))
         self.sub_frames = self.io.subscribe(keys.frames(config.camera), RGBDFrame, frame_fifo)
-        self.sub_detections = self.io.subscribe(keys.detections(config.camera), Detections, RELIABLE)
-        self.pub = self.io.publisher(keys.localized(config.camera), LocalizedDetections, RELIABLE)
+        self.sub_detections = self.io.subscribe(keys.detections(config.output), Detections, RELIABLE)
+        self.pub = self.io.publisher(keys.localized(config.output), LocalizedDetections, RELIABLE)
 
     @property
     def pending(self) -> int:
@@ -217,13 +217,16 @@ class LocalizerService(Node):
             stamp_ns=msg.header.stamp_ns,
             frame_id=self.config.target_frame,
             seq=msg.header.seq,
-            source=msg.header.source,
+            # a second detector's stream is a source of its own: its frames must not share the
+            # camera's join keys downstream (the tracker fuses both)
+            source=self.config.stream or msg.header.source,
         )
         cam = frame.camera
         view = CameraView(camera_to_frame=tf.matrix, K=cam.K, width=cam.width, height=cam.height,
                           max_range_m=self.params.max_depth_m)
         return LocalizedDetections(
-            header=header, camera_frame=frame.camera_frame, detections=entries, rejected=rejected, view=view
+            header=header, camera_frame=frame.camera_frame, detections=entries, rejected=rejected, view=view,
+            detector=msg.detector,
         )
 
     # ------------------------------------------------------------------- loop

@@ -168,6 +168,9 @@ class RobustConfig(BaseModel):
     gate_sq: float = Field(default=_R.gate_sq, gt=0.0, description="squared Mahalanobis bound on (x, y)")
     appearance_weight: float = Field(default=_R.appearance_weight, ge=0.0, description="weight of the appearance cue")
     scores: ScoreConfig = Field(default_factory=ScoreConfig)
+    detector_scores: dict[str, ScoreConfig] = Field(
+        default_factory=dict, description="score models of named detectors (Detections.detector: depth, hog, "
+                                          "yolo-onnx, ...) when several feed the tracker; the others use 'scores'")
     n_init: int = Field(default=_R.n_init, ge=1, le=100, description="confident hits that confirm a track")
     confirm_is_person: float = Field(default=_R.confirm_is_person, ge=0.5, lt=1.0,
                                      description="IsPerson probability a track needs to be confirmed")
@@ -188,7 +191,8 @@ class RobustConfig(BaseModel):
     posture: PostureConfig = Field(default_factory=PostureConfig)
 
     def params(self, appearance: AppearanceModel | None, memory_size: int) -> RobustParams:
-        fields = self.model_dump(exclude={"scores", "use_detection_covariance", "classifier", "posture"})
+        fields = self.model_dump(exclude={"scores", "detector_scores", "use_detection_covariance", "classifier",
+                                          "posture"})
         return RobustParams(**fields, appearance=appearance, scores=self.scores.model(), memory_size=memory_size,
                             classifier=self.classifier.params(), posture=self.posture.params())
 
@@ -239,6 +243,13 @@ class TrackerConfig(BaseModel):
         description="Tracks published at this rate, predicted to the publish time (seed 001); 0: once per input frame")
     join_wait_s: float = Field(default=0.1, ge=0.0, le=10.0,
                                description="how long localized detections wait for their embeddings")
+    no_embeddings: list[str] = Field(
+        default_factory=list, description="streams no embedder reads (a second, slow detector's, e.g. head-hog): "
+                                          "their frames are tracked by position at once, not after join_wait_s")
+    view_age_s: float = Field(
+        default=1.0, gt=0.0, le=60.0,
+        description="with several cameras, a coasting track is reported while in the view of any camera that sent a "
+                    "frame within this long")
     reorder_window_s: float = Field(default=0.5, ge=0.0, le=10.0,
                                     description="inputs older than this behind the newest are dropped")
     clock_jump_s: float = Field(
@@ -312,6 +323,11 @@ class TrackerConfig(BaseModel):
         if chosen not in ("euclidean", "cosine"):
             raise ValueError(f"unknown descriptor metric {chosen!r}; the tracker knows euclidean and cosine")
         return AppearanceModel(thresholds.t_lower, thresholds.t_upper, thresholds.t_recover, chosen)  # type: ignore[arg-type]
+
+    def score_model(self, detector: str) -> ScoreModel | None:
+        """The score model of ``detector``'s detections, when it has its own (robust profile)."""
+        sc = self.robust.detector_scores.get(detector) if detector else None
+        return sc.model() if sc is not None else None
 
     def build_tracker(self, thresholds: AppearanceConfig | None, memory: IdentityMemory | None = None,
                       metric: str | None = None) -> Tracker | RobustTracker:

@@ -56,6 +56,7 @@ from services.tracker.convert import (
     usable_covariances,
 )
 from services.tracker.core.tracker import FrameResult, TrackerState, TrackStatus, TrackView
+from services.tracker.core.view import FieldOfView, Views
 from services.tracker.memory_file import (
     descriptor_dim,
     load_memory,
@@ -81,9 +82,13 @@ _R_EPS = np.eye(3) * 1e-6
 _ANSWERED = (TrackStatus.CONFIRMED, TrackStatus.COASTING)
 
 
-def _complete(items: Mapping[str, Any]) -> bool:
-    """A frame is ready with its embeddings (or their known absence), or with no detections."""
-    return "embeddings" in items or not items["localized"].detections
+def _completion(no_embeddings: frozenset[str]) -> Callable[[Mapping[str, Any]], bool]:
+    def complete(items: Mapping[str, Any]) -> bool:
+        """A frame is ready with its embeddings (or their known absence), with no detections,
+        or when its stream has no embedder."""
+        loc = items["localized"]
+        return "embeddings" in items or not loc.detections or loc.header.source in no_embeddings
+    return complete
 
 
 @dataclass
@@ -125,7 +130,9 @@ class TrackerService(Node):
         self.join: Joiner[LocalizedDetections] = Joiner(
             ("localized", "embeddings"), wait_s=config.join_wait_s, on_timeout="release",
             orphan_s=config.join_wait_s + config.reorder_window_s, buffer=256, max_waiting=256, ordered=True,
-            complete=_complete)
+            complete=_completion(frozenset(config.no_embeddings)))
+        #: each stream's newest view, (stamp_ns, view): a coasting track in any recent one is in view
+        self._views: dict[str, tuple[int, FieldOfView]] = {}
         self._last_state: dict[int, TrackState] = {}
         self._ever_confirmed: set[int] = set()
         self._state_lock = threading.Lock()
@@ -236,6 +243,7 @@ class TrackerService(Node):
         self.buffer.reset()
         self.join.forget_released()  # a looping replay sends the same keys again
         self._epoch_ns = None
+        self._views.clear()
         with self._state_lock:
             for track_id in ended:
                 if track_id not in self._last_state:
@@ -266,6 +274,23 @@ class TrackerService(Node):
         return out
 
     # ---------------------------------------------------------------- update
+    def _view(self, loc: LocalizedDetections) -> FieldOfView | Views | None:
+        """What the cameras could see at this frame: its own view with one camera; with several,
+        the union of every stream's newest view within ``view_age_s`` of it."""
+        view = field_of_view(loc)
+        stamp = loc.header.stamp_ns
+        if view is not None:
+            known = self._views.get(loc.header.source)
+            if known is None or known[0] <= stamp:
+                self._views[loc.header.source] = (stamp, view)
+        if len(self._views) < 2:
+            return view
+        age_ns = int(self.config.view_age_s * 1e9)
+        recent = tuple(v for s, v in self._views.values() if abs(stamp - s) <= age_ns)
+        if view is not None and not any(v is view for v in recent):
+            recent += (view,)
+        return Views(recent) if len(recent) > 1 else (recent[0] if recent else None)
+
     def _update(self, frame: _Frame) -> FrameResult:
         loc = frame.loc
         if self._epoch_ns is None:
@@ -286,8 +311,9 @@ class TrackerService(Node):
         scores = np.array([d.score for d in loc.detections], np.float64)
         boxes = np.array([d.bbox_xyxy for d in loc.detections], np.float64).reshape(-1, 4)
         aspects = (boxes[:, 3] - boxes[:, 1]) / np.maximum(boxes[:, 2] - boxes[:, 0], 1e-6)  # for posture
-        result = self.tracker.update(stamp, positions, descriptors, covs_used, scores, view=field_of_view(loc),
-                                     aspects=aspects, orientations=orientations_for(loc, frame.emb))
+        result = self.tracker.update(stamp, positions, descriptors, covs_used, scores, view=self._view(loc),
+                                     aspects=aspects, orientations=orientations_for(loc, frame.emb),
+                                     score_model=self.config.score_model(loc.detector))
         self._ever_confirmed.update(v.id for v in result.confirmed)
         self.counters.count("updates")
         if not result.appearance_available and loc.detections:

@@ -65,7 +65,7 @@ from services.tracker.core import posture as pose
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.posture import PostureParams
 from services.tracker.core.tracker import FrameResult, TrackStatus, TrackView
-from services.tracker.core.view import FieldOfView
+from services.tracker.core.view import FieldOfView, Views
 
 __all__ = ["AppearanceModel", "RobustParams", "RobustTracker", "RobustTrackerState", "ScoreModel"]
 
@@ -261,8 +261,8 @@ class RobustTracker:
     # ------------------------------------------------------------------ update
     def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
                measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
-               view: FieldOfView | None = None, aspects: np.ndarray | None = None,
-               orientations: np.ndarray | None = None) -> FrameResult:
+               view: FieldOfView | Views | None = None, aspects: np.ndarray | None = None,
+               orientations: np.ndarray | None = None, score_model: ScoreModel | None = None) -> FrameResult:
         """Process one frame: ``stamp`` in seconds, ``positions`` (N, 3), ``descriptors``
         (N, D) or None (a NaN row: no descriptor), ``measurement_cov`` (N, 3, 3) or None,
         ``scores`` (N,) or None (the detector's confidences), ``view`` what the camera could
@@ -271,7 +271,8 @@ class RobustTracker:
         estimated, since the positions' z need not be a height above the floor either);
         ``orientations`` (N, 8) an orientation classifier's probabilities per detection in the
         tracking frame's bins (NaN rows: none), used while the person is too slow for the
-        walking direction to tell."""
+        walking direction to tell. ``score_model``: how this frame's detector's scores read
+        as P(true person), when several detectors feed the tracker (None: ``params.scores``)."""
         p = self.params
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         n = len(positions)
@@ -291,8 +292,9 @@ class RobustTracker:
         self.last_stamp = stamp
         appearance = descriptors is not None and p.appearance is not None and descriptors.shape[1] > 0
         has_desc = np.all(np.isfinite(descriptors), axis=1) if appearance else np.zeros(n, bool)  # type: ignore[arg-type]
-        p_det = p.scores.probability(scores)
-        confident = p.scores.confident(scores)
+        score_model = p.scores if score_model is None else score_model
+        p_det = score_model.probability(scores)
+        confident = score_model.confident(scores)
         self._d2: dict[tuple[int, int], np.ndarray] = {}
         log_odds = self._pair_log_odds(positions, r, descriptors if appearance else None, has_desc, p_det)
         result = FrameResult(stamp=stamp, appearance_available=appearance)

@@ -9,7 +9,10 @@ now is a false positive for every consumer that reads the output as "people in v
 Such a track is kept (their ID is still theirs when they come back), but not reported.
 
 :class:`FieldOfView` is a pinhole camera's view in the tracking frame: its pose, its
-intrinsics and image size, and the range its depth reaches. Pure numpy.
+intrinsics and image size, and the range its depth reaches. :class:`Views` is what several
+cameras see together (seed 001's two cameras): a person is in view when any of them could
+see them, so a person behind the robot, seen by the back camera a moment ago, stays
+reported while the head camera's frames come in. Pure numpy.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FieldOfView"]
+__all__ = ["FieldOfView", "Views"]
 
 
 @dataclass(frozen=True)
@@ -58,3 +61,17 @@ class FieldOfView:
         mu, mv = margin * self.width, margin * self.height
         return ((z > 0.05) & (z <= self.max_range_m) & (u >= mu) & (u <= self.width - mu)
                 & (v >= mv) & (v <= self.height - mv))
+
+
+@dataclass(frozen=True)
+class Views:
+    """The union of several cameras' views: a point is in view when any of them contains it."""
+
+    views: tuple[FieldOfView, ...]
+
+    def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        p = np.asarray(points, np.float64).reshape(-1, 3)
+        seen = np.zeros(len(p), bool)
+        for view in self.views:
+            seen |= view.contains(p, margin)
+        return seen

@@ -18,6 +18,7 @@ import numpy as np
 
 from common.keys import RELIABLE, Keys
 from common.memory import MemoryBus
+from common.progress import progress
 from common.poses import OPTICAL_FROM_BODY, make_pose, rot_y
 from common.samples import rgbd_frame
 from common.schemas import HeadCommand, Header, RGBDFrame, TrackState, Tracks, TransformBatch
@@ -42,7 +43,7 @@ def main() -> None:
     commands = t.subscribe(keys.head_command(), HeadCommand, RELIABLE)
     rng = np.random.default_rng(0)
     latencies = []
-    for k in range(args.n):
+    for k in progress(range(args.n), total=args.n, desc="attention", unit="msg"):
         stamp = stamp0 + k * 10**8
         tf.put(TransformBatch(header=Header(stamp_ns=stamp), transforms=[
             transform("map", "base_link", np.eye(4), stamp),

@@ -37,6 +37,7 @@ sys.path.insert(0, str(ROOT))
 
 import cv2  # noqa: E402
 
+from common.progress import Bar, progress, progress_bar  # noqa: E402
 from services.detector.core.darknet import DarknetDetector, DarknetParams  # noqa: E402
 from services.detector.core.depth import DepthClusterDetector, DepthParams  # noqa: E402
 from services.detector.core.hog import HogDetector, HogParams  # noqa: E402
@@ -152,14 +153,22 @@ def depth_scene(width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.nda
     return rgb, depth, K
 
 
-def measure(fn: Callable[[], object], repeats: int, warmup: int = 2) -> tuple[float, float]:
-    for _ in range(warmup):
+WARMUP = 2  # untimed frames before each row's timed ones
+
+
+def measure(fn: Callable[[], object], repeats: int, bar: Bar | None = None) -> tuple[float, float]:
+    """(median, p95) ms of ``fn`` over ``repeats`` calls after :data:`WARMUP`; ``bar`` counts every call."""
+    for _ in range(WARMUP):
         fn()
+        if bar is not None:
+            bar.update()
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
         fn()
         times.append((time.perf_counter() - start) * 1000.0)
+        if bar is not None:
+            bar.update()
     return float(np.median(times)), float(np.percentile(times, 95))
 
 
@@ -193,7 +202,8 @@ def pets_accuracy(step: int) -> int:
         lowest = min(params.hit_threshold for _, params in PETS_ROWS if params.upsample == up)
         det = HogDetector(HogParams(upsample=up))
         t0 = time.perf_counter()
-        windows[up] = {f: det.windows(rgb, hit_threshold=lowest) for f, rgb in frames.items()}
+        windows[up] = {f: det.windows(rgb, hit_threshold=lowest)
+                       for f, rgb in progress(frames.items(), total=len(frames), desc=f"HOG x{up:g}", unit="frame")}
         ms[up] = (time.perf_counter() - t0) * 1e3 / len(frames)
     print(f"# HOG on pets09_dev: {len(frames)} frames of 480x360, AP at IoU >= 0.5 (conf-0 rows don't-care); "
           "foot-point error of the true positives on the ground plane through the homography")
@@ -234,17 +244,18 @@ def main() -> int:
           f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} OpenCV threads)")
     print("| backend | input | median ms | p95 ms |")
     print("|---|---|---:|---:|")
-    for name in wanted:
-        detector = factories[name]()
-        for width, height in SIZES:
-            if name.startswith("depth"):
-                rgb, depth, K = depth_scene(width, height)
-                run: Callable[[], object] = lambda: detector.detect(rgb, depth, K)  # noqa: E731
-            else:
-                rgb = rgb_frame(width, height)
-                run = lambda: detector.detect(rgb)  # noqa: E731
-            median, p95 = measure(run, args.repeats)
-            print(f"| {name} | {width}x{height} | {median:.1f} | {p95:.1f} |", flush=True)
+    with progress_bar(len(wanted) * len(SIZES) * (WARMUP + args.repeats), desc="detector", unit="frame") as bar:
+        for name in wanted:
+            detector = factories[name]()
+            for width, height in SIZES:
+                if name.startswith("depth"):
+                    rgb, depth, K = depth_scene(width, height)
+                    run: Callable[[], object] = lambda: detector.detect(rgb, depth, K)  # noqa: E731
+                else:
+                    rgb = rgb_frame(width, height)
+                    run = lambda: detector.detect(rgb)  # noqa: E731
+                median, p95 = measure(run, args.repeats, bar)
+                print(f"| {name} | {width}x{height} | {median:.1f} | {p95:.1f} |", flush=True)
     return 0
 
 

@@ -32,6 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root, for tests.fixtures
 
+from common.progress import Bar, progress_bar  # noqa: E402
 from services.embedder.core.backend import Backend  # noqa: E402
 from services.embedder.core.colour import ColourDescriptor  # noqa: E402
 from services.embedder.core.depth_mask import DepthMaskParams, depth_masks  # noqa: E402
@@ -46,7 +47,13 @@ def crops(n: int, rng: np.random.Generator) -> list[np.ndarray]:
     return out
 
 
-def measure(backend: Backend, per_frame: int, repeats: int, rng: np.random.Generator) -> tuple[float, float]:
+CROPS_PER_FRAME = (1, 4, 16)
+
+
+def measure(backend: Backend, per_frame: int, repeats: int, rng: np.random.Generator,
+            bar: Bar | None = None) -> tuple[float, float]:
+    """(median, p95) ms per frame of ``per_frame`` crops over ``repeats`` frames after one warm-up;
+    ``bar`` counts every frame."""
     frames = [crops(per_frame, rng) for _ in range(4)]
     backend.embed(frames[0])  # warm-up
     times = []
@@ -54,6 +61,8 @@ def measure(backend: Backend, per_frame: int, repeats: int, rng: np.random.Gener
         t0 = time.perf_counter()
         backend.embed(frames[i % len(frames)])
         times.append((time.perf_counter() - t0) * 1e3)
+        if bar is not None:
+            bar.update()
     return float(np.median(times)), float(np.percentile(times, 95))
 
 
@@ -136,10 +145,12 @@ def main() -> None:
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.processor() or platform.platform()}")
     print("\n| backend | provider | crops/frame | ms/frame median | ms/frame p95 | descriptors/s |")
     print("|---|---|---|---|---|---|")
-    for name, backend in backends:
-        for n in (1, 4, 16):
-            med, p95 = measure(backend, n, args.repeats, rng)
-            print(f"| {name} | {providers[name]} | {n} | {med:.2f} | {p95:.2f} | {n / med * 1e3:.0f} |", flush=True)
+    with progress_bar(len(backends) * len(CROPS_PER_FRAME) * args.repeats, desc="embedder", unit="frame") as bar:
+        for name, backend in backends:
+            for n in CROPS_PER_FRAME:
+                med, p95 = measure(backend, n, args.repeats, rng, bar)
+                print(f"| {name} | {providers[name]} | {n} | {med:.2f} | {p95:.2f} | {n / med * 1e3:.0f} |",
+                      flush=True)
     tmp.cleanup()
 
 

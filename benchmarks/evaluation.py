@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common.progress import Bar, progress_bar
 from perception.cli import main as perception
 from tools.evaluation.distances import euclidean_distances
 from tools.evaluation.evaluate import evaluate_tables
@@ -66,6 +67,37 @@ def write_csv(table: TrackTable, path: Path, tracks: bool) -> None:
             f.write(f"{fr},{fr / 30:.3f},{i},{x:.3f},{y:.3f},1.0\n" if tracks else f"{fr},{i},{x:.3f},{y:.3f},1.0\n")
 
 
+PEOPLE = (1, 10, 50)
+
+
+def bench_people(people: int, frames: int, repeats: int, bar: Bar) -> tuple[np.ndarray, list[float], list[float]]:
+    """Per-frame update time (median, p95) in us, core frames/s and CLI frames/s for ``people``;
+    ``bar`` counts the ``3 * repeats`` runs."""
+    gt, hyp = synthetic(people, frames)
+    times = []
+    for _ in range(repeats):
+        times += per_frame_times(gt, hyp)
+        bar.update()
+    core = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        evaluate_tables(gt, hyp)
+        core.append(frames / (time.perf_counter() - t0))
+        bar.update()
+    with tempfile.TemporaryDirectory() as tmp:
+        g_path, h_path = Path(tmp) / "gt.csv", Path(tmp) / "tracks.csv"
+        write_csv(gt, g_path, tracks=False)
+        write_csv(hyp, h_path, tracks=True)
+        cli = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            with contextlib.redirect_stdout(io.StringIO()):
+                perception(["-q", "evaluate", "--gt", str(g_path), "--tracks", str(h_path)])
+            cli.append(frames / (time.perf_counter() - t0))
+            bar.update()
+    return np.quantile(times, [0.5, 0.95]) * 1e6, core, cli
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--frames", type=int, default=1000, help="frames per sequence (default 1000)")
@@ -74,27 +106,11 @@ def main() -> None:
     print(f"machine: {platform.processor() or platform.machine()}, python {platform.python_version()}")
     print(f"{'people':>6}  {'frames':>6}  {'update median (us)':>18}  {'update p95 (us)':>15}  "
           f"{'core (frames/s)':>15}  {'CLI incl. CSV (frames/s)':>24}")
-    for people in (1, 10, 50):
-        gt, hyp = synthetic(people, args.frames)
-        times = [t for _ in range(args.repeats) for t in per_frame_times(gt, hyp)]
-        core = []
-        for _ in range(args.repeats):
-            t0 = time.perf_counter()
-            evaluate_tables(gt, hyp)
-            core.append(args.frames / (time.perf_counter() - t0))
-        with tempfile.TemporaryDirectory() as tmp:
-            g_path, h_path = Path(tmp) / "gt.csv", Path(tmp) / "tracks.csv"
-            write_csv(gt, g_path, tracks=False)
-            write_csv(hyp, h_path, tracks=True)
-            cli = []
-            for _ in range(args.repeats):
-                t0 = time.perf_counter()
-                with contextlib.redirect_stdout(io.StringIO()):
-                    perception(["-q", "evaluate", "--gt", str(g_path), "--tracks", str(h_path)])
-                cli.append(args.frames / (time.perf_counter() - t0))
-        q = np.quantile(times, [0.5, 0.95]) * 1e6
-        print(f"{people:>6}  {args.frames:>6}  {q[0]:>18.1f}  {q[1]:>15.1f}  {statistics.median(core):>15.0f}  "
-              f"{statistics.median(cli):>24.0f}")
+    with progress_bar(len(PEOPLE) * 3 * args.repeats, desc="evaluation", unit="run") as bar:
+        for people in PEOPLE:
+            q, core, cli = bench_people(people, args.frames, args.repeats, bar)
+            print(f"{people:>6}  {args.frames:>6}  {q[0]:>18.1f}  {q[1]:>15.1f}  {statistics.median(core):>15.0f}  "
+                  f"{statistics.median(cli):>24.0f}")
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ from common.geometry import PinholeCamera, TransformBuffer  # noqa: E402
 from common.geometry_messages import add_batch  # noqa: E402
 from common.keys import RELIABLE, Keys  # noqa: E402
 from common.memory import MemoryBus  # noqa: E402
+from common.progress import Bar, progress_bar  # noqa: E402
 from common.schemas import (  # noqa: E402
     Detection,
     Detections,
@@ -59,7 +60,8 @@ def stats(samples: list[float]) -> tuple[float, float]:
     return float(np.median(a)), float(np.percentile(a, 95))
 
 
-def bench_core(n: int, camera: PinholeCamera, repeats: int) -> tuple[float, float]:
+def bench_core(n: int, camera: PinholeCamera, repeats: int, bar: Bar) -> tuple[float, float]:
+    """(median, p95) ms of the core on one frame with ``n`` boxes; ``bar`` counts the frames."""
     rng = np.random.default_rng(n)
     people = [Person((float(x), 0.1, float(z))) for x, z in zip(rng.uniform(-1.5, 1.5, 4), rng.uniform(2, 6, 4))]
     depth = np.round(render_depth(camera, people) * 1000).astype(np.uint16)
@@ -77,10 +79,12 @@ def bench_core(n: int, camera: PinholeCamera, repeats: int) -> tuple[float, floa
         tf = buf.lookup("map", "camera", stamp)
         loc.transformed(tf, "map")
         times.append(time.perf_counter() - t0)
+        bar.update()
     return stats(times)
 
 
-def bench_service(n: int, repeats: int) -> tuple[float, float]:
+def bench_service(n: int, repeats: int, bar: Bar) -> tuple[float, float]:
+    """(median, p95) ms of one service step with ``n`` boxes; ``bar`` counts the frames."""
     rng = np.random.default_rng(100 + n)
     bus = MemoryBus()
     keys = Keys()
@@ -109,6 +113,7 @@ def bench_service(n: int, repeats: int) -> tuple[float, float]:
         published = service.poll(time.monotonic())
         times.append(time.perf_counter() - t0)
         assert len(published) == 1 and out.try_recv() is not None
+        bar.update()
     return stats(times)
 
 
@@ -122,16 +127,20 @@ def main() -> None:
     )
     print("| path | boxes | median ms/frame | p95 ms/frame |")
     print("|---|---|---|---|")
-    for label, camera in (
+    cameras = (
         ("core, pinhole", PinholeCamera(K, 640, 480)),
         ("core, plumb_bob", PinholeCamera(K, 640, 480, PLUMB_BOB)),
-    ):
-        for n in (1, 10, 30):
-            med, p95 = bench_core(n, camera, args.repeats)
-            print(f"| {label} | {n} | {med:.2f} | {p95:.2f} |", flush=True)
-    for n in (1, 10, 30):
-        med, p95 = bench_service(n, max(20, args.repeats // 2))
-        print(f"| service step (decode + core + encode) | {n} | {med:.2f} | {p95:.2f} |", flush=True)
+    )
+    boxes, service_repeats = (1, 10, 30), max(20, args.repeats // 2)
+    total = len(boxes) * (len(cameras) * args.repeats + service_repeats)
+    with progress_bar(total, desc="localizer", unit="frame") as bar:
+        for label, camera in cameras:
+            for n in boxes:
+                med, p95 = bench_core(n, camera, args.repeats, bar)
+                print(f"| {label} | {n} | {med:.2f} | {p95:.2f} |", flush=True)
+        for n in boxes:
+            med, p95 = bench_service(n, service_repeats, bar)
+            print(f"| service step (decode + core + encode) | {n} | {med:.2f} | {p95:.2f} |", flush=True)
 
 
 if __name__ == "__main__":

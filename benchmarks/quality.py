@@ -94,6 +94,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from benchmarks import quality_sim  # noqa: E402
+from common.progress import Bar, progress_bar  # noqa: E402
 from services.tracker.config import TrackerConfig  # noqa: E402
 from services.tracker.offline import Detections, Row, frame_stamps, read_detections, track_config  # noqa: E402
 from tools.evaluation.evaluate import evaluate_tables  # noqa: E402
@@ -346,8 +347,8 @@ class Score:
         return self.frames / self.seconds if self.seconds > 0 else float("inf")
 
 
-def score(tracker: TrackerAdapter, sequences: list[Sequence]) -> Score:
-    """Run ``tracker`` on every sequence (timed), judge each, sum."""
+def score(tracker: TrackerAdapter, sequences: list[Sequence], bar: Bar | None = None) -> Score:
+    """Run ``tracker`` on every sequence (timed), judge each, sum; ``bar`` counts the sequences done."""
     parts, times = [], []
     for seq in sequences:
         dets = seq.dets if tracker.uses_appearance else _positions_only(seq.dets)
@@ -355,6 +356,8 @@ def score(tracker: TrackerAdapter, sequences: list[Sequence]) -> Score:
         rows = tracker.run(dets)
         times.append((time.perf_counter() - t0, len(frame_stamps(seq.dets)[0])))
         parts.append((seq.name, judge(seq.gt, rows, seq.ignore)))
+        if bar is not None:
+            bar.update()
     return Score(ClearMot.combine(r for _, r in parts), parts, sum(t for t, _ in times), sum(n for _, n in times),
                  times)
 
@@ -453,24 +456,26 @@ def detect_pets(root: Path, log: Callable[[str], None] = print) -> Detections:
     frames, stamps, pos, scores, descs = [], [], [], [], []
     paths = sorted((root / "frames").glob("frame_*.jpg"))
     t0 = time.perf_counter()
-    for k, path in enumerate(paths):
-        frame = int(path.stem.split("_")[1])
-        bgr = cv2.imread(str(path))
-        if bgr is None:
-            raise OSError(f"cannot read {path}")
-        rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
-        boxes, conf = detector.detect(rgb)
-        crops, kept = crop_boxes(rgb, boxes)
-        if len(kept):
-            d = embedder.embed(crops)
-            g = to_ground(H, np.asarray(boxes, np.float64)[kept])
-            frames.append(np.full(len(kept), frame, np.int64))
-            stamps.append(np.full(len(kept), (frame - 1) / PETS_FPS))
-            pos.append(np.column_stack([g, np.full(len(kept), PETS_PERSON_Z)]))
-            scores.append(np.asarray(conf, np.float64)[kept])
-            descs.append(np.asarray(d, np.float32))
-        if (k + 1) % 100 == 0:
-            log(f"  pets09: detected {k + 1}/{len(paths)} frames ({time.perf_counter() - t0:.0f} s)")
+    with progress_bar(len(paths), desc="pets09 detect", unit="frame") as bar:
+        for k, path in enumerate(paths):
+            frame = int(path.stem.split("_")[1])
+            bgr = cv2.imread(str(path))
+            if bgr is None:
+                raise OSError(f"cannot read {path}")
+            rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+            boxes, conf = detector.detect(rgb)
+            crops, kept = crop_boxes(rgb, boxes)
+            if len(kept):
+                d = embedder.embed(crops)
+                g = to_ground(H, np.asarray(boxes, np.float64)[kept])
+                frames.append(np.full(len(kept), frame, np.int64))
+                stamps.append(np.full(len(kept), (frame - 1) / PETS_FPS))
+                pos.append(np.column_stack([g, np.full(len(kept), PETS_PERSON_Z)]))
+                scores.append(np.asarray(conf, np.float64)[kept])
+                descs.append(np.asarray(d, np.float32))
+            bar.update()
+            if (k + 1) % 100 == 0:
+                log(f"  pets09: detected {k + 1}/{len(paths)} frames ({time.perf_counter() - t0:.0f} s)")
     return Detections(np.concatenate(frames), np.concatenate(stamps), np.concatenate(pos), np.concatenate(scores),
                       np.concatenate(descs))
 
@@ -507,11 +512,12 @@ def load_pets(root: Path, cache_dir: Path, log: Callable[[str], None] = print) -
 # The simulated apartment: run_chain's inputs to the tracker, captured and cached
 # ------------------------------------------------------------------------------------
 
-def score_sim(tracker: TrackerAdapter, captures: list[quality_sim.Capture]) -> Score:
+def score_sim(tracker: TrackerAdapter, captures: list[quality_sim.Capture], bar: Bar | None = None) -> Score:
     """``tracker`` on every captured scenario (timed), judged as the demo's Table II, summed.
 
     This project's tracker (``config`` set) is replayed as the service runs it; the
     others get the positions. frames/s counts every frame the tracker was given.
+    ``bar`` counts the scenarios done.
     """
     parts, times = [], []
     for cap in captures:
@@ -520,6 +526,8 @@ def score_sim(tracker: TrackerAdapter, captures: list[quality_sim.Capture]) -> S
         rows = quality_sim.replay(cap, tracker.config) if dets is None else tracker.run(dets)  # type: ignore[arg-type]
         times.append((time.perf_counter() - t0, cap.frames))
         parts.append((cap.name, quality_sim.judge_demo(cap, rows)))
+        if bar is not None:
+            bar.update()
     return Score(ClearMot.combine(r for _, r in parts), parts, sum(t for t, _ in times), sum(n for _, n in times),
                  times)
 
@@ -620,8 +628,10 @@ def format_sequences(title: str, scores: dict[str, Score]) -> str:
     return "\n".join(lines)
 
 
-def run_dataset(sequences: list[Sequence], trackers: list[TrackerAdapter]) -> dict[str, Score]:
-    return {t.name: score(t, sequences) for t in trackers}
+def run_dataset(sequences: list[Sequence], trackers: list[TrackerAdapter], desc: str = "track") -> dict[str, Score]:
+    """Every tracker on every sequence; on a terminal a bar named ``desc`` counts the (tracker, sequence) runs."""
+    with progress_bar(len(trackers) * len(sequences), desc=desc, unit="run") as bar:
+        return {t.name: score(t, sequences, bar) for t in trackers}
 
 
 def score_dict(s: Score) -> dict[str, object]:
@@ -652,7 +662,8 @@ def run_sim(scenarios: list[str], seconds: float, cache_dir: Path, trackers: lis
     captures = [quality_sim.load_capture(name, seconds, cache_dir, refresh=refresh) for name in scenarios]
     title = (f"Simulated apartment, {len(scenarios)} scenarios x {seconds:g} s at {quality_sim.SIM_FPS:g} fps: "
              "depth detector -> localizer -> colour embedder (run_chain), judged as the demo's Table II")
-    scores = {t.name: score_sim(t, captures) for t in trackers}
+    with progress_bar(len(trackers) * len(captures), desc="sim track", unit="run") as bar:
+        scores = {t.name: score_sim(t, captures, bar) for t in trackers}
     check = chain_check(captures, scores.get(quality_sim.CHAIN_PROFILE))
     return title, scores, check
 
@@ -698,7 +709,7 @@ def main(argv: list[str] | None = None) -> int:
         for label, cut in ((f"score >= {KITTI_SCORE_CUT}", KITTI_SCORE_CUT), ("no score cut", None)):
             title = f"KITTI pedestrians dev (7 sequences, summed), {label}"
             calibrated = project_adapters(KITTI_SCORES) + [t for t in trackers if t.name not in PROFILES]
-            tables[title] = run_dataset(load_kitti(kitti, cut), calibrated)
+            tables[title] = run_dataset(load_kitti(kitti, cut), calibrated, desc=f"kitti {'cut' if cut is not None else 'no cut'}")
             print(format_scores(title, tables[title]) + "\n")
     else:
         print(f"KITTI skipped: {kitti} not found\n")
@@ -710,7 +721,7 @@ def main(argv: list[str] | None = None) -> int:
         print("PETS09 skipped (--quick)\n")
     elif pets.is_dir():
         title = "PETS09-S2L1 frames 1-400: HOG -> colour embedder -> ground plane"
-        tables[title] = run_dataset(load_pets(pets, args.cache_dir), trackers)
+        tables[title] = run_dataset(load_pets(pets, args.cache_dir), trackers, desc="pets09 track")
         print(format_scores(title, tables[title]))
         print("(the project's tracker uses the colour descriptors; kalman-baseline and norfair positions only)\n")
     else:

@@ -30,6 +30,7 @@ import functools
 import hashlib
 import json
 import logging
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,6 +38,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from common.progress import progress_bar
 from common.schemas import Embeddings, LocalizedDetections, Message, PeopleGroundTruth, Tracks
 from services.tracker.config import TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of
@@ -227,13 +229,22 @@ def cache_key(scenario: str, seconds: float, fps: float) -> str:
 
 
 def capture(scenario: str, seconds: float, fps: float = SIM_FPS) -> Capture:
-    """Run ``scenario`` through run_chain (the in-chain tracker: :data:`CHAIN_PROFILE`) and capture its inputs."""
+    """Run ``scenario`` through run_chain (the in-chain tracker: :data:`CHAIN_PROFILE`) and capture its inputs.
+
+    On a terminal a bar counts the simulated frames (one ground truth message each).
+    """
     from tools.demo.inprocess import run_chain
 
     rec = _Recorder()
     t0 = time.perf_counter()
-    result = run_chain(scenario, duration_s=seconds, fps=fps, width=SIM_SIZE[0], height=SIM_SIZE[1], seed=SIM_SEED,
-                       tracker=_chain_config(), detector=SIM_DETECTOR, record=rec)
+    with progress_bar(math.ceil(seconds * fps), desc=f"capture {scenario}", unit="frame") as bar:
+        def record(msg: Message) -> None:
+            rec(msg)
+            if isinstance(msg, PeopleGroundTruth):
+                bar.update()
+
+        result = run_chain(scenario, duration_s=seconds, fps=fps, width=SIM_SIZE[0], height=SIM_SIZE[1], seed=SIM_SEED,
+                           tracker=_chain_config(), detector=SIM_DETECTOR, record=record)
     overall = result.report["overall"]
     chain = {"profile": CHAIN_PROFILE, "tracker_key": chain_tracker_key(), "seconds": time.perf_counter() - t0,
              **{k: overall[k] for k in ("mota", "idf1", "id_switches", "false_positives", "misses", "objects")}}

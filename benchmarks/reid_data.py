@@ -21,6 +21,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from common.progress import progress
+
 __all__ = ["Crops", "ReidScores", "bhattacharyya_matrix", "euclidean_matrix", "hsv_stripes_anchor", "pets_crops",
            "reid_scores", "sim_crops"]
 
@@ -47,13 +49,14 @@ class ReidScores:
 
 
 def pets_crops(root: Path, step: int = 5, fps: float = 10.0) -> Crops:
-    """Ground-truth crops of every ``step``-th frame of ``root`` (a ``pets09_dev`` folder)."""
+    """Ground-truth crops of every ``step``-th frame of ``root`` (a ``pets09_dev`` folder).
+
+    On a terminal a bar counts the frames read."""
     gt = np.loadtxt(root / "gt.txt", delimiter=",", ndmin=2)
     gt = gt[gt[:, 6] > 0]
     images, ids, times = [], [], []
-    for frame in np.unique(gt[:, 0]).astype(int):
-        if (frame - 1) % step:
-            continue
+    frames = [f for f in np.unique(gt[:, 0]).astype(int).tolist() if (f - 1) % step == 0]
+    for frame in progress(frames, total=len(frames), desc="pets09 crops", unit="frame"):
         path = root / "frames" / f"frame_{frame:04d}.jpg"
         bgr = cv2.imread(str(path))
         if bgr is None:
@@ -79,6 +82,7 @@ def sim_crops(scenario: str = "changing-clothes-out-of-view", seconds: float = 3
     The box is the bounding box of the person's visible pixels, widened by ``pad`` of its
     width on each side and of its height at the top (a detector's box holds background).
     An identity is the person *and* their outfit, so a change of clothes is a new identity.
+    On a terminal a bar counts the frames rendered.
     """
     from tools.simulator.core.render import default_camera
     from tools.simulator.core.scenarios import build_world
@@ -86,7 +90,8 @@ def sim_crops(scenario: str = "changing-clothes-out-of-view", seconds: float = 3
 
     sim = Simulation(build_world(scenario, seed=seed), default_camera(), fps=fps, seed=seed)
     images, depths, ids, times = [], [], [], []
-    for seq in range(int(seconds * fps)):
+    n = int(seconds * fps)
+    for seq in progress(range(n), total=n, desc=f"sim {scenario}", unit="frame"):
         fr = sim.frame(seq)
         owner = fr.render.owner
         depth = fr.render.depth_mm.astype(np.float32) * np.float32(1e-3)

@@ -28,6 +28,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from common.keys import Delivery, Keys  # noqa: E402
+from common.progress import Bar, progress_bar  # noqa: E402
 from common.router_process import RouterProcess, free_port  # noqa: E402
 from common.samples import rgbd_frame  # noqa: E402
 from common.transport import Subscription  # noqa: E402
@@ -78,12 +79,14 @@ def one_run(path: Path, frames: int, subscriber: ZenohOptions, replay_zenoh: lis
 
 
 def measure(name: str, path: Path, frames: int, frame_bytes: int, runs: int, subscriber: ZenohOptions,
-            replay_zenoh: list[str]) -> str:
+            replay_zenoh: list[str], bar: Bar) -> str:
+    """The table row of ``runs`` replays of ``path``; ``bar`` counts the runs."""
     fps, gaps = [], []
     for _ in range(runs):
         span, g = one_run(path, frames, subscriber, replay_zenoh)
         fps.append((len(g)) / span)
         gaps.extend(g)
+        bar.update()
     f = float(np.median(fps))
     return (f"| {name} | {f:.0f} | {f * frame_bytes / 1e6:.0f} | {np.median(gaps):.2f} | "
             f"{np.percentile(gaps, 95):.2f} |")
@@ -104,19 +107,20 @@ def main() -> None:
         print("|---|---|---|---|---|")
         no_shm = Path(tmp) / "no_shm.json5"
         no_shm.write_text('{ transport: { shared_memory: { enabled: false } } }')
-        with RouterProcess() as router:
-            client = ZenohOptions(mode="client", connect=[router.endpoint])
-            print(measure("via router (clients)", path, args.frames, frame_bytes, args.runs, client,
-                          ["--connect", router.endpoint]), flush=True)
-            client_no_shm = ZenohOptions(mode="client", connect=[router.endpoint], shared_memory=False)
-            print(measure("via router, shared memory off (as between PCs)", path, args.frames, frame_bytes,
-                          args.runs, client_no_shm, ["--connect", router.endpoint, "--config", str(no_shm)]),
-                  flush=True)
-        port = free_port()
-        endpoint = f"tcp/127.0.0.1:{port}"
-        peer = ZenohOptions(mode="peer", listen=[endpoint])
-        print(measure("peer to peer", path, args.frames, frame_bytes, args.runs, peer,
-                      ["--mode", "peer", "--connect", endpoint]), flush=True)
+        with progress_bar(3 * args.runs, desc="replay", unit="run") as bar:
+            with RouterProcess() as router:
+                client = ZenohOptions(mode="client", connect=[router.endpoint])
+                print(measure("via router (clients)", path, args.frames, frame_bytes, args.runs, client,
+                              ["--connect", router.endpoint], bar), flush=True)
+                client_no_shm = ZenohOptions(mode="client", connect=[router.endpoint], shared_memory=False)
+                print(measure("via router, shared memory off (as between PCs)", path, args.frames, frame_bytes,
+                              args.runs, client_no_shm, ["--connect", router.endpoint, "--config", str(no_shm)], bar),
+                      flush=True)
+            port = free_port()
+            endpoint = f"tcp/127.0.0.1:{port}"
+            peer = ZenohOptions(mode="peer", listen=[endpoint])
+            print(measure("peer to peer", path, args.frames, frame_bytes, args.runs, peer,
+                          ["--mode", "peer", "--connect", endpoint], bar), flush=True)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,7 @@ import numpy as np
 
 from common.codec import encode
 from common.keys import Keys
+from common.progress import Bar, progress, progress_bar
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.apartment import default_apartment
 from tools.simulator.core.body import PersonPose, body_ellipsoids
@@ -42,14 +43,17 @@ def _stream(scenario: str, width: int, height: int) -> SimulatedStream:
     return stream
 
 
-def _measure(scenario: str, width: int, height: int, frames: int) -> tuple[np.ndarray, np.ndarray]:
-    """Milliseconds per frame: render + ground truth, and the published frame (+ messages + encoding)."""
+def _measure(scenario: str, width: int, height: int, frames: int, bar: Bar) -> tuple[np.ndarray, np.ndarray]:
+    """Milliseconds per frame: render + ground truth, and the published frame (+ messages + encoding).
+
+    ``bar`` counts every frame (``2 * frames``)."""
     stream = _stream(scenario, width, height)
     core = []
     for seq in range(1, frames + 1):
         t0 = time.perf_counter()
         stream.simulation.frame(seq)
         core.append(time.perf_counter() - t0)
+        bar.update()
     stream = _stream(scenario, width, height)
     full = []
     for seq in range(1, frames + 1):
@@ -57,6 +61,7 @@ def _measure(scenario: str, width: int, height: int, frames: int) -> tuple[np.nd
         for _, msg in stream.messages(seq)[1]:
             encode(msg)
         full.append(time.perf_counter() - t0)
+        bar.update()
     return np.array(core) * 1e3, np.array(full) * 1e3
 
 
@@ -91,16 +96,21 @@ def hog_controlled() -> dict[float, float]:
         @ make_pose(rot_y(0.12), (0.05, 0, 1.15))
         @ make_pose(OPTICAL_FROM_BODY, (0.06, 0, 0.08))
     )
+    dists, facings, outfits = (2.5, 3.0, 4.0, 5.0), (np.pi, 0.0, np.pi / 2, np.pi - 0.8), range(0, 8, 2)
+    gaits = ((0.0, 0.0), (1.0, 1.0))
     rates = {}
-    for dist in (2.5, 3.0, 4.0, 5.0):
-        hits = []
-        for facing in (np.pi, 0.0, np.pi / 2, np.pi - 0.8):
-            for outfit in range(0, 8, 2):
-                for gait, phase in ((0.0, 0.0), (1.0, 1.0)):
-                    pose = PersonPose(0.6 + dist, 2.0, facing, phase=phase, gait=gait)
-                    out = renderer.render(cam, body_ellipsoids(1.75, pose, OUTFITS[outfit], 0))
-                    hits.append(_hit(_detect(hog, out.rgb), intr.cx, intr.cy))
-        rates[dist] = float(np.mean(hits))
+    with progress_bar(len(dists) * len(facings) * len(outfits) * len(gaits), desc="HOG, one person",
+                      unit="image") as bar:
+        for dist in dists:
+            hits = []
+            for facing in facings:
+                for outfit in outfits:
+                    for gait, phase in gaits:
+                        pose = PersonPose(0.6 + dist, 2.0, facing, phase=phase, gait=gait)
+                        out = renderer.render(cam, body_ellipsoids(1.75, pose, OUTFITS[outfit], 0))
+                        hits.append(_hit(_detect(hog, out.rgb), intr.cx, intr.cy))
+                        bar.update()
+            rates[dist] = float(np.mean(hits))
     return rates
 
 
@@ -108,20 +118,23 @@ def hog_scenario(name: str, seeds: tuple[int, ...] = (0, 1, 2), step: int = 15) 
     """(people at 2-5 m, hits, people at 2.6-5 m, hits) over scenario frames at 640x480."""
     hog, intr = _hog(), default_camera(640, 480)
     n = h = n_far = h_far = 0
-    for seed in seeds:
-        sim = Simulation(build_world(name, seed=seed), intr, fps=15.0, seed=seed)
-        for seq in range(0, int(SCENARIOS[name].duration_s * 15), step):
-            fd = sim.frame(seq)
-            rects = None
-            for p in fd.people:
-                c = np.linalg.inv(fd.map_camera) @ np.append(p.position, 1.0)
-                if p.posture != "standing" or p.visible_fraction < 0.9 or not 2.0 <= c[2] <= 5.0:
-                    continue
-                rects = _detect(hog, fd.render.rgb) if rects is None else rects
-                ok = _hit(rects, intr.fx * c[0] / c[2] + intr.cx, intr.fy * c[1] / c[2] + intr.cy)
-                n, h = n + 1, h + ok
-                if c[2] >= 2.6:
-                    n_far, h_far = n_far + 1, h_far + ok
+    seqs = range(0, int(SCENARIOS[name].duration_s * 15), step)
+    with progress_bar(len(seeds) * len(seqs), desc=f"HOG, {name}", unit="frame") as bar:
+        for seed in seeds:
+            sim = Simulation(build_world(name, seed=seed), intr, fps=15.0, seed=seed)
+            for seq in seqs:
+                fd = sim.frame(seq)
+                rects = None
+                for p in fd.people:
+                    c = np.linalg.inv(fd.map_camera) @ np.append(p.position, 1.0)
+                    if p.posture != "standing" or p.visible_fraction < 0.9 or not 2.0 <= c[2] <= 5.0:
+                        continue
+                    rects = _detect(hog, fd.render.rgb) if rects is None else rects
+                    ok = _hit(rects, intr.fx * c[0] / c[2] + intr.cx, intr.fy * c[1] / c[2] + intr.cy)
+                    n, h = n + 1, h + ok
+                    if c[2] >= 2.6:
+                        n_far, h_far = n_far + 1, h_far + ok
+                bar.update()
     return n, h, n_far, h_far
 
 
@@ -130,7 +143,8 @@ def groundtruth_stats(name: str, seed: int = 0, fps: float = 15.0) -> tuple[floa
     world = build_world(name, seed=seed)
     sim = Simulation(world, default_camera(320, 240), fps=fps, seed=seed)
     frames = int(np.ceil(world.duration_s * fps))
-    counted = [sum(p.counted for p in sim.frame(seq).people) for seq in range(frames)]
+    counted = [sum(p.counted for p in sim.frame(seq).people)
+               for seq in progress(range(frames), total=frames, desc=f"ground truth, {name}", unit="frame")]
     return world.duration_s, frames, int(np.sum(counted)), 100.0 * float(np.mean(np.array(counted) > 0)), len(world.ids)
 
 
@@ -149,9 +163,10 @@ def main() -> None:
         "| published frame median ms | p95 ms | frames/s |"
     )
     print("|---|---|---|---|---|---|---|---|")
-    for scenario in ("still", "moving-base"):
-        for width, height in ((320, 240), (640, 480)):
-            core, full = _measure(scenario, width, height, args.frames)
+    cases = [(scenario, size) for scenario in ("still", "moving-base") for size in ((320, 240), (640, 480))]
+    with progress_bar(len(cases) * 2 * args.frames, desc="simulator", unit="frame") as bar:
+        for scenario, (width, height) in cases:
+            core, full = _measure(scenario, width, height, args.frames, bar)
             print(
                 f"| {scenario} | {width}x{height} | {np.median(core):.1f} | {np.percentile(core, 95):.1f} | "
                 f"{1e3 / np.median(core):.0f} | {np.median(full):.1f} | {np.percentile(full, 95):.1f} | "

@@ -27,12 +27,14 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from common.progress import Bar, progress_bar  # noqa: E402
 from services.tracker.config import PROFILES, TrackerConfig  # noqa: E402
 from services.tracker.core import Gallery  # noqa: E402
 from services.tracker.offline import read_detections, track, write_tracks  # noqa: E402
 
 DIM = 128
 FPS = 30.0
+OFFLINE_PEOPLE = (3, 10)  # people in the `perception track` throughput files
 
 
 def make_people(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -99,6 +101,28 @@ def bench_offline(people: int, frames: int, config: TrackerConfig, tmp: Path) ->
     return frames / (t_done - t_track), frames / (end - start)
 
 
+def bench_profile(profile: str, args: argparse.Namespace, bar: Bar) -> None:
+    """The update table and the ``perception track`` throughput of one profile; ``bar`` counts the cases."""
+    config = TrackerConfig(memory_path=None, profile=profile)
+    print(f"\nprofile {profile}\n")
+    print("| people | " + " | ".join(f"gallery {g}" for g in args.gallery) + " |")
+    print("|---:|" + "---:|" * len(args.gallery))
+    for n in args.people:
+        cells = []
+        for g in args.gallery:
+            med, p95 = bench_update(n, g, args.reps, config)
+            cells.append(f"{med:.3f} / {p95:.3f}")
+            bar.update()
+        print(f"| {n} | " + " | ".join(cells) + " |", flush=True)
+    print()
+    with tempfile.TemporaryDirectory() as tmp:
+        for people in OFFLINE_PEOPLE:
+            core_fps, total_fps = bench_offline(people, args.offline_frames, config, Path(tmp))
+            bar.update()
+            print(f"perception track ({profile}), {people} people, {args.offline_frames} frames with {DIM}-D "
+                  f"embeddings: {core_fps:.0f} frames/s tracking, {total_fps:.0f} frames/s including CSV read/write")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--reps", type=int, default=60, help="timed updates per case (default 60)")
@@ -111,23 +135,10 @@ def main() -> None:
     print(f"tracker update, ms (median / p95), {DIM}-D descriptors, {args.reps} updates per case")
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, python {platform.python_version()}, numpy {np.__version__}, "
           f"BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}")
-    for profile in args.profiles:
-        config = TrackerConfig(memory_path=None, profile=profile)
-        print(f"\nprofile {profile}\n")
-        print("| people | " + " | ".join(f"gallery {g}" for g in args.gallery) + " |")
-        print("|---:|" + "---:|" * len(args.gallery))
-        for n in args.people:
-            cells = []
-            for g in args.gallery:
-                med, p95 = bench_update(n, g, args.reps, config)
-                cells.append(f"{med:.3f} / {p95:.3f}")
-            print(f"| {n} | " + " | ".join(cells) + " |", flush=True)
-        print()
-        with tempfile.TemporaryDirectory() as tmp:
-            for people in (3, 10):
-                core_fps, total_fps = bench_offline(people, args.offline_frames, config, Path(tmp))
-                print(f"perception track ({profile}), {people} people, {args.offline_frames} frames with {DIM}-D "
-                      f"embeddings: {core_fps:.0f} frames/s tracking, {total_fps:.0f} frames/s including CSV read/write")
+    cases = len(args.profiles) * (len(args.people) * len(args.gallery) + len(OFFLINE_PEOPLE))
+    with progress_bar(cases, desc="tracker", unit="case") as bar:
+        for profile in args.profiles:
+            bench_profile(profile, args, bar)
 
 
 if __name__ == "__main__":

@@ -30,6 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from common.codec import _pack_default, _packer, decode, encode  # noqa: E402
 from common.keys import FRAMES, RELIABLE, Delivery, Keys  # noqa: E402
+from common.progress import progress_bar  # noqa: E402
 from common.router_process import RouterProcess, free_port, wait_for_port  # noqa: E402
 from common.samples import example_messages, rgbd_frame  # noqa: E402
 from common.schemas import Header, Message, RGBDFrame, ServiceStatus  # noqa: E402
@@ -253,25 +254,35 @@ def secure_router(folder: Path) -> tuple[subprocess.Popen[bytes], ZenohOptions]:
 
 def tls_table(n_rt: int, n_frames: int) -> None:
     """Round trip and throughput through a router, plain TCP against TLS (shared memory off)."""
-    import tempfile
-
     print("\n## TLS against plain TCP, through a router, shared memory off (640x480 RGB-D frames)\n")
     print("| link | round trip median (ms) | p99 (ms) | throughput (frames/s) | MB/s | lost |\n|---|---|---|---|---|---|")
-    for link in ("tcp", "tls"):
-        with tempfile.TemporaryDirectory(prefix="perception-tls-bench-") as tmp:
-            if link == "tcp":
-                router = RouterProcess().start()
-                opts = ZenohOptions(mode="client", connect=[router.endpoint], shared_memory=False)
-                stop = router.stop
-            else:
-                proc, opts = secure_router(Path(tmp))
-                stop = lambda: (proc.terminate(), proc.wait(10))  # noqa: E731
-            try:
-                rt = round_trips(opts, opts, n_rt)
-                fps, mbs, lost = throughput(opts, opts, n_frames)
-            finally:
-                stop()
-        print(f"| {link} | {statistics.median(rt):.2f} | {pct(rt, 99):.2f} | {fps:.0f} | {mbs:.0f} | {lost} |", flush=True)
+    links = ("tcp", "tls")
+    with progress_bar(len(links), desc="TLS", unit="link") as bar:
+        for link in links:
+            rt, fps, mbs, lost = _tls_row(link, n_rt, n_frames)
+            bar.update()
+            print(f"| {link} | {statistics.median(rt):.2f} | {pct(rt, 99):.2f} | {fps:.0f} | {mbs:.0f} | {lost} |",
+                  flush=True)
+
+
+def _tls_row(link: str, n_rt: int, n_frames: int) -> tuple[list[float], float, float, int]:
+    """(round trips ms, frames/s, MB/s, lost) through a router with a ``link`` (tcp or tls) connection."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="perception-tls-bench-") as tmp:
+        if link == "tcp":
+            router = RouterProcess().start()
+            opts = ZenohOptions(mode="client", connect=[router.endpoint], shared_memory=False)
+            stop = router.stop
+        else:
+            proc, opts = secure_router(Path(tmp))
+            stop = lambda: (proc.terminate(), proc.wait(10))  # noqa: E731
+        try:
+            rt = round_trips(opts, opts, n_rt)
+            fps, mbs, lost = throughput(opts, opts, n_frames)
+        finally:
+            stop()
+    return rt, fps, mbs, lost
 
 
 def main() -> int:
@@ -296,8 +307,9 @@ def main() -> int:
     slow_consumer()
     print(f"\n## 640x480 RGB-D frame ({len(encode(rgbd_frame(640, 480))) / 1e6:.2f} MB) between two processes\n")
     print("| path | shared memory | round trip median (ms) | p99 (ms) | throughput (frames/s) | MB/s | lost |\n|---|---|---|---|---|---|---|")
-    for shm in (True, False):
-        for path in ("peer to peer", "via router"):
+    cases = [(shm, path) for shm in (True, False) for path in ("peer to peer", "via router")]
+    with progress_bar(len(cases), desc="transport", unit="path") as bar:
+        for shm, path in cases:
             router = RouterProcess().start() if path == "via router" else None
             try:
                 local, remote = setup(path, shm, router)
@@ -306,6 +318,7 @@ def main() -> int:
             finally:
                 if router is not None:
                     router.stop()
+            bar.update()
             print(f"| {path} | {'on' if shm else 'off'} | {statistics.median(rt):.2f} | {pct(rt, 99):.2f} | {fps:.0f} | {mbs:.0f} | {lost} |",
                   flush=True)
     if args.tls:

@@ -10,14 +10,15 @@ One :class:`FoxgloveBridge` owns a Foxglove SDK context and these channels:
 * ``/tf`` FrameTransforms of ``tf`` and ``tf_static``;
 * ``/perception/{tracks,detections,localized,status}`` as JSON.
 
-A live server (:func:`start_live_server`) and an MCAP writer (``perception
-export-foxglove``) are sinks of the same context. The SDK (``foxglove-sdk``, the ``view``
-extra) is imported only here.
+A live server (:func:`start_live_server`) and an MCAP file (:class:`FoxgloveMcap`, for
+``perception export-foxglove`` and ``perception record --foxglove``) are sinks of the same
+context. The SDK (``foxglove-sdk``, the ``view`` extra) is imported only here.
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -26,7 +27,7 @@ from common.schemas import (Detections, LocalizedDetections, Message, RGBDFrame,
                             TransformBatch)
 from tools.viewer.core.drawing import colour_rgb, label_boxes, project_to_image
 
-__all__ = ["FoxgloveBridge", "FoxgloveUnavailable", "TOPICS", "start_live_server"]
+__all__ = ["FoxgloveBridge", "FoxgloveMcap", "FoxgloveUnavailable", "TOPICS", "require_sdk", "start_live_server"]
 
 #: Topic -> Foxglove schema name, as the MCAP file and the live server advertise them.
 TOPICS = {
@@ -50,6 +51,11 @@ def _sdk() -> Any:
     except ImportError as exc:
         raise FoxgloveUnavailable("Foxglove needs the foxglove-sdk package: pip install 'people-perception[view]'") from exc
     return foxglove
+
+
+def require_sdk() -> None:
+    """Raise :class:`FoxgloveUnavailable` unless foxglove-sdk is installed (check before connecting)."""
+    _sdk()
 
 
 def _jsonable(value: Any) -> Any:
@@ -201,6 +207,42 @@ class FoxgloveBridge:
 
     def close(self) -> None:
         """Nothing to flush here; the sinks (server, MCAP writer) are closed by their owners."""
+
+
+class FoxgloveMcap:
+    """An MCAP file in Foxglove's well-known schemas, written message by message; ``close`` finishes it.
+
+    Raises :class:`FoxgloveUnavailable` without the SDK, and OSError when ``path`` cannot be
+    written (a missing folder, a folder in its place). An existing file is overwritten: the
+    commands check for one first.
+    """
+
+    def __init__(self, path: Path, jpeg_quality: int = 75) -> None:
+        self.path = path
+        self.bridge = FoxgloveBridge(jpeg_quality)
+        self._writer = self.bridge.fg.open_mcap(str(path), allow_overwrite=True, context=self.bridge.context)
+        self.closed = False
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Messages written per Foxglove topic."""
+        return self.bridge.counts
+
+    def write(self, key: str, msg: Message) -> None:
+        """Translate ``msg`` (received on ``key``) and write it; types with no Foxglove topic are skipped."""
+        self.bridge.on_message(key, msg)
+
+    def close(self) -> None:
+        """Write the summary and close the file (idempotent)."""
+        if not self.closed:
+            self.closed = True
+            self._writer.close()
+
+    def __enter__(self) -> FoxgloveMcap:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 class _LiveBridge(FoxgloveBridge):

@@ -161,6 +161,10 @@ class DetectorConfig(_Section):
         default=None, description="name of its output, detections/{stream}, when another detector on the same camera "
                                   "publishes detections/{camera} (e.g. head-hog); None: the camera's name")
     backend: Backend = "hog"
+    max_rate_hz: float | None = Field(
+        default=None, gt=0.0, le=1000.0,
+        description="process at most this many frames per second of sensor time (a slow second detector, e.g. 3); "
+                    "the frames between are skipped and counted; None: every frame it can")
     depth_available: bool = Field(default=True, description="whether the camera publishes registered depth")
     hog: HogConfig = Field(default_factory=HogConfig)
     depth: DepthConfig = Field(default_factory=DepthConfig)

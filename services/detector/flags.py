@@ -37,6 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--stream", default=None, metavar="NAME",
                         help="publish detections/NAME instead of detections/{camera}: a second detector on the same "
                              "camera (e.g. a slow hog or yolo-onnx next to depth; its localizer takes --stream NAME too)")
+    parser.add_argument("--max-rate", type=float, default=None, metavar="HZ",
+                        help="process at most HZ frames per second of sensor time, skipping the others (a slow second "
+                             "detector: e.g. --max-rate 3)")
     parser.add_argument("--no-depth", action="store_true", help="the camera publishes no depth (refuses backend depth)")
     add_backend_arguments(parser)
     add_node_arguments(parser, "detector")
@@ -44,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def node_overrides(args: argparse.Namespace) -> dict[str, Any]:
     """The node's settings from its flags."""
-    return overrides(args, {"camera": args.camera, "stream": args.stream,
+    return overrides(args, {"camera": args.camera, "stream": args.stream, "max_rate_hz": args.max_rate,
                             "depth_available": False if args.no_depth else None})
 
 

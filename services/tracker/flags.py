@@ -21,6 +21,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                    help="'time': dt from stamps (default); 'frame': dt = 1 per frame, as the thesis")
     g.add_argument("--output-rate", type=float, default=None, metavar="HZ",
                    help="publish Tracks at this rate, predicted to the publish time (default 10); 0: once per frame")
+    g.add_argument("--no-embeddings", action="append", default=None, metavar="STREAM",
+                   help="a stream no embedder reads (a second detector's, e.g. head-hog): tracked by position at "
+                        "once; repeat for several (use with --camera '*')")
     g.add_argument("--memory", type=Path, default=None, metavar="FILE", help="ID memory file")
     g.add_argument("--no-memory", action="store_true", help="do not load or save an ID memory")
     add_node_arguments(parser, "tracker")
@@ -28,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def overrides(args: argparse.Namespace) -> dict[str, Any]:
     return {"camera": args.camera, "embedding_model": args.embedding_model, "time_step": args.time_step,
-            "memory_path": args.memory, "output_rate_hz": args.output_rate}
+            "memory_path": args.memory, "output_rate_hz": args.output_rate, "no_embeddings": args.no_embeddings}
 
 
 def adjust(args: argparse.Namespace) -> Any:

@@ -32,12 +32,35 @@ from services.localizer.service import LocalizerService
 from services.tracker.config import TrackerConfig
 from services.tracker.service import TrackerService
 from tools.demo.attention import AttentionScore
-from tools.demo.scoring import pose_line, pose_scores, score_rows
+from tools.demo.scoring import frame_outputs, pose_line, pose_scores, score_rows
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.render import default_camera
 from tools.simulator.service import SimulatorService
 
-__all__ = ["ChainResult", "run_chain"]
+__all__ = ["ChainResult", "SecondDetector", "run_chain"]
+
+
+@dataclass(frozen=True)
+class SecondDetector:
+    """A second detector on the same camera (seed 001: a fast one on every frame, a slow one a
+    few times a second whose results arrive late). It runs on every ``every``-th frame and its
+    localized results reach the tracker ``delay`` frames after their frame; it has no
+    embedder, so the tracker fuses its boxes by position and IsPerson. ``stream`` defaults to
+    ``head-{backend}``."""
+
+    backend: str = "hog"
+    every: int = 3
+    delay: int = 2
+    stream: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.every < 1 or self.delay < 0:
+            raise ValueError(f"every must be >= 1 and delay >= 0, got every={self.every}, delay={self.delay}")
+        if self.delay >= 15:
+            raise ValueError(f"delay {self.delay} frames is beyond the localizer's frame buffer (15)")
+
+    def name(self, camera: str) -> str:
+        return self.stream or f"{camera}-{self.backend}"
 
 
 @dataclass
@@ -51,7 +74,7 @@ class ChainResult:
 def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, width: int = 320, height: int = 240,
               seed: int = 0, tracker: TrackerConfig | None = None, detector: str = "depth",
               record: Callable[[Message], None] | None = None, plot: Path | None = None,
-              attention: AttentionConfig | None = None) -> ChainResult:
+              attention: AttentionConfig | None = None, second: SecondDetector | None = None) -> ChainResult:
     """Run ``scenario`` through the four nodes and score the tracks (Table II).
 
     ``record``, if given, is called with every ``PeopleGroundTruth``, ``LocalizedDetections``,
@@ -60,6 +83,8 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     ``plot``, if given, is where the top-down plot of the run is drawn (PNG).
     ``attention``, if given, adds the attention node after the tracker and lets it steer the
     simulated head (closed loop, one frame of delay); the result then has the attention figures.
+    ``second``, if given, adds a second detector on the camera (:class:`SecondDetector`): the
+    tracker then reads every stream and scores the camera's frames' outputs.
     """
     keys = Keys(robot="inprocess")
     bus = MemoryBus()
@@ -68,6 +93,15 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         head_control=attention is not None))
     # once per camera frame, as the demo: Table II scores every frame against its ground truth
     tracker_config = (tracker or TrackerConfig()).model_copy(update={"memory_path": None, "output_rate_hz": 0.0})
+    camera = tracker_config.camera
+    slow: list[tuple[int, Any]] = []  # (frame offset, node): the second detector's nodes
+    if second is not None:
+        stream = second.name(camera)
+        tracker_config = tracker_config.model_copy(update={
+            "camera": "*", "no_embeddings": [*tracker_config.no_embeddings, stream]})
+        slow = [(0, DetectorService(bus.transport(), keys, DetectorConfig(
+                    backend=second.backend, camera=camera, stream=stream))),  # type: ignore[arg-type]
+                (second.delay, LocalizerService(bus.transport(), keys, LocalizerConfig(camera=camera, stream=stream)))]
     nodes = [
         DetectorService(bus.transport(), keys, DetectorConfig(backend=detector)),  # type: ignore[arg-type]
         LocalizerService(bus.transport(), keys, LocalizerConfig()),
@@ -81,8 +115,8 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     gt_sub = watcher.subscribe(keys.groundtruth(), PeopleGroundTruth, RELIABLE)
     tracks_sub = watcher.subscribe(keys.tracks(), Tracks, RELIABLE)
     taps: list[Subscription[Any]] = [] if record is None else [
-        watcher.subscribe(keys.localized(tracker_config.camera), LocalizedDetections, RELIABLE),
-        watcher.subscribe(keys.embeddings(tracker_config.camera), Embeddings, RELIABLE)]
+        watcher.subscribe(keys.localized(camera), LocalizedDetections, RELIABLE),
+        watcher.subscribe(keys.embeddings(camera), Embeddings, RELIABLE)]
     gt: dict[int, PeopleGroundTruth] = {}
     hyp: list[Tracks] = []
     clock = 0.0
@@ -92,6 +126,10 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
             for _, msg in published:
                 looked.add(msg)
         clock += 1.0 / fps
+        frame = sim.seq - 1
+        for offset, node in slow:  # the slow detector on every `every`-th frame, its results `delay` late
+            if second is not None and frame - offset >= 0 and (frame - offset) % second.every == 0:
+                node.poll(clock)
         for node in nodes:
             node.poll(clock)
         # a second round lets the tracker see the embeddings the embedder just published
@@ -109,11 +147,12 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
             hyp.append(t.msg)
             if record is not None:
                 record(t.msg)
-    for node in nodes:
+    for node in nodes + [n for _, n in slow]:
         node.close()
     for tap in taps:
         tap.close()
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items() for p in msg.counted()]
+    hyp = frame_outputs(hyp, camera if second is not None else None)
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in hyp for tr in t.tracks if t.header.seq in gt]
     report, table = score_rows(gt_rows, hyp_rows, scenario, plot)
     report["pose"] = pose_scores(gt, hyp)

@@ -65,6 +65,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--height", type=int, default=240, help="image height (default 240)")
     parser.add_argument("--fps", type=float, default=10.0, help="camera frames per second (default 10)")
     parser.add_argument("--detector", default="depth", help="detector backend (default depth; hog also needs no model)")
+    parser.add_argument("--second-detector", default=None, metavar="BACKEND",
+                        help="also run a second, slower detector on the camera (seed 001: e.g. hog next to depth) on "
+                             "its own stream; the tracker fuses both")
+    parser.add_argument("--second-rate", type=float, default=3.0, metavar="HZ",
+                        help="the second detector's frames per second (default 3)")
     parser.add_argument("--no-view", action="store_true", help="no live view in the terminal, only the final table")
     parser.add_argument("--view", action="store_true",
                         help="also serve the live page (perception view) and open it in a browser when there is a display")
@@ -96,8 +101,17 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
         # once per camera frame: Table II scores every frame against its ground truth
         "tracker": ("--memory", str(memory), "--output-rate", "0"),
     }
-    for name in SERVICES:
-        specs.append(ProcessSpec(name, _perception(name, *common, *extra[name]), env, restart="on-failure",
+    names = list(SERVICES)
+    if args.second_detector:
+        stream = f"head-{args.second_detector}"
+        extra["detector2"] = ("--backend", args.second_detector, "--stream", stream, "--max-rate", str(args.second_rate))
+        extra["localizer2"] = ("--stream", stream)
+        extra["tracker"] += ("--camera", "*", "--no-embeddings", stream)
+        names[1:1] = ["detector2"]
+        names[3:3] = ["localizer2"]
+    for name in names:
+        command = name.rstrip("2")
+        specs.append(ProcessSpec(name, _perception(command, *common, *extra[name]), env, restart="on-failure",
                                  backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
     if args.attention:
         specs.append(ProcessSpec("attention", _perception("attention", *common, "--target", "nearest"), env,
@@ -224,7 +238,7 @@ def main(args: argparse.Namespace) -> int:
             sup_thread.join(60)
             log_file.close()
     plot = args.plot or log_dir / "tracks.png"
-    report, table = score(gt, monitor, args.scenario, plot=plot)
+    report, table = score(gt, monitor, args.scenario, plot=plot, source="head" if args.second_detector else None)
     if looked is not None:
         report["attention"] = looked.report()
     plotted = str(plot) if plot.is_file() else None

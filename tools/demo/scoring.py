@@ -23,7 +23,7 @@ from tools.evaluation.evaluate import evaluate_tables, format_table, make_report
 from tools.evaluation.plot import PlotUnavailable, SequencePlot, plot_sequences
 from tools.evaluation.readers import TrackTable
 
-__all__ = ["GroundTruthLog", "pose_scores", "score", "score_rows"]
+__all__ = ["GroundTruthLog", "frame_outputs", "pose_scores", "score", "score_rows"]
 
 _POSTURES = ("standing", "sitting", "lying")
 
@@ -55,13 +55,27 @@ def _table(rows: list[tuple[int, int, np.ndarray]]) -> TrackTable:
     return TrackTable.from_arrays(np.array(frames), np.array(ids), np.stack(pos))
 
 
-def score(gt: GroundTruthLog, monitor: Monitor, name: str, plot: Path | None = None) -> tuple[dict[str, Any], str]:
-    """(metrics as a dict, Table II as text) of the run; ``plot``: also draw it there (PNG)."""
+def frame_outputs(tracks: list[Tracks], source: str | None = None) -> list[Tracks]:
+    """One ``Tracks`` per frame seq, the first published: a late input (a slow second detector's
+    frame) makes the tracker rewind and publish the frames after it again, and what a consumer
+    had at the time is what counts. ``source``: only the outputs of that stream's frames (the
+    camera the ground truth's seq counts)."""
+    first: dict[int, Tracks] = {}
+    for t in tracks:
+        if source is None or t.header.source == source:
+            first.setdefault(t.header.seq, t)
+    return list(first.values())
+
+
+def score(gt: GroundTruthLog, monitor: Monitor, name: str, plot: Path | None = None,
+          source: str | None = None) -> tuple[dict[str, Any], str]:
+    """(metrics as a dict, Table II as text) of the run; ``plot``: also draw it there (PNG);
+    ``source``: score the outputs of that camera's frames (see :func:`frame_outputs`)."""
+    tracks = frame_outputs(monitor.all_tracks, source)
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.frames.items() for p in msg.counted()]
-    hyp_rows = [(t.header.seq, tr.id, tr.position) for t in monitor.all_tracks for tr in t.tracks
-                if t.header.seq in gt.frames]
+    hyp_rows = [(t.header.seq, tr.id, tr.position) for t in tracks for tr in t.tracks if t.header.seq in gt.frames]
     report, table = score_rows(gt_rows, hyp_rows, name, plot)
-    report["pose"] = pose_scores(gt.frames, monitor.all_tracks)
+    report["pose"] = pose_scores(gt.frames, tracks)
     return report, table + "\n\n" + pose_line(report["pose"])
 
 

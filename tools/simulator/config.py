@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from common.keys import validate_chunk
+from tools.simulator.core.cameras import back_camera
 from tools.simulator.core.scenarios import SCENARIOS
 from tools.simulator.core.simulation import MIN_VISIBLE
 from tools.simulator.faults import FAULTS
+from tools.simulator.messages import FRAME_NAMES
 
 __all__ = ["SimulatorConfig"]
 
@@ -22,6 +25,11 @@ class SimulatorConfig(BaseModel):
     width: int = Field(default=640, ge=16, le=4096)
     height: int = Field(default=480, ge=16, le=4096)
     camera: str = Field(default="head", min_length=1, description="camera name in the frames key and header.source")
+    back_camera: str | None = Field(
+        default=None,
+        description="name of a second camera, fixed on the base looking backwards (0.95 m up, yaw 180 deg, the head "
+                    "camera's intrinsics), published on frames/{name} with frame id {name}_optical; None = none",
+    )
     rate: float = Field(default=1.0, gt=0.0, le=100.0, description="speed relative to real time")
     max_speed: bool = Field(default=False, description="as fast as the detector keeps up instead of --rate")
     max_wait_s: float = Field(default=1.0, gt=0.0, description="--max: longest wait for the detector per frame")
@@ -42,6 +50,25 @@ class SimulatorConfig(BaseModel):
         if unknown:
             raise ValueError(f"unknown fault {unknown[0]!r}; choose from {', '.join(FAULTS)}")
         return v
+
+    @field_validator("back_camera")
+    @classmethod
+    def _back_name(cls, v: str | None) -> str | None:
+        if v is None:
+            return v
+        validate_chunk(v, "back_camera")
+        cam = back_camera(v)
+        taken = [f for f in (cam.mount_frame, cam.optical_frame) if f in FRAME_NAMES]
+        if taken:
+            raise ValueError(f"back_camera {v!r} would name its frame {taken[0]!r}, which the robot already has; "
+                             "choose another name")
+        return v
+
+    @model_validator(mode="after")
+    def _two_names(self) -> SimulatorConfig:
+        if self.back_camera == self.camera:
+            raise ValueError(f"back_camera must differ from camera ({self.camera!r}): each camera has its own frames key")
+        return self
 
     @field_validator("scenario")
     @classmethod

@@ -27,12 +27,15 @@ DESCRIPTION = """\
 Simulate the robot's head RGB-D camera and localization in an apartment with people:
 RGB + registered depth (16UC1 mm) frames with camera info, transforms map->odom->base_link
 ->head_link->camera, and the people's true positions (map frame) with a visibility flag.
+--back-camera NAME adds a second RGB-D camera fixed on the base looking backwards
+(frames/NAME, base_link->NAME_link->NAME_optical on tf_static).
 
   perception simulate --list
   perception simulate --scenario moving-base                 # publish in real time
   perception simulate --scenario chairs --max                # as fast as the detector keeps up
   perception simulate --scenario still --output run.mcap --gt-csv gt.csv
   perception simulate --scenario still --snapshot still.png --snapshot-time 6
+  perception simulate --scenario handover --back-camera back # two cameras, people walk from one to the other
   perception simulate --fault depth-float-mm                 # a setup mistake, for perception doctor"""
 
 
@@ -51,6 +54,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--width", type=int, default=None, help="image width (default 640)")
     parser.add_argument("--height", type=int, default=None, help="image height (default 480)")
     parser.add_argument("--camera", default=None, help="camera name in keys and headers (default head)")
+    parser.add_argument(
+        "--back-camera",
+        default=None,
+        metavar="NAME",
+        help="also publish a camera fixed on the base looking backwards (0.95 m up, yaw 180 deg, the head "
+             "camera's size and intrinsics) as frames/NAME, frame id NAME_optical, its mount "
+             "base_link->NAME_link->NAME_optical on tf_static (default: none)",
+    )
     speed = parser.add_mutually_exclusive_group()
     speed.add_argument("--rate", type=float, default=None, help="speed relative to real time (default 1)")
     speed.add_argument(
@@ -103,6 +114,7 @@ def _config(args: argparse.Namespace) -> SimulatorConfig:
             "width",
             "height",
             "camera",
+            "back_camera",
             "rate",
             "max_speed",
             "alike",

@@ -16,11 +16,22 @@ from common.schemas import (
     TransformBatch,
 )
 from common.poses import quaternion_from_matrix
-from tools.simulator.core.simulation import FrameData
+from tools.simulator.core.render import RenderResult
+from tools.simulator.core.simulation import FixedView, FrameData
 
-__all__ = ["CAMERA_FRAME", "frame_message", "groundtruth_message", "static_transforms", "tf_message"]
+__all__ = [
+    "CAMERA_FRAME",
+    "FRAME_NAMES",
+    "fixed_frame_message",
+    "frame_message",
+    "groundtruth_message",
+    "static_transforms",
+    "tf_message",
+]
 
 MAP, ODOM, BASE, HEAD, CAMERA_FRAME = "map", "odom", "base_link", "head_link", "camera"
+#: The frames of the robot without its fixed cameras; a fixed camera's frames must differ.
+FRAME_NAMES = (MAP, ODOM, BASE, HEAD, CAMERA_FRAME)
 
 
 def transform(parent: str, child: str, pose: np.ndarray, stamp_ns: int, static: bool = False) -> Transform:
@@ -35,19 +46,28 @@ def transform(parent: str, child: str, pose: np.ndarray, stamp_ns: int, static: 
     )
 
 
-def frame_message(fd: FrameData, pinhole: PinholeCamera, stamp_ns: int, camera: str) -> RGBDFrame:
-    """The RGB-D frame; RGB, depth and camera info share one header (stamp, seq, source)."""
-    header = Header(stamp_ns=stamp_ns, frame_id=CAMERA_FRAME, seq=fd.seq, source=camera)
+def _rgbd(render: RenderResult, pinhole: PinholeCamera, header: Header) -> RGBDFrame:
     info = CameraInfo(
         header=header, width=pinhole.width, height=pinhole.height, K=pinhole.K.copy(), D=np.zeros(5),
         distortion_model="plumb_bob",
     )
     return RGBDFrame(
         header=header,
-        rgb=Image.from_array(fd.render.rgb, "rgb8", header),
-        depth=Image.from_array(fd.render.depth_mm, "16UC1", header),
+        rgb=Image.from_array(render.rgb, "rgb8", header),
+        depth=Image.from_array(render.depth_mm, "16UC1", header),
         camera_info=info,
     )
+
+
+def frame_message(fd: FrameData, pinhole: PinholeCamera, stamp_ns: int, camera: str) -> RGBDFrame:
+    """The head camera's RGB-D frame; RGB, depth and camera info share one header (stamp, seq, source)."""
+    return _rgbd(fd.render, pinhole, Header(stamp_ns=stamp_ns, frame_id=CAMERA_FRAME, seq=fd.seq, source=camera))
+
+
+def fixed_frame_message(view: FixedView, seq: int, pinhole: PinholeCamera, stamp_ns: int) -> RGBDFrame:
+    """A fixed camera's RGB-D frame: source = its name, frame id = its optical frame."""
+    cam = view.camera
+    return _rgbd(view.render, pinhole, Header(stamp_ns=stamp_ns, frame_id=cam.optical_frame, seq=seq, source=cam.name))
 
 
 def tf_message(fd: FrameData, stamp_ns: int, camera: str, head_moves: bool) -> TransformBatch:
@@ -59,29 +79,37 @@ def tf_message(fd: FrameData, stamp_ns: int, camera: str, head_moves: bool) -> T
 
 
 def static_transforms(fd: FrameData, stamp_ns: int, camera: str, head_moves: bool) -> TransformBatch:
-    """head_link -> camera, and base_link -> head_link when the head does not move."""
+    """head_link -> camera, base_link -> head_link when the head does not move, and for each
+    fixed camera base_link -> {name}_link -> {name}_optical."""
     items = [] if head_moves else [transform(BASE, HEAD, fd.base_head, stamp_ns, static=True)]
     items.append(transform(HEAD, CAMERA_FRAME, fd.head_camera, stamp_ns, static=True))
+    for view in fd.views.values():
+        cam = view.camera
+        items.append(transform(BASE, cam.mount_frame, cam.base_mount, stamp_ns, static=True))
+        items.append(transform(cam.mount_frame, cam.optical_frame, cam.mount_optical, stamp_ns, static=True))
     return TransformBatch(header=Header(stamp_ns=stamp_ns, frame_id=BASE, seq=fd.seq, source=camera), transforms=items)
 
 
 def groundtruth_message(fd: FrameData, stamp_ns: int, camera: str, min_visible: float) -> PeopleGroundTruth:
-    """Every person's torso centre in the map, with the visibility rule's verdict."""
+    """Every person's torso centre in the map, with the visibility rule's verdict. With fixed
+    cameras, a person counts when any camera sees enough of them, and the fractions are the
+    largest of the cameras'."""
+    views = list(fd.views.values())
     people = [
         PersonGroundTruth(
             id=p.id,
             position=p.position,
             velocity=p.velocity,
-            visible_fraction=min(1.0, p.visible_fraction),
-            in_view_fraction=min(1.0, p.in_view_fraction),
-            counted=p.counted,
+            visible_fraction=min(1.0, max([p.visible_fraction, *(float(v.visible[k]) for v in views)])),
+            in_view_fraction=min(1.0, max([p.in_view_fraction, *(float(v.in_view[k]) for v in views)])),
+            counted=p.counted or any(bool(v.counted[k]) for v in views),
             posture=p.posture,  # type: ignore[arg-type]
             height_m=p.height_m,
             clothing=p.clothing.description,
             outfit=p.outfit,
             facing_rad=p.facing_rad,
         )
-        for p in fd.people
+        for k, p in enumerate(fd.people)
     ]
     return PeopleGroundTruth(
         header=Header(stamp_ns=stamp_ns, frame_id=MAP, seq=fd.seq, source=camera),

@@ -43,7 +43,10 @@ class SimulatorService:
         self.seq = 0
         self._timeouts_in_row = 0
         self.publishers: dict[str, Publisher[Any]] = {
-            keys.frames(config.camera): transport.publisher(keys.frames(config.camera), RGBDFrame, FRAMES),
+            keys.frames(camera): transport.publisher(keys.frames(camera), RGBDFrame, FRAMES)
+            for camera in self.stream.cameras
+        }
+        self.publishers |= {
             keys.tf(): transport.publisher(keys.tf(), TransformBatch, RELIABLE),
             keys.tf_static(): transport.publisher(keys.tf_static(), TransformBatch, RELIABLE),
             keys.groundtruth(): transport.publisher(keys.groundtruth(), PeopleGroundTruth, RELIABLE),

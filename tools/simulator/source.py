@@ -6,20 +6,32 @@ import math
 import time
 
 from common.keys import Keys
-from common.schemas import Message, PeopleGroundTruth
+from common.schemas import Message, PeopleGroundTruth, RGBDFrame
 from tools.simulator.config import SimulatorConfig
-from tools.simulator.core.render import default_camera
+from tools.simulator.core.cameras import back_camera
 from tools.simulator.core.head_servo import CommandedHead
+from tools.simulator.core.render import default_camera
 from tools.simulator.core.scenarios import SCENARIOS, build_world
 from tools.simulator.core.simulation import FrameData, Simulation
 from tools.simulator.faults import OLD_STAMPS_S, apply_faults
-from tools.simulator.messages import frame_message, groundtruth_message, static_transforms, tf_message
+from tools.simulator.messages import (
+    fixed_frame_message,
+    frame_message,
+    groundtruth_message,
+    static_transforms,
+    tf_message,
+)
 
 __all__ = ["SimulatedStream"]
 
 
 class SimulatedStream:
-    """Frames of one scenario as messages. Frame ``seq`` is at ``start_ns + seq / fps`` seconds."""
+    """Frames of one scenario as messages. Frame ``seq`` is at ``start_ns + seq / fps`` seconds.
+
+    With ``config.back_camera`` every tick has two RGB-D frames, the head camera's and the
+    back camera's, with the same stamp and seq (each camera counts its own frames, one per
+    tick); :attr:`cameras` names them and :meth:`frames_of` picks them out of a tick's messages.
+    """
 
     def __init__(self, config: SimulatorConfig, keys: Keys) -> None:
         self.config = config
@@ -30,9 +42,12 @@ class SimulatedStream:
             self.world.robot.servo = CommandedHead(pan=pan, tilt=tilt)
             self.world.head_moves = True
         self.camera = default_camera(config.width, config.height)
+        fixed = [back_camera(config.back_camera)] if config.back_camera is not None else []
         self.simulation = Simulation(
-            self.world, self.camera, config.fps, config.seed, config.min_visible, config.depth_noise
+            self.world, self.camera, config.fps, config.seed, config.min_visible, config.depth_noise, fixed
         )
+        #: The names of the cameras published, the head camera first; each has a frames key.
+        self.cameras: tuple[str, ...] = (config.camera, *(c.name for c in fixed))
         self.faults = frozenset(config.faults)
         late_ns = round(OLD_STAMPS_S * 1e9) if "old-stamps" in self.faults else 0
         self.start_ns = max(0, (time.time_ns() if config.start_ns is None else config.start_ns) - late_ns)
@@ -54,7 +69,8 @@ class SimulatedStream:
 
     def messages(self, seq: int) -> tuple[FrameData, list[tuple[str, Message]]]:
         """Render frame ``seq``: its (key, message) pairs in publishing order (static
-        transforms, transforms, ground truth, then the frame) and the raw frame data."""
+        transforms, transforms, ground truth, then the frames, the head camera's first) and
+        the raw frame data (the back camera's in its ``views``)."""
         cfg, keys = self.config, self.keys
         fd = self.simulation.frame(seq)
         stamp = self.stamp_ns(seq)
@@ -64,8 +80,15 @@ class SimulatedStream:
         out.append((keys.tf(), tf_message(fd, stamp, cfg.camera, self.world.head_moves)))
         out.append((keys.groundtruth(), groundtruth_message(fd, stamp, cfg.camera, cfg.min_visible)))
         out.append((keys.frames(cfg.camera), frame_message(fd, self.camera, stamp, cfg.camera)))
+        for name, view in fd.views.items():
+            out.append((keys.frames(name), fixed_frame_message(view, fd.seq, self.camera, stamp)))
         return fd, apply_faults(out, self.faults, keys, seq)
 
     @staticmethod
     def groundtruth_of(pairs: list[tuple[str, Message]]) -> PeopleGroundTruth:
         return next(m for _, m in pairs if isinstance(m, PeopleGroundTruth))
+
+    @staticmethod
+    def frames_of(pairs: list[tuple[str, Message]]) -> dict[str, RGBDFrame]:
+        """The RGB-D frames of one tick's messages by camera name (``header.source``)."""
+        return {m.header.source: m for _, m in pairs if isinstance(m, RGBDFrame)}

@@ -56,13 +56,14 @@ class RenderResult:
 
 
 class Renderer:
-    """Renders an :class:`Apartment` and people; deterministic given the noise ``seed``."""
+    """Renders an :class:`Apartment` and people; deterministic given the noise ``seed`` (an int
+    or a tuple of ints, as ``numpy.random.default_rng`` takes)."""
 
     def __init__(
         self,
         apartment: Apartment,
         camera: PinholeCamera,
-        seed: int = 0,
+        seed: int | tuple[int, ...] = 0,
         rgb_noise: float = 3.0,
         depth_noise: bool = True,
     ) -> None:

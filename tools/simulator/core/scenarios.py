@@ -1,4 +1,5 @@
-"""The seven scenarios of the thesis dataset (seed 000, §IV-B), each deterministic per seed."""
+"""The seven scenarios of the thesis dataset (seed 000, §IV-B), plus ``handover`` for a
+second camera on the base (seed 001); each deterministic per seed."""
 
 from __future__ import annotations
 
@@ -217,6 +218,40 @@ def _clothes_out_of_view(rng: np.random.Generator, apt: Apartment, alike: bool) 
     return _clothes_world(rng, apt, alike, plans, 56.7)
 
 
+_HANDOVER_POSE = (3.4, 3.5, np.pi / 2)  # mid-room facing north: room to walk in front of and behind the robot
+
+
+def _round_trips(front: tuple[float, float], side: tuple[float, float], back: tuple[float, float], trips: int,
+                 start_behind: bool, stand_s: float = 3.0) -> list[Action]:
+    """From the spot where the walker starts (``back`` if ``start_behind``, else ``front``), walk
+    ``trips`` times to the other spot and back, passing beside the robot at ``side`` (where neither
+    the head camera nor the back camera sees them), standing ``stand_s`` at each end facing the robot."""
+    ends = [(back, np.pi / 2), (front, -np.pi / 2)]  # facing the robot, which faces north
+    if start_behind:
+        ends.reverse()
+    plan: list[Action] = []
+    for _ in range(trips):
+        for spot, yaw in ends:
+            plan += [Action("goto", side), Action("goto", spot), Action("turn", yaw), Action("wait", seconds=stand_s)]
+    return plan
+
+
+def _handover(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
+    x, y, _ = _HANDOVER_POSE
+    # person 1 crosses on the robot's left, person 2 on its right, a few seconds apart
+    plans = [
+        [Action("turn", -np.pi / 2), Action("wait", seconds=1.5),
+         *_round_trips((2.6, 5.9), (x - 0.9, y), (2.9, 0.6), 2, start_behind=False)],
+        [Action("turn", np.pi / 2), Action("wait", seconds=4.5),
+         *_round_trips((3.25, 5.95), (x + 0.9, y), (4.0, 0.6), 2, start_behind=True)],
+    ]
+    walkers = _walkers(rng, apt, plans, [(2.6, 5.9), (4.0, 0.6)], alike, avoid=[(x, y, 0.5)], regions=[LIVING])
+    # the head is level: the walls 3.3 m ahead and behind then show higher than a person (above
+    # 2.3 m) in both cameras, instead of as person-sized slices to the depth detector
+    robot = _robot(static_trajectory(*_HANDOVER_POSE), HeadMotion(tilt0=0.0), rng)
+    return World(apt, walkers, [1, 2], robot, False, 42.0)
+
+
 SCENARIOS: dict[str, Scenario] = {
     s.name: s
     for s in (
@@ -246,6 +281,13 @@ SCENARIOS: dict[str, Scenario] = {
             "two people; each changes clothes in the other room and comes back",
             56.7,
             _clothes_out_of_view,
+        ),
+        Scenario(
+            "handover",
+            "static robot mid-room; two people walk from the front of the robot to behind it and back, twice, "
+            "passing beside it: from the head camera's view into the back camera's (--back-camera)",
+            42.0,
+            _handover,
         ),
     )
 }

@@ -10,16 +10,18 @@ with ``counted = False``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from common.geometry import PinholeCamera
 from tools.simulator.core.body import Clothing, Ellipsoids, body_ellipsoids, torso_centre
+from tools.simulator.core.cameras import FixedCamera
 from tools.simulator.core.render import NEAR_M, Renderer, RenderResult
 from tools.simulator.core.scenarios import World
 
-__all__ = ["FrameData", "PersonTruth", "Simulation", "visible_fraction"]
+__all__ = ["FixedView", "FrameData", "PersonTruth", "Simulation", "visible_fraction"]
 
 MIN_VISIBLE = 0.25
 
@@ -42,8 +44,25 @@ class PersonTruth:
 
 
 @dataclass
+class FixedView:
+    """What a camera fixed on the base saw in one frame. ``map_camera`` (4, 4) is its true
+    T_map_optical; ``visible``, ``in_view`` (N,) float and ``counted`` (N,) bool are the
+    visibility rule's fractions and verdict per person, in :attr:`FrameData.people`'s order."""
+
+    camera: FixedCamera
+    render: RenderResult
+    map_camera: np.ndarray
+    visible: np.ndarray
+    in_view: np.ndarray
+    counted: np.ndarray
+
+
+@dataclass
 class FrameData:
-    """A rendered frame with its time, poses and ground truth. Poses are (4, 4) T_parent_child."""
+    """A rendered frame with its time, poses and ground truth. Poses are (4, 4) T_parent_child.
+
+    ``render``, ``map_camera`` and ``people``' visibility are the head camera's; ``views``
+    holds the cameras fixed on the base, by name (empty without them)."""
 
     seq: int
     t: float
@@ -55,6 +74,7 @@ class FrameData:
     head_camera: np.ndarray
     map_camera: np.ndarray
     people: list[PersonTruth]
+    views: dict[str, FixedView] = field(default_factory=dict)
 
 
 def visible_fraction(
@@ -76,7 +96,11 @@ def visible_fraction(
 
 
 class Simulation:
-    """Frames of a :class:`World` at ``fps``; frame ``seq`` is at t = seq / fps."""
+    """Frames of a :class:`World` at ``fps``; frame ``seq`` is at t = seq / fps.
+
+    ``fixed_cameras`` are rendered too, from the same scene at the same time, each with the
+    head camera's intrinsics and its own renderer (its own background cache and noise, so
+    the head camera's images do not depend on them)."""
 
     def __init__(
         self,
@@ -86,12 +110,18 @@ class Simulation:
         seed: int = 0,
         min_visible: float = MIN_VISIBLE,
         depth_noise: bool = True,
+        fixed_cameras: Sequence[FixedCamera] = (),
     ) -> None:
         self.world = world
         self.camera = camera
         self.fps = fps
         self.min_visible = min_visible
         self.renderer = Renderer(world.apartment, camera, seed=seed, depth_noise=depth_noise)
+        self.fixed_cameras = tuple(fixed_cameras)
+        self._fixed_renderers = [
+            Renderer(world.apartment, camera, seed=(seed, k + 1), depth_noise=depth_noise)
+            for k in range(len(self.fixed_cameras))
+        ]
 
     def people_solids(
         self, t: float
@@ -146,4 +176,15 @@ class Simulation:
             head_cam,
             map_cam,
             people,
+            {cam.name: self._fixed_view(cam, renderer, map_base, solids)
+             for cam, renderer in zip(self.fixed_cameras, self._fixed_renderers)},
         )
+
+    def _fixed_view(self, cam: FixedCamera, renderer: Renderer, map_base: np.ndarray, solids: Ellipsoids) -> FixedView:
+        map_cam = map_base @ cam.base_optical
+        result = renderer.render(map_cam, solids)
+        n = len(self.world.walkers)
+        visible, in_view = np.zeros(n), np.zeros(n)
+        for k in range(n):
+            visible[k], in_view[k] = visible_fraction(solids.sample_points(k), k, map_cam, self.camera, result.owner)
+        return FixedView(cam, result, map_cam, visible, in_view, visible >= self.min_visible)

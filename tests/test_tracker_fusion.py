@@ -67,7 +67,8 @@ class Rig:
         self.tracks = peer.subscribe(KEYS.tracks(), Tracks, RELIABLE)
 
     def send(self, stream: str, seq: int, people: list[tuple[float, float]], *, detector: str = "depth",
-             score: float = 0.9, camera_to_map: np.ndarray = FRONT, embed: bool = False) -> None:
+             score: float = 0.9, camera_to_map: np.ndarray = FRONT, embed: bool = False,
+             camera_frame: str | None = None) -> None:
         pub = self.pubs.get(stream)
         if pub is None:
             pub = self.pubs[stream] = self.peer.publisher(KEYS.localized(stream), LocalizedDetections, RELIABLE)
@@ -75,7 +76,8 @@ class Rig:
         dets = [LocalizedDetection(index=i, bbox_xyxy=(0, 0, 10, 30), score=score, position=np.array([x, y, 1.0]),
                                    cov=np.eye(3) * 0.01, depth_m=abs(x)) for i, (x, y) in enumerate(people)]
         view = CameraView(camera_to_frame=camera_to_map, K=K, width=320, height=240, max_range_m=10.0)
-        pub.put(LocalizedDetections(header=header, detections=dets, view=view, detector=detector))  # type: ignore[attr-defined]
+        pub.put(LocalizedDetections(header=header, detections=dets, view=view, detector=detector,  # type: ignore[attr-defined]
+                                    camera_frame=camera_frame or f"{stream}_optical"))
         if embed:
             emb = self.pubs.get("emb/" + stream)
             if emb is None:
@@ -105,7 +107,7 @@ def test_a_slow_detectors_stream_is_tracked_without_waiting_for_embeddings(tmp_p
     for seq in range(12):
         rig.send("head", seq, [(3.0, 0.05 * seq)], embed=True)
         if seq % 4 == 3:  # the slow detector's result for the frame 3 frames earlier, late
-            rig.send("head-hog", seq - 3, [(3.0, 0.05 * (seq - 3))], detector="hog")
+            rig.send("head-hog", seq - 3, [(3.0, 0.05 * (seq - 3))], detector="hog", camera_frame="head_optical")
         rig.now += 0.01  # far less than join_wait_s: only complete frames are released
         published += rig.poll()
     ids = {t.id for m in published for t in m.tracks}
@@ -162,3 +164,20 @@ def test_detector_scores_config() -> None:
     cfg = TrackerConfig(memory_path=None, robust={"detector_scores": {"hog": ScoreConfig(center=1.0, scale=0.5)}})
     assert cfg.score_model("hog") == ScoreModel(center=1.0, scale=0.5)
     assert cfg.score_model("depth") is None and cfg.score_model("") is None
+
+
+def test_two_streams_of_one_camera_use_that_cameras_view_at_each_frame(tmp_path: Path) -> None:
+    """head and head-hog share the head camera: a late head-hog frame is judged by the view
+    the camera had then, not by the union with the camera's newer view (it may have turned)."""
+    service = TrackerService(MemoryBus().transport(), KEYS, _config(tmp_path), clock=lambda: 0.0)
+
+    def loc(source: str, seq: int, to_map: np.ndarray, camera_frame: str = "head_optical") -> LocalizedDetections:
+        return LocalizedDetections(header=Header(stamp_ns=T0 + seq * PERIOD_NS, frame_id="map", seq=seq, source=source),
+                                   camera_frame=camera_frame,
+                                   view=CameraView(camera_to_frame=to_map, K=K, width=320, height=240, max_range_m=10.0))
+
+    assert isinstance(service._view(loc("head", 5, FRONT)), FieldOfView)
+    late = service._view(loc("head-hog", 2, BACK))  # the head camera looked backwards then
+    assert isinstance(late, FieldOfView) and np.allclose(late.camera_to_frame, BACK)
+    both = service._view(loc("back", 5, BACK, camera_frame="back_optical"))
+    assert isinstance(both, Views) and len(both.views) == 2

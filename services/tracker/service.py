@@ -131,7 +131,7 @@ class TrackerService(Node):
             ("localized", "embeddings"), wait_s=config.join_wait_s, on_timeout="release",
             orphan_s=config.join_wait_s + config.reorder_window_s, buffer=256, max_waiting=256, ordered=True,
             complete=_completion(frozenset(config.no_embeddings)))
-        #: each stream's newest view, (stamp_ns, view): a coasting track in any recent one is in view
+        #: each camera's newest view, (stamp_ns, view): a coasting track in any recent one is in view
         self._views: dict[str, tuple[int, FieldOfView]] = {}
         self._last_state: dict[int, TrackState] = {}
         self._ever_confirmed: set[int] = set()
@@ -275,21 +275,24 @@ class TrackerService(Node):
 
     # ---------------------------------------------------------------- update
     def _view(self, loc: LocalizedDetections) -> FieldOfView | Views | None:
-        """What the cameras could see at this frame: its own view with one camera; with several,
-        the union of every stream's newest view within ``view_age_s`` of it."""
+        """What the cameras could see at this frame: its own camera's view at this frame, and
+        with several cameras the union with each other camera's newest view within
+        ``view_age_s``. Two detectors' streams of one camera (one ``camera_frame``) are one
+        camera: its view at another time is not what it sees now (it may have turned)."""
         view = field_of_view(loc)
         stamp = loc.header.stamp_ns
+        camera = loc.camera_frame or loc.header.source
         if view is not None:
-            known = self._views.get(loc.header.source)
+            known = self._views.get(camera)
             if known is None or known[0] <= stamp:
-                self._views[loc.header.source] = (stamp, view)
+                self._views[camera] = (stamp, view)
         if len(self._views) < 2:
             return view
         age_ns = int(self.config.view_age_s * 1e9)
-        recent = tuple(v for s, v in self._views.values() if abs(stamp - s) <= age_ns)
-        if view is not None and not any(v is view for v in recent):
-            recent += (view,)
-        return Views(recent) if len(recent) > 1 else (recent[0] if recent else None)
+        others = tuple(v for c, (s, v) in self._views.items() if c != camera and abs(stamp - s) <= age_ns)
+        if view is None:
+            return Views(others) if len(others) > 1 else (others[0] if others else None)
+        return Views((view, *others)) if others else view
 
     def _update(self, frame: _Frame) -> FrameResult:
         loc = frame.loc

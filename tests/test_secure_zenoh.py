@@ -25,6 +25,7 @@ from common.router_process import free_port, wait_for_port
 from common.schemas import Header, Tracks
 from common.zenoh_config import ZenohOptions
 from common.zenoh_transport import TransportError, ZenohTransport, open_transport
+from tests.helpers.scored_launch import ZenohClient, scored_run
 
 pytestmark = [pytest.mark.zenoh]
 PY = sys.executable
@@ -164,23 +165,37 @@ def _stop(proc: subprocess.Popen[bytes]) -> int:
         return -9
 
 
+#: Measured in 8 pairs of runs on the 2-core machine, with zero, one or two busy cores or other
+#: jobs beside them: MOTA 0.767-0.782 on deploy/secure/, 0.776-0.782 on plain TCP (IDF1
+#: 0.846-0.856 and 0.856-0.859), at most 1.5 points apart within a pair. They are separate
+#: real-time runs: a frame skipped under load (latest-only) or a late embedding moves MOTA by
+#: about half a point, so 5 points, three times the largest gap seen, is room for a few more
+#: in one run than in the other. The floor is perception demo's (tests/test_pipeline_integration.py).
+SCORE_TOLERANCE = 0.05
+MOTA_FLOOR = 0.55
+
+
 @pytest.mark.slow
-def test_the_pipeline_runs_end_to_end_on_deploy_secure(secure_dir: Path, tmp_path: Path) -> None:
-    """perception launch deploy/secure/single-pc.yaml with the simulator: tracks reach a consumer."""
-    robot, port = f"sec{uuid.uuid4().hex[:6]}", free_port()
-    log = tmp_path / "launch.log"
-    proc = _launch(secure_dir / "single-pc.yaml", log, ROBOT=robot, ZENOH_PORT=str(port), SIMULATOR="true")
-    try:
-        assert wait_for_port("127.0.0.1", port, 30, proc), log.read_text()[-3000:]
-        with _client(secure_dir, port, "consumer") as nav:
-            sub = nav.subscribe(Keys(robot=robot).tracks(), Tracks, RELIABLE)
-            deadline, got = time.monotonic() + 90, None
-            while time.monotonic() < deadline and got is None:
-                r = sub.recv(1.0)
-                got = r.msg if r is not None and r.msg.tracks and r.msg.appearance_available else None
-            assert got is not None, log.read_text()[-3000:]
-    finally:
-        assert _stop(proc) == 0, log.read_text()[-3000:]
+def test_the_pipeline_runs_end_to_end_on_deploy_secure_and_scores_as_on_plain_tcp(secure_dir: Path,
+                                                                                    tmp_path: Path) -> None:
+    """deploy/secure/single-pc.yaml and deploy/single-pc.yaml, each fed the same simulated scenario
+    (still, seed 0, 20 s at 10 fps, 320x240) and scored against its ground truth: tracks reach
+    navigation's consumer role, and MOTA and IDF1 agree."""
+    secure_port, plain_port = free_port(), free_port()
+    secure = scored_run(secure_dir / "single-pc.yaml", secure_port,
+                        ZenohClient(f"tls/127.0.0.1:{secure_port}", secure_dir / "client.json5",
+                                    str(secure_dir / "certs" / "credentials" / "{role}.txt")),
+                        tmp_path / "secure", f"sec{uuid.uuid4().hex[:6]}")
+    plain = scored_run(SECURE.parent / "single-pc.yaml", plain_port, ZenohClient(f"tcp/127.0.0.1:{plain_port}"),
+                       tmp_path / "plain", f"pln{uuid.uuid4().hex[:6]}")
+    assert (secure.launch_status, plain.launch_status) == (0, 0), secure.log + plain.log
+    assert secure.consumer_tracks > 0, secure.log  # the consumer role reads tracks through the access control
+    s, p = secure.overall, plain.overall
+    summary = {k: (s[k], p[k]) for k in ("objects", "misses", "false_positives", "id_switches", "mota", "idf1")}
+    assert s["objects"] == p["objects"] > 100, summary  # the same ground truth, all of it received
+    assert min(s["mota"], p["mota"]) >= MOTA_FLOOR, summary
+    assert abs(s["mota"] - p["mota"]) <= SCORE_TOLERANCE, summary
+    assert abs(s["idf1"] - p["idf1"]) <= SCORE_TOLERANCE, summary
 
 
 @pytest.mark.slow

@@ -1,6 +1,7 @@
 """Soak benchmark: the demo pipeline for a long time, sampled every interval.
 
-    python benchmarks/soak.py --duration 3600 [--fps 30] [--interval 60] [--kill-router-at S] [--json FILE]
+    python benchmarks/soak.py --duration 3600 [--fps 30] [--interval 60] [--kill-router-at S] [--json FILE] [--plot PNG]
+    python benchmarks/soak.py --plot-only benchmarks/results/soak_3600s.json --plot docs/soak.png
 
 Starts what `perception demo` starts (a router and the four services as supervised
 processes, restarted on failure; the simulator feeding them at ``--fps``, 320x240 by
@@ -16,12 +17,17 @@ to the end at most 5 % in every process, no restarts (beyond the one router kill
 drop by any service reason (``dropped_*``; the frame subscriptions' latest-only skips
 are the design and are reported as totals only), and the ID memory within its bound.
 Exit status 1 when a target is missed.
+
+``--plot PNG`` draws each process's RSS and CPU share over time, with the start of the
+RSS-growth window and the router kill marked (matplotlib, the ``view`` extra);
+``--plot-only JSON`` draws it from an earlier run's ``--json`` file without running.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import signal
@@ -31,7 +37,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from common.keys import RELIABLE, Keys
 from common.router_process import free_port
@@ -41,9 +47,15 @@ from common.zenoh_transport import open_transport
 from services.tracker.config import TrackerConfig
 from tools.demo.main import SERVICES, _cpu_seconds, _perception, _specs
 from tools.demo.main import add_arguments as add_demo_arguments
+from tools.evaluation.plot import PlotUnavailable
 from tools.launcher.supervisor import Supervisor
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 PROCESSES = ("router", *SERVICES)
+#: RSS growth is measured from this time on by default (after warm-up).
+GROWTH_FROM_S = 300.0
 
 
 def rss_kib(pid: int) -> int | None:
@@ -74,6 +86,86 @@ def drops(status: ServiceStatus) -> dict[str, float]:
     return {k: v for k, v in status.extra.items() if k.startswith("dropped_") and v}
 
 
+def router_kill_time(data: dict[str, Any]) -> float | None:
+    """Seconds into the run the router was killed: the summary's ``router_killed_at_s``, or,
+    in files written before it was recorded, the time of the last sample before the router's
+    restart count rose (the kill came at most one interval after it)."""
+    summary = data.get("summary", {})
+    if summary.get("router_killed_at_s") is not None:
+        return float(summary["router_killed_at_s"])
+    before: float | None = None
+    for s in data.get("samples", []):
+        router = s["processes"].get("router", {})
+        if router.get("restarts"):
+            return before
+        before = float(s["t"])
+    return None
+
+
+def soak_figure(data: dict[str, Any]) -> Figure:
+    """A matplotlib ``Figure`` of a soak run (``--json``'s content: summary and samples).
+
+    Two panels over the run's minutes: each process's RSS (MiB), labelled with its growth
+    over the window, and its CPU share (% of one core) between samples. A dashed line marks
+    the start of the RSS-growth window, a red one the router kill. A missing sample (a
+    process down at that moment) leaves a gap. Raises ``PlotUnavailable`` without matplotlib.
+    """
+    try:
+        from matplotlib.figure import Figure
+    except ImportError as exc:
+        raise PlotUnavailable("the plot needs matplotlib: pip install 'people-perception[view]'") from exc
+    samples, summary = data["samples"], data.get("summary", {})
+    if not samples:
+        raise ValueError("no samples to plot")
+    minutes = [s["t"] / 60.0 for s in samples]
+    names = [n for n in PROCESSES if any(n in s["processes"] for s in samples)]
+    names += sorted({n for s in samples for n in s["processes"]} - set(names))
+    growth_from = float(summary.get("growth_from_s", GROWTH_FROM_S))
+    grown = summary.get("rss_growth_percent", {})
+
+    def series(name: str, field: str, scale: float = 1.0) -> list[float]:
+        return [math.nan if (v := s["processes"].get(name, {}).get(field)) is None else v / scale for s in samples]
+
+    fig = Figure(figsize=(9.0, 6.2), layout="constrained")
+    rss_ax, cpu_ax = fig.subplots(2, 1, sharex=True)
+    for i, name in enumerate(names):
+        colour = f"C{i}"
+        g = grown.get(name)
+        label = name if g is None else f"{name} ({g:+.1f} %)"
+        rss_ax.plot(minutes, series(name, "rss_kib", 1024.0), color=colour, lw=1.5, marker=".", ms=3, label=label)
+        cpu_ax.plot(minutes, series(name, "cpu_percent"), color=colour, lw=1.2, marker=".", ms=3)
+    kill = router_kill_time(data)
+    for ax in (rss_ax, cpu_ax):
+        ax.axvline(growth_from / 60.0, color="0.3", ls="--", lw=1.0,
+                   label=f"minute {growth_from / 60.0:g}: RSS growth measured from here" if ax is rss_ax else None)
+        if kill is not None:
+            ax.axvline(kill / 60.0, color="#d62728", ls=":", lw=1.5,
+                       label=f"router killed (minute {kill / 60.0:.0f})" if ax is rss_ax else None)
+        ax.grid(True, lw=0.3)
+        ax.set_ylim(bottom=0)
+    rss_ax.set_ylabel("RSS (MiB)")
+    rss_ax.legend(fontsize=7, loc="lower right", ncols=2, title_fontsize=7,
+                  title=f"process (RSS growth, minute {growth_from / 60.0:g} to the end)")
+    cpu_ax.set_ylabel("CPU (% of one core)")
+    cpu_ax.set_xlabel("minutes")
+    cpu_ax.set_title("CPU share between samples (colours as above)", fontsize=8)
+    title = "Soak: RSS and CPU per process"
+    if "duration_s" in summary and "fps" in summary:
+        size = summary.get("size")
+        title += f", {summary['duration_s'] / 60:g} min at {summary['fps']:g} fps" + (f", {size[0]}x{size[1]}" if size else "")
+    fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def plot_soak(data: dict[str, Any], out: Path) -> Path:
+    """Draw :func:`soak_figure` of ``data`` into the PNG ``out``; returns its path."""
+    fig = soak_figure(data)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=100)
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--duration", type=float, default=3600.0, metavar="S", help="seconds to run (default 3600)")
@@ -84,10 +176,23 @@ def main() -> int:
     ap.add_argument("--scenario", default="still")
     ap.add_argument("--kill-router-at", type=float, default=None, metavar="S",
                     help="SIGKILL the router once, S seconds in, and time the recovery")
-    ap.add_argument("--growth-from", type=float, default=300.0, metavar="S",
+    ap.add_argument("--growth-from", type=float, default=GROWTH_FROM_S, metavar="S",
                     help="RSS growth is measured from this time on (default 300 s: after warm-up)")
     ap.add_argument("--json", type=Path, default=None, metavar="FILE", help="write every sample and the summary")
+    ap.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                    help="draw RSS and CPU per process over time (needs matplotlib, the 'view' extra)")
+    ap.add_argument("--plot-only", type=Path, default=None, metavar="JSON",
+                    help="no run: draw --plot from an earlier run's --json file")
     args = ap.parse_args()
+    if args.plot_only is not None:
+        if args.plot is None:
+            ap.error("--plot-only needs --plot PNG")
+        try:
+            print(f"wrote {plot_soak(json.loads(args.plot_only.read_text()), args.plot)}")
+        except (OSError, ValueError, KeyError, PlotUnavailable) as exc:
+            print(f"soak.py: cannot plot {args.plot_only}: {exc}", file=sys.stderr)
+            return 2
+        return 0
     if args.duration <= 0 or args.interval <= 0:
         ap.error("--duration and --interval must be positive")
 
@@ -187,6 +292,8 @@ def main() -> int:
         "rss_growth_percent": {n: None if g is None else round(g, 2) for n, g in grown.items()},
         "restarts": restarts, "drops": all_drops, "ids_remembered": remembered, "max_remembered_ids": limit,
         "router_kill_recovery_s": None if recovery_s is None else round(recovery_s, 2),
+        "router_killed_at_s": None if killed_at is None else round(killed_at - started, 1),
+        "growth_from_s": args.growth_from, "interval_s": args.interval,
         "ok": {
             "rss_growth": all(g is None or g <= 5.0 for g in grown.values()),
             "restarts": restarts == expected_restarts,
@@ -198,6 +305,11 @@ def main() -> int:
     print("\n" + json.dumps(summary, indent=2))
     if args.json:
         args.json.write_text(json.dumps({"summary": summary, "samples": samples}, indent=1))
+    if args.plot:
+        try:
+            print(f"plot: {plot_soak({'summary': summary, 'samples': samples}, args.plot)}")
+        except (ValueError, PlotUnavailable) as exc:
+            print(f"no plot: {exc}", file=sys.stderr)
     return 0 if all(summary["ok"].values()) else 1
 
 

@@ -5,6 +5,8 @@
                          ``perception evaluate --plot`` draws it
   docs/viewer-page.png   headless Chromium's screenshot of ``perception view`` while
                          ``perception demo --view`` runs the whole pipeline as processes
+  docs/soak.png          the hour-long soak's RSS and CPU per process, from its recorded
+                         samples (benchmarks/results/soak_3600s.json; the hour is not re-run)
 
 Run from the repository root: ``.venv/bin/python scripts/readme_images.py`` (needs the
 ``view`` extra, and Debian's ``chromium`` for the screenshot; about a minute).
@@ -13,6 +15,8 @@ Run from the repository root: ``.venv/bin/python scripts/readme_images.py`` (nee
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import json
 import os
 import subprocess
 import sys
@@ -32,6 +36,14 @@ def plot(out: Path, scenario: str, duration_s: float) -> None:
     result = run_chain(scenario, duration_s=duration_s, plot=out)
     print(result.table)
     print(f"wrote {out}")
+
+
+def soak_plot(out: Path, samples: Path) -> None:
+    spec = importlib.util.spec_from_file_location("benchmarks_soak", ROOT / "benchmarks" / "soak.py")
+    assert spec is not None and spec.loader is not None
+    soak = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(soak)
+    print(f"wrote {soak.plot_soak(json.loads(samples.read_text()), out)}")
 
 
 def screenshot(out: Path, scenario: str, settle_s: float) -> None:
@@ -65,13 +77,15 @@ def main() -> int:
     parser.add_argument("--scenario", default="still")
     parser.add_argument("--duration", type=float, default=30.0, help="simulated seconds of the plotted run")
     parser.add_argument("--settle", type=float, default=8.0, help="seconds the page runs before the screenshot")
-    parser.add_argument("--only", choices=("plot", "screenshot"), default=None)
+    parser.add_argument("--only", choices=("plot", "screenshot", "soak"), default=None)
     args = parser.parse_args()
     (ROOT / "docs").mkdir(exist_ok=True)
     if args.only in (None, "plot"):
         plot(ROOT / "docs" / "demo-plot.png", args.scenario, args.duration)
     if args.only in (None, "screenshot"):
         screenshot(ROOT / "docs" / "viewer-page.png", args.scenario, args.settle)
+    if args.only in (None, "soak"):
+        soak_plot(ROOT / "docs" / "soak.png", ROOT / "benchmarks" / "results" / "soak_3600s.json")
     return 0
 
 

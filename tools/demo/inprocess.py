@@ -34,6 +34,7 @@ from services.tracker.service import TrackerService
 from tools.demo.attention import AttentionScore
 from tools.demo.scoring import frame_outputs, pose_line, pose_scores, score_rows
 from tools.simulator.config import SimulatorConfig
+from tools.simulator.core.cameras import back_camera as back_camera_of
 from tools.simulator.core.render import default_camera
 from tools.simulator.service import SimulatorService
 
@@ -74,7 +75,8 @@ class ChainResult:
 def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, width: int = 320, height: int = 240,
               seed: int = 0, tracker: TrackerConfig | None = None, detector: str = "depth",
               record: Callable[[Message], None] | None = None, plot: Path | None = None,
-              attention: AttentionConfig | None = None, second: SecondDetector | None = None) -> ChainResult:
+              attention: AttentionConfig | None = None, second: SecondDetector | None = None,
+              back_camera: str | None = None) -> ChainResult:
     """Run ``scenario`` through the four nodes and score the tracks (Table II).
 
     ``record``, if given, is called with every ``PeopleGroundTruth``, ``LocalizedDetections``,
@@ -85,12 +87,15 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     simulated head (closed loop, one frame of delay); the result then has the attention figures.
     ``second``, if given, adds a second detector on the camera (:class:`SecondDetector`): the
     tracker then reads every stream and scores the camera's frames' outputs.
+    ``back_camera``, if given, names the simulator's second camera (on the base, looking
+    backwards): it gets its own detector, localizer and embedder, and the tracker fuses both
+    cameras (the ground truth then counts a person seen by either).
     """
     keys = Keys(robot="inprocess")
     bus = MemoryBus()
     sim = SimulatorService(bus.transport(), keys, SimulatorConfig(
         scenario=scenario, seed=seed, fps=fps, width=width, height=height, duration_s=duration_s, start_ns=10**18,
-        head_control=attention is not None))
+        head_control=attention is not None, back_camera=back_camera))
     # once per camera frame, as the demo: Table II scores every frame against its ground truth
     tracker_config = (tracker or TrackerConfig()).model_copy(update={"memory_path": None, "output_rate_hz": 0.0})
     camera = tracker_config.camera
@@ -102,12 +107,22 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         slow = [(0, DetectorService(bus.transport(), keys, DetectorConfig(
                     backend=second.backend, camera=camera, stream=stream))),  # type: ignore[arg-type]
                 (second.delay, LocalizerService(bus.transport(), keys, LocalizerConfig(camera=camera, stream=stream)))]
+    if back_camera is not None:
+        tracker_config = tracker_config.model_copy(update={"camera": "*"})
     nodes = [
         DetectorService(bus.transport(), keys, DetectorConfig(backend=detector)),  # type: ignore[arg-type]
         LocalizerService(bus.transport(), keys, LocalizerConfig()),
         EmbedderService(bus.transport(), keys, EmbedderConfig()),
         TrackerService(bus.transport(), keys, tracker_config),
     ]
+    if back_camera is not None:  # its chain, before the tracker: one poll round carries a frame to it
+        mount = back_camera_of(back_camera)
+        back_detector = DetectorConfig.model_validate({
+            "backend": detector, "camera": back_camera,
+            "depth": {"camera_height_m": float(mount.base_optical[2, 3]), "tilt_deg": 0.0}})
+        nodes[3:3] = [DetectorService(bus.transport(), keys, back_detector),
+                      LocalizerService(bus.transport(), keys, LocalizerConfig(camera=back_camera)),
+                      EmbedderService(bus.transport(), keys, EmbedderConfig(camera=back_camera))]
     if attention is not None:
         nodes.append(AttentionService(bus.transport(), keys, attention))
     looked = AttentionScore(default_camera(width, height)) if attention is not None else None
@@ -132,7 +147,7 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
                 node.poll(clock)
         for node in nodes:
             node.poll(clock)
-        # a second round lets the tracker see the embeddings the embedder just published
+        # a second round lets the tracker see the embeddings the embedders just published
         for node in nodes[2:]:
             node.poll(clock)
         while (g := gt_sub.try_recv()) is not None:
@@ -152,7 +167,9 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     for tap in taps:
         tap.close()
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items() for p in msg.counted()]
-    hyp = frame_outputs(hyp, camera if second is not None else None)
+    # with several streams, the output of the camera's frame: with a back camera (same stamps,
+    # "back" sorts before "head") it is the one after both cameras' frames of the tick
+    hyp = frame_outputs(hyp, camera if second is not None or back_camera is not None else None)
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in hyp for tr in t.tracks if t.header.seq in gt]
     report, table = score_rows(gt_rows, hyp_rows, scenario, plot)
     report["pose"] = pose_scores(gt, hyp)

@@ -33,6 +33,7 @@ from tools.demo.attention import AttentionLog
 from tools.demo.monitor import Monitor
 from tools.demo.scoring import GroundTruthLog, score
 from tools.launcher.supervisor import ProcessSpec, Supervisor
+from tools.simulator.core.cameras import BACK_CAMERA_OFFSET
 from tools.simulator.core.render import default_camera
 
 DESCRIPTION = """\
@@ -45,6 +46,7 @@ latency per stage; at the end the tracks are scored against the simulator's grou
 and still prints the table. Nothing is left running afterwards."""
 
 SERVICES = ("detector", "localizer", "embedder", "tracker")
+BACK_MOUNT_HEIGHT_M = BACK_CAMERA_OFFSET[2]
 _CLK_TCK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
 
 
@@ -70,6 +72,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "its own stream; the tracker fuses both")
     parser.add_argument("--second-rate", type=float, default=3.0, metavar="HZ",
                         help="the second detector's frames per second (default 3)")
+    parser.add_argument("--back-camera", default=None, metavar="NAME",
+                        help="also simulate a camera on the base looking backwards (e.g. back) with its own detector, "
+                             "localizer and embedder; the tracker fuses both cameras (try --scenario handover)")
     parser.add_argument("--no-view", action="store_true", help="no live view in the terminal, only the final table")
     parser.add_argument("--view", action="store_true",
                         help="also serve the live page (perception view) and open it in a browser when there is a display")
@@ -109,9 +114,21 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
         extra["tracker"] += ("--camera", "*", "--no-embeddings", stream)
         names[1:1] = ["detector2"]
         names[3:3] = ["localizer2"]
+    if args.back_camera:
+        cam = ("--camera", args.back_camera)
+        # the depth detector's floor plane starts from the back camera's mount (level; own_env)
+        extra["detector-back"] = (*extra["detector"], *cam)
+        extra["localizer-back"] = cam
+        extra["embedder-back"] = (*extra["embedder"], *cam)
+        if "--camera" not in extra["tracker"]:
+            extra["tracker"] += ("--camera", "*")
+        names += ["detector-back", "localizer-back", "embedder-back"]
+    own_env = {"detector-back": {"PERCEPTION_DETECTOR__DEPTH__CAMERA_HEIGHT_M": f"{BACK_MOUNT_HEIGHT_M:g}",
+                                 "PERCEPTION_DETECTOR__DEPTH__TILT_DEG": "0"}}
     for name in names:
-        command = name.rstrip("2")
-        specs.append(ProcessSpec(name, _perception(command, *common, *extra[name]), env, restart="on-failure",
+        command = name.rstrip("2").removesuffix("-back")
+        specs.append(ProcessSpec(name, _perception(command, *common, *extra[name]), {**env, **own_env.get(name, {})},
+                                 restart="on-failure",
                                  backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
     if args.attention:
         specs.append(ProcessSpec("attention", _perception("attention", *common, "--target", "nearest"), env,
@@ -185,7 +202,8 @@ def main(args: argparse.Namespace) -> int:
             sim = subprocess.Popen(
                 _perception("simulate", "--scenario", args.scenario, "--duration", str(args.duration), "--seed", str(args.seed),
                             "--width", str(args.width), "--height", str(args.height), "--fps", str(args.fps),
-                            "--connect", endpoint, "--robot", robot, *(("--head-control",) if args.attention else ())),
+                            "--connect", endpoint, "--robot", robot, *(("--head-control",) if args.attention else ()),
+                            *(("--back-camera", args.back_camera) if args.back_camera else ())),
                 stdout=log_file, stderr=subprocess.STDOUT, start_new_session=True,
                 env={**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "error")},
             )
@@ -238,7 +256,7 @@ def main(args: argparse.Namespace) -> int:
             sup_thread.join(60)
             log_file.close()
     plot = args.plot or log_dir / "tracks.png"
-    report, table = score(gt, monitor, args.scenario, plot=plot, source="head" if args.second_detector else None)
+    report, table = score(gt, monitor, args.scenario, plot=plot, source="head" if args.second_detector or args.back_camera else None)
     if looked is not None:
         report["attention"] = looked.report()
     plotted = str(plot) if plot.is_file() else None

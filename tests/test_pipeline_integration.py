@@ -63,6 +63,22 @@ def test_demo_runs_the_pipeline_and_scores_it() -> None:
     assert _wait_gone(f"--robot demo{proc.pid}") == []
 
 
+@pytest.mark.slow
+def test_demo_fuses_two_detectors_and_two_cameras_through_processes() -> None:
+    """Seed 001's fusion through real processes and a router: depth and HOG (3 Hz, its own
+    stream) on the head camera, a back camera with its own chain, one tracker on every stream."""
+    proc = subprocess.Popen([PY, "-m", "perception", "demo", "--scenario", "handover", "--duration", "20",
+                             "--second-detector", "hog", "--back-camera", "back", "--json", "--no-view"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out, err = proc.communicate(timeout=400)
+    assert proc.returncode == 0, err[-3000:]
+    result = json.loads(out[out.index("\n{") + 1 :])
+    # the people behind the robot count (the back camera's view): handover has them there half the time
+    assert result["overall"]["objects"] > 200, result["overall"]  # head camera alone: 156
+    assert result["overall"]["mota"] >= 0.5, result["overall"]
+    assert _wait_gone(f"--robot demo{proc.pid}") == []
+
+
 def _write(path: Path, text: str) -> Path:
     path.write_text(text)
     return path

@@ -163,3 +163,21 @@ def test_the_state_carries_the_newest_image_only_when_the_browser_lacks_it() -> 
     assert base64.b64decode(got["jpeg"]) == b"\xff\xd8fake" and got["image"]["seq"] == 5
     assert "jpeg" not in json.loads(state.wait_state(0, 0.0, have_image=5))  # it has this one
     assert "jpeg" not in json.loads(state.wait_state(0, 0.0))  # a client that asks for no image
+
+
+def test_page_states_are_built_once_a_second_while_nobody_watches() -> None:
+    bus = MemoryBus()
+    state = LatestState()
+    node = ViewerNode(bus.transport(), KEYS, ViewerConfig(), state=state)
+    scene = ScenePublisher(bus.transport(), KEYS)
+    for k in range(30):  # 3 s at 10 Hz, a new frame each time
+        scene.step(k * 0.1)
+        node.poll(100.0 + k * 0.1)
+    assert 3 <= state.version <= 4
+    state.watched_at = float("inf")  # a browser asks: the page's own rate again
+    before = state.version
+    for k in range(10):  # 1.1 s, polled a little slower than the page's 10 states a second
+        scene.step(3.0 + k * 0.11)
+        node.poll(103.0 + k * 0.11)
+    assert state.version - before >= 9
+    node.close()

@@ -264,7 +264,9 @@ class ViewerNode(Node):
             self._image_info = {"seq": frame.header.seq, "width": frame.camera_info.width,
                                 "height": frame.camera_info.height}
             self._dirty = True
-        if (self._dirty and now - self._last_state >= 1.0 / self.config.state_hz) or now - self._last_state >= 1.0:
+        # nobody watching: one state a second keeps the page's first request fresh, and costs little
+        period = 1.0 / self.config.state_hz if wants_image else 1.0
+        if (self._dirty and now - self._last_state >= period) or now - self._last_state >= 1.0:
             self.state.set_state(self.snapshot(now))
             self._dirty, self._last_state = False, now
         return []

@@ -82,14 +82,8 @@ def main() -> int:
                                   stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT,
                                   env={**os.environ, "RUST_LOG": "error"})
         with Browser() as browser:
-            deadline = time.monotonic() + 60
-            while time.monotonic() < deadline:
-                browser.goto(f"http://127.0.0.1:{port}/")
-                try:
-                    browser.wait_for("document.querySelectorAll('#tracks [data-track-id]').length > 0", 5)
-                    break
-                except TimeoutError:
-                    continue
+            browser.open_until(f"http://127.0.0.1:{port}/", "document.querySelectorAll('#tracks [data-track-id]').length > 0",
+                               timeout_s=60, retry_s=5)
             browser.wait_for("document.getElementById('camera').naturalWidth > 0", 20)
             time.sleep(2.0)
             sent0 = sent[0]

@@ -61,7 +61,6 @@ class Inbox:
         #: Set by a transport that keeps samples itself until they are read (``delivery.wake``
         #: False): returns the next ``(key, payload, recv_ns)`` or None.
         self.pull: Callable[[], tuple[str, Any, int] | None] | None = None
-        self._latest = delivery.latest
         self._items: deque[tuple[str, bytes | Any, int]] = deque(maxlen=1 if delivery.latest else delivery.queue)
         self._cond = notify
         self.stats = SubscriptionStats()

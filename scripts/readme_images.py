@@ -55,14 +55,9 @@ def screenshot(out: Path, scenario: str, settle_s: float) -> None:
             stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT, cwd=ROOT, env={**os.environ, "RUST_LOG": "error"})
         try:
             with Browser(width=1280, height=1000) as browser:
-                deadline = time.monotonic() + 120
-                while time.monotonic() < deadline:
-                    browser.goto(f"http://127.0.0.1:{port}/")
-                    try:
-                        browser.wait_for("document.querySelectorAll('#tracks [data-track-id]').length > 0", 10)
-                        break
-                    except TimeoutError:
-                        continue
+                browser.open_until(f"http://127.0.0.1:{port}/",
+                                   "document.querySelectorAll('#tracks [data-track-id]').length > 0",
+                                   timeout_s=120, retry_s=10, alive=lambda: demo.poll() is None)
                 time.sleep(settle_s)  # let the trails grow and the rates settle
                 browser.wait_for("document.getElementById('camera').naturalWidth > 0", 20)
                 out.write_bytes(browser.screenshot())

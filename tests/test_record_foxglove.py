@@ -7,7 +7,6 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -19,6 +18,7 @@ from common.keys import Delivery, Keys
 from common.router_process import RouterProcess
 from common.zenoh_transport import ZenohTransport
 from tests.fixtures.viewer_scene import scene_messages
+from tests.helpers.recording import wait_recorded
 
 pytest.importorskip("foxglove", reason="Foxglove needs foxglove-sdk (the 'view' extra)")
 
@@ -54,18 +54,6 @@ def _mcap_counts(path: Path) -> tuple[dict[str, int], dict[str, str]]:
     return counts, schemas
 
 
-def _wait_recorded(client: ZenohTransport, n: int) -> float:
-    deadline = time.monotonic() + TIMEOUT
-    recorded = 0.0
-    while time.monotonic() < deadline:
-        replies = client.query(KEYS.status("record", "*"), timeout=2.0)
-        recorded = max([m.extra.get("recorded", 0.0) for _, m in replies] + [0.0])
-        if recorded >= n:
-            return recorded
-        time.sleep(0.1)  # polling a remote counter, not synchronising on time
-    return recorded
-
-
 @pytest.mark.zenoh
 def test_record_writes_the_live_streams_in_foxglove_schemas_too(tmp_path: Path, router: RouterProcess,
                                                                  zenoh_client: Callable[[], ZenohTransport]) -> None:
@@ -81,7 +69,7 @@ def test_record_writes_the_live_streams_in_foxglove_schemas_too(tmp_path: Path, 
         for seq in range(FRAMES):
             for key, msg in scene_messages(seq, seq / 15, KEYS):
                 pubs[key].put(msg)
-        assert _wait_recorded(client, FRAMES * len(pubs)) >= FRAMES * len(pubs)
+        assert wait_recorded(client, KEYS, FRAMES * len(pubs), TIMEOUT) >= FRAMES * len(pubs)
         recorder.send_signal(signal.SIGINT)
         stdout, stderr = recorder.communicate(timeout=TIMEOUT)
     finally:

@@ -19,6 +19,7 @@ from common.schemas import Detection, Detections, Header, Message, RGBDFrame, Tr
 from common.transport import Received, Subscription
 from common.zenoh_transport import ZenohTransport
 from tests.fixtures.replay_bags import SyntheticRun, write_bag
+from tests.helpers.recording import wait_recorded
 from tools.replay.recorder import McapRecorder
 from tools.replay.sources import open_source
 
@@ -88,18 +89,6 @@ def _transform_batch(stamp: int, x: float) -> TransformBatch:
         rotation_xyzw=np.array([0.0, 0.0, 0.0, 1.0]))])
 
 
-def _wait_recorded(client: ZenohTransport, n: int) -> float:
-    deadline = time.monotonic() + TIMEOUT
-    recorded = 0.0
-    while time.monotonic() < deadline:
-        replies = client.query(KEYS.status("record", "*"), timeout=2.0)
-        recorded = max([m.extra.get("recorded", 0.0) for _, m in replies] + [0.0])
-        if recorded >= n:
-            return recorded
-        time.sleep(0.1)  # polling a remote counter, not synchronising on time
-    return recorded
-
-
 def test_record_then_replay_is_lossless_and_ordered(tmp_path: Path, router: RouterProcess,
                                                     zenoh_client: Callable[[], ZenohTransport]) -> None:
     out = tmp_path / "run.mcap"
@@ -123,7 +112,7 @@ def test_record_then_replay_is_lossless_and_ordered(tmp_path: Path, router: Rout
                                   (pubs["frames"].key, pubs["frames"], frame), (pubs["det"].key, pubs["det"], det)):
                 pub.put(msg)
                 sent.append((key, msg))
-        assert _wait_recorded(client, len(sent)) >= len(sent)
+        assert wait_recorded(client, KEYS, len(sent), TIMEOUT) >= len(sent)
         recorder.send_signal(signal.SIGINT)
         stdout, stderr = recorder.communicate(timeout=TIMEOUT)
     finally:

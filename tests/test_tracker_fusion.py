@@ -162,8 +162,8 @@ def test_a_person_out_of_every_view_is_kept_but_not_reported(tmp_path: Path, mem
 
 def test_detector_scores_config() -> None:
     cfg = TrackerConfig(memory_path=None, robust={"detector_scores": {"hog": ScoreConfig(center=1.0, scale=0.5)}})
-    assert cfg.score_model("hog") == ScoreModel(center=1.0, scale=0.5)
-    assert cfg.score_model("depth") is None and cfg.score_model("") is None
+    assert cfg.score_models().get("hog") == ScoreModel(center=1.0, scale=0.5)
+    assert cfg.score_models().get("depth") is None and cfg.score_models().get("") is None
 
 
 def test_two_streams_of_one_camera_use_that_cameras_view_at_each_frame(tmp_path: Path) -> None:

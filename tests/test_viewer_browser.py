@@ -143,15 +143,13 @@ def test_demo_view_serves_the_page_while_the_whole_pipeline_runs(tmp_path: Path)
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env={**os.environ, "RUST_LOG": "error"})
     try:
         with Browser() as browser:
-            deadline = time.monotonic() + 120
-            ids = None
-            while ids is None and time.monotonic() < deadline and demo.poll() is None:
-                browser.goto(f"http://127.0.0.1:{port}/")
-                try:
-                    ids = browser.wait_for("(() => { const ids = [...document.querySelectorAll('#tracks [data-track-id]')]"
-                                           ".map(e => +e.dataset.trackId); return ids.length ? ids : null; })()", 15)
-                except TimeoutError:
-                    continue
+            try:
+                ids = browser.open_until(f"http://127.0.0.1:{port}/",
+                                         "(() => { const ids = [...document.querySelectorAll('#tracks [data-track-id]')]"
+                                         ".map(e => +e.dataset.trackId); return ids.length ? ids : null; })()",
+                                         timeout_s=120, retry_s=15, alive=lambda: demo.poll() is None)
+            except TimeoutError:
+                ids = None
             assert ids, (tmp_path / "processes.log").read_text()
             healthy = browser.wait_for(
                 "[...document.querySelectorAll('#nodes [data-health=\"ok\"]')].map(e => e.dataset.node)", 20)

@@ -48,7 +48,8 @@ class DetectorService(Node):
         self.publisher = self.io.publisher(keys.detections(config.output), Detections, RELIABLE)
         self.processed = 0
         self._total_ms = 0.0
-        #: max_rate_hz as the least sensor time between two processed frames (ns)
+        #: max_rate_hz as the least sensor time between two processed frames (ns), less 1 ms so
+        #: that stamp jitter does not skip a frame that is due
         self._min_gap_ns = None if config.max_rate_hz is None else int(1e9 / config.max_rate_hz) - 1_000_000
         self._last_ns: int | None = None
         self._log = RateLimitedLog(log)

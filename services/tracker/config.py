@@ -324,10 +324,9 @@ class TrackerConfig(BaseModel):
             raise ValueError(f"unknown descriptor metric {chosen!r}; the tracker knows euclidean and cosine")
         return AppearanceModel(thresholds.t_lower, thresholds.t_upper, thresholds.t_recover, chosen)  # type: ignore[arg-type]
 
-    def score_model(self, detector: str) -> ScoreModel | None:
-        """The score model of ``detector``'s detections, when it has its own (robust profile)."""
-        sc = self.robust.detector_scores.get(detector) if detector else None
-        return sc.model() if sc is not None else None
+    def score_models(self) -> dict[str, ScoreModel]:
+        """The score models of the detectors that have their own (robust profile), by name."""
+        return {name: sc.model() for name, sc in self.robust.detector_scores.items()}
 
     def build_tracker(self, thresholds: AppearanceConfig | None, memory: IdentityMemory | None = None,
                       metric: str | None = None) -> Tracker | RobustTracker:

@@ -131,6 +131,7 @@ class TrackerService(Node):
             ("localized", "embeddings"), wait_s=config.join_wait_s, on_timeout="release",
             orphan_s=config.join_wait_s + config.reorder_window_s, buffer=256, max_waiting=256, ordered=True,
             complete=_completion(frozenset(config.no_embeddings)))
+        self._score_models = config.score_models()  # by Detections.detector
         #: each camera's newest view, (stamp_ns, view): a coasting track in any recent one is in view
         self._views: dict[str, tuple[int, FieldOfView]] = {}
         self._last_state: dict[int, TrackState] = {}
@@ -316,7 +317,7 @@ class TrackerService(Node):
         aspects = (boxes[:, 3] - boxes[:, 1]) / np.maximum(boxes[:, 2] - boxes[:, 0], 1e-6)  # for posture
         result = self.tracker.update(stamp, positions, descriptors, covs_used, scores, view=self._view(loc),
                                      aspects=aspects, orientations=orientations_for(loc, frame.emb),
-                                     score_model=self.config.score_model(loc.detector))
+                                     score_model=self._score_models.get(loc.detector))
         self._ever_confirmed.update(v.id for v in result.confirmed)
         self.counters.count("updates")
         if not result.appearance_available and loc.detections:

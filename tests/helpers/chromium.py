@@ -17,7 +17,7 @@ import tempfile
 import time
 import urllib.request
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 __all__ = ["Browser", "chromium_path"]
 
@@ -109,6 +109,20 @@ class Browser:
                 return value
             time.sleep(0.1)
         raise TimeoutError(f"{expression!r} still {value!r} after {timeout_s} s")
+
+    def open_until(self, url: str, expression: str, timeout_s: float = 60.0, retry_s: float = 10.0,
+                   alive: Callable[[], bool] = lambda: True) -> Any:
+        """Load ``url`` (again every ``retry_s``: a server still starting serves nothing) until
+        ``expression`` is truthy; its value. TimeoutError after ``timeout_s``, or as soon as
+        ``alive()`` says the server's process ended."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline and alive():
+            self.goto(url)
+            try:
+                return self.wait_for(expression, min(retry_s, max(deadline - time.monotonic(), 0.1)))
+            except TimeoutError:
+                continue
+        raise TimeoutError(f"{expression!r} never held on {url} within {timeout_s} s")
 
     def screenshot(self) -> bytes:
         """The page as PNG bytes."""

@@ -32,9 +32,9 @@ from services.localizer.service import LocalizerService
 from services.tracker.config import TrackerConfig
 from services.tracker.service import TrackerService
 from tools.demo.attention import AttentionScore
-from tools.demo.scoring import frame_outputs, pose_line, pose_scores, score_rows
+from tools.demo.scoring import score_tracks
 from tools.simulator.config import SimulatorConfig
-from tools.simulator.core.cameras import back_camera as back_camera_of
+from tools.simulator.core.cameras import BACK_CAMERA_OFFSET
 from tools.simulator.core.render import default_camera
 from tools.simulator.service import SimulatorService
 
@@ -116,10 +116,9 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         TrackerService(bus.transport(), keys, tracker_config),
     ]
     if back_camera is not None:  # its chain, before the tracker: one poll round carries a frame to it
-        mount = back_camera_of(back_camera)
-        back_detector = DetectorConfig.model_validate({
+        back_detector = DetectorConfig.model_validate({  # its floor plane from the mount: level, as high
             "backend": detector, "camera": back_camera,
-            "depth": {"camera_height_m": float(mount.base_optical[2, 3]), "tilt_deg": 0.0}})
+            "depth": {"camera_height_m": BACK_CAMERA_OFFSET[2], "tilt_deg": 0.0}})
         nodes[3:3] = [DetectorService(bus.transport(), keys, back_detector),
                       LocalizerService(bus.transport(), keys, LocalizerConfig(camera=back_camera)),
                       EmbedderService(bus.transport(), keys, EmbedderConfig(camera=back_camera))]
@@ -166,14 +165,10 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         node.close()
     for tap in taps:
         tap.close()
-    gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items() for p in msg.counted()]
     # with several streams, the output of the camera's frame: with a back camera (same stamps,
     # "back" sorts before "head") it is the one after both cameras' frames of the tick
-    hyp = frame_outputs(hyp, camera if second is not None or back_camera is not None else None)
-    hyp_rows = [(t.header.seq, tr.id, tr.position) for t in hyp for tr in t.tracks if t.header.seq in gt]
-    report, table = score_rows(gt_rows, hyp_rows, scenario, plot)
-    report["pose"] = pose_scores(gt, hyp)
-    table += "\n\n" + pose_line(report["pose"])
+    report, table = score_tracks(gt, hyp, scenario, plot,
+                                 source=camera if second is not None or back_camera is not None else None)
     if looked is not None:
         report["attention"] = looked.report()
     return ChainResult(report, table, sim.seq, report.get("attention"))

@@ -46,7 +46,6 @@ latency per stage; at the end the tracks are scored against the simulator's grou
 and still prints the table. Nothing is left running afterwards."""
 
 SERVICES = ("detector", "localizer", "embedder", "tracker")
-BACK_MOUNT_HEIGHT_M = BACK_CAMERA_OFFSET[2]
 _CLK_TCK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
 
 
@@ -109,11 +108,12 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
     names = list(SERVICES)
     if args.second_detector:
         stream = f"head-{args.second_detector}"
-        extra["detector2"] = ("--backend", args.second_detector, "--stream", stream, "--max-rate", str(args.second_rate))
-        extra["localizer2"] = ("--stream", stream)
+        extra["detector-slow"] = ("--backend", args.second_detector, "--stream", stream, "--max-rate",
+                                  str(args.second_rate))
+        extra["localizer-slow"] = ("--stream", stream)
         extra["tracker"] += ("--camera", "*", "--no-embeddings", stream)
-        names[1:1] = ["detector2"]
-        names[3:3] = ["localizer2"]
+        names[1:1] = ["detector-slow"]
+        names[3:3] = ["localizer-slow"]
     if args.back_camera:
         cam = ("--camera", args.back_camera)
         # the depth detector's floor plane starts from the back camera's mount (level; own_env)
@@ -123,10 +123,10 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
         if "--camera" not in extra["tracker"]:
             extra["tracker"] += ("--camera", "*")
         names += ["detector-back", "localizer-back", "embedder-back"]
-    own_env = {"detector-back": {"PERCEPTION_DETECTOR__DEPTH__CAMERA_HEIGHT_M": f"{BACK_MOUNT_HEIGHT_M:g}",
+    own_env = {"detector-back": {"PERCEPTION_DETECTOR__DEPTH__CAMERA_HEIGHT_M": f"{BACK_CAMERA_OFFSET[2]:g}",
                                  "PERCEPTION_DETECTOR__DEPTH__TILT_DEG": "0"}}
     for name in names:
-        command = name.rstrip("2").removesuffix("-back")
+        command = name.partition("-")[0]  # detector-slow, localizer-back, ...: the service's command
         specs.append(ProcessSpec(name, _perception(command, *common, *extra[name]), {**env, **own_env.get(name, {})},
                                  restart="on-failure",
                                  backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))

@@ -23,7 +23,7 @@ from tools.evaluation.evaluate import evaluate_tables, format_table, make_report
 from tools.evaluation.plot import PlotUnavailable, SequencePlot, plot_sequences
 from tools.evaluation.readers import TrackTable
 
-__all__ = ["GroundTruthLog", "frame_outputs", "pose_scores", "score", "score_rows"]
+__all__ = ["GroundTruthLog", "frame_outputs", "pose_scores", "score", "score_rows", "score_tracks"]
 
 _POSTURES = ("standing", "sitting", "lying")
 
@@ -67,16 +67,23 @@ def frame_outputs(tracks: list[Tracks], source: str | None = None) -> list[Track
     return list(first.values())
 
 
+def score_tracks(gt: dict[int, PeopleGroundTruth], tracks: list[Tracks], name: str, plot: Path | None = None,
+                 source: str | None = None) -> tuple[dict[str, Any], str]:
+    """(metrics as a dict, Table II and the pose line as text) of a run's ground truth by frame
+    seq and its published ``Tracks``; ``plot``: also draw it there (PNG); ``source``: score the
+    outputs of that camera's frames (see :func:`frame_outputs`)."""
+    tracks = frame_outputs(tracks, source)
+    gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items() for p in msg.counted()]
+    hyp_rows = [(t.header.seq, tr.id, tr.position) for t in tracks for tr in t.tracks if t.header.seq in gt]
+    report, table = score_rows(gt_rows, hyp_rows, name, plot)
+    report["pose"] = pose_scores(gt, tracks)
+    return report, table + "\n\n" + pose_line(report["pose"])
+
+
 def score(gt: GroundTruthLog, monitor: Monitor, name: str, plot: Path | None = None,
           source: str | None = None) -> tuple[dict[str, Any], str]:
-    """(metrics as a dict, Table II as text) of the run; ``plot``: also draw it there (PNG);
-    ``source``: score the outputs of that camera's frames (see :func:`frame_outputs`)."""
-    tracks = frame_outputs(monitor.all_tracks, source)
-    gt_rows = [(seq, p.id, p.position) for seq, msg in gt.frames.items() for p in msg.counted()]
-    hyp_rows = [(t.header.seq, tr.id, tr.position) for t in tracks for tr in t.tracks if t.header.seq in gt.frames]
-    report, table = score_rows(gt_rows, hyp_rows, name, plot)
-    report["pose"] = pose_scores(gt.frames, tracks)
-    return report, table + "\n\n" + pose_line(report["pose"])
+    """:func:`score_tracks` of a live run's logs."""
+    return score_tracks(gt.frames, monitor.all_tracks, name, plot, source)
 
 
 def pose_scores(gt: dict[int, PeopleGroundTruth], tracks: list[Tracks], gate_m: float = 1.0) -> dict[str, Any]:

@@ -36,7 +36,7 @@ __all__ = ["STAGES", "Sink", "ViewerNode", "jpeg_of"]
 #: Small messages the viewer reads: the newest 64 (it only needs the newest).
 _LOOSE = Delivery(latest=False, queue=64, congestion="drop", wake=False)
 #: Frames: the few that arrive between two polls, so the camera's rate counts each of them
-#: (only the newest is decoded); older ones are dropped and counted.
+#: (only the newest is decoded); older ones are dropped uncounted.
 _FEW_FRAMES = Delivery(latest=False, queue=16, congestion="drop", express=True, wake=False)
 #: Transforms and statuses: every one is read.
 _EVERY_TF = replace(RELIABLE, wake=False)
@@ -47,7 +47,8 @@ _EVERY_STATUS = replace(STATUS, wake=False)
 POLL_HZ = 20.0
 #: The stages whose rate and latency the page shows, in pipeline order ("camera": the frames).
 STAGES = ("camera", "detector", "localizer", "embedder", "tracker")
-#: Images are encoded only while a browser has asked for something within this long (s).
+#: A browser watches while it has asked for something within this long (s): images are
+#: encoded, and states built at the page's rate, only then.
 _IMAGE_INTEREST_S = 2.0
 #: The stages' rates and latencies in the page state are recomputed this often (s).
 _STAGES_EVERY_S = 1.0
@@ -256,8 +257,8 @@ class ViewerNode(Node):
         if self.state is None:
             return []
         frame: RGBDFrame | None = self.latest.get("camera")
-        wants_image = time.monotonic() - self.state.watched_at < _IMAGE_INTEREST_S
-        if (frame is not None and frame.header.seq != self._image_seq and wants_image
+        watched = time.monotonic() - self.state.watched_at < _IMAGE_INTEREST_S
+        if (frame is not None and frame.header.seq != self._image_seq and watched
                 and now - self._last_image >= 1.0 / self.config.image_hz):
             self.state.set_image(jpeg_of(frame, self.config.jpeg_quality), frame.header.seq)
             self._image_seq, self._last_image = frame.header.seq, now
@@ -265,7 +266,7 @@ class ViewerNode(Node):
                                 "height": frame.camera_info.height}
             self._dirty = True
         # nobody watching: one state a second keeps the page's first request fresh, and costs little
-        period = 1.0 / self.config.state_hz if wants_image else 1.0
+        period = 1.0 / self.config.state_hz if watched else 1.0
         if (self._dirty and now - self._last_state >= period) or now - self._last_state >= 1.0:
             self.state.set_state(self.snapshot(now))
             self._dirty, self._last_state = False, now

@@ -37,3 +37,11 @@ def test_inline_service_configs_validate(launch_file: Path, tmp_path: Path) -> N
         else:
             cfg_file = Path(spec.config)
         load_config(model, cfg_file)  # raises ConfigError naming the bad key
+
+
+def test_the_two_camera_deploy_file_uses_the_several_camera_tracker_settings() -> None:
+    from services.tracker.config import SEVERAL_CAMERAS
+
+    launch = load_launch_file(DEPLOY / "two-cameras.yaml", environ={})
+    tracker = next(s for s in launch.services if s.command == "tracker")
+    assert isinstance(tracker.config, dict) and tracker.config["robust"] == SEVERAL_CAMERAS

@@ -28,8 +28,8 @@ from services.tracker.core.robust import (
 )
 from services.tracker.core.tracker import Tracker
 
-__all__ = ["DEFAULT_APPEARANCE", "DEFAULT_EMBEDDING_MODEL", "PROFILES", "AppearanceConfig", "RobustConfig",
-           "ScoreConfig", "TrackerConfig", "default_memory_path"]
+__all__ = ["DEFAULT_APPEARANCE", "DEFAULT_EMBEDDING_MODEL", "PROFILES", "SEVERAL_CAMERAS", "AppearanceConfig",
+           "RobustConfig", "ScoreConfig", "TrackerConfig", "default_memory_path"]
 
 #: The tracker's profiles: ``robust`` (the default, built from all four seeds) and
 #: ``thesis`` (seed 000 exactly, for comparison and reproduction).
@@ -88,6 +88,18 @@ _D = TrackerParams()
 _S_MAX = next(f.default for f in dataclasses.fields(AppearanceGate) if f.name == "s_max")
 _R = RobustParams()
 _SC = ScoreModel()
+
+#: The robust settings for several cameras with blind stretches between their views (the
+#: head camera and one on the base looking backwards): a track out of every view coasts up
+#: to 6 s and 100 m^2 (about 3 s of walking at q_accel 3), and a person confirmed in one
+#: camera's view takes the ID of a track that left another camera's view, by motion (the
+#: chi2 gate of the association). ``deploy/two-cameras.yaml``, ``perception demo
+#: --back-camera`` and ``run_chain(back_camera=...)`` use them. They are not the defaults: on
+#: one moving camera (the head turning away from people, the base driving) the longer
+#: coasting lets drifted predictions take the wrong person when the view comes back
+#: (simulator moving-head IDF1 0.736 -> 0.643, moving-base 0.705 -> 0.643).
+SEVERAL_CAMERAS: dict[str, float] = {"max_coast_unseen_s": 6.0, "max_position_var_unseen": 100.0,
+                                     "handover_gate_sq": 13.8}
 
 
 class ScoreConfig(BaseModel):
@@ -186,6 +198,14 @@ class RobustConfig(BaseModel):
     max_coast_s: float = Field(default=_R.max_coast_s, gt=0.0, description="coasting longer deletes the track (s)")
     max_position_var: float = Field(default=_R.max_position_var, gt=0.0,
                                     description="a track whose (x, y) variance trace passes this is deleted (m^2)")
+    max_coast_unseen_s: float = Field(default=_R.max_coast_unseen_s, gt=0.0,
+                                      description="max_coast_s for a track coasting out of every camera's view (s)")
+    max_position_var_unseen: float = Field(default=_R.max_position_var_unseen, gt=0.0,
+                                           description="max_position_var for a track coasting out of every view (m^2)")
+    handover_gate_sq: float | None = Field(
+        default=_R.handover_gate_sq, gt=0.0,
+        description="a track confirmed within this squared Mahalanobis distance of a track coasting out of view "
+                    "takes its ID (a person walking from one camera's view into another's); null: off")
     gallery_size: int = Field(default=_R.gallery_size, ge=1, le=100_000, description="max descriptors per track")
     classifier: ClassifierConfig = Field(default_factory=ClassifierConfig)
     posture: PostureConfig = Field(default_factory=PostureConfig)

@@ -317,7 +317,7 @@ class TrackerService(Node):
         aspects = (boxes[:, 3] - boxes[:, 1]) / np.maximum(boxes[:, 2] - boxes[:, 0], 1e-6)  # for posture
         result = self.tracker.update(stamp, positions, descriptors, covs_used, scores, view=self._view(loc),
                                      aspects=aspects, orientations=orientations_for(loc, frame.emb),
-                                     score_model=self._score_models.get(loc.detector))
+                                     score_model=self._score_models.get(loc.detector), camera=loc.camera_frame)
         self._ever_confirmed.update(v.id for v in result.confirmed)
         self.counters.count("updates")
         if not result.appearance_available and loc.detections:

@@ -152,6 +152,15 @@ class RobustParams:
     view_margin: float = 0.1  # image border (share of its size) where a coasting person counts as out of view
     max_coast_s: float = 2.0
     max_position_var: float = 4.0  # m^2, trace of the (x, y) covariance
+    #: the same two limits for a track coasting out of every camera's view (it cannot be
+    #: detected there, so a miss says nothing about it: a person walking from one camera's
+    #: view into another's through a blind stretch); no view known: the limits above
+    max_coast_unseen_s: float = 2.0
+    max_position_var_unseen: float = 4.0
+    #: hand-over by motion: a track confirmed within this squared Mahalanobis distance (x, y)
+    #: of a track coasting out of view takes that track's ID (the person came back into a
+    #: view elsewhere); None: off
+    handover_gate_sq: float | None = None
     gallery_size: int = 100
     memory_size: int = 500
     #: seed 002's online per-track appearance classifiers; None: off
@@ -172,6 +181,10 @@ class RobustParams:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
         if not (0 < self.tentative_timeout_s and 0 <= self.report_coast_s <= self.max_coast_s):
             raise ValueError("need tentative_timeout_s > 0 and 0 <= report_coast_s <= max_coast_s")
+        if not (self.max_coast_unseen_s > 0 and self.max_position_var_unseen > 0):
+            raise ValueError("max_coast_unseen_s and max_position_var_unseen must be positive")
+        if self.handover_gate_sq is not None and not self.handover_gate_sq > 0:
+            raise ValueError(f"handover_gate_sq must be positive or None, got {self.handover_gate_sq}")
         if not 0 <= self.view_margin < 0.5:
             raise ValueError(f"view_margin must be in [0, 0.5), got {self.view_margin}")
         if not 0.5 <= self.confirm_is_person < 1:
@@ -194,6 +207,9 @@ class _Track:
     clf: np.ndarray | None = None  # online classifier weights (D + 1), once trained
     clf_steps: int = 0
     forgotten: bool = False  # its person was forgotten: it learns and leaves no appearance
+    in_view: bool | None = None  # coasting: inside some camera's view at the last frame (None: not known)
+    unseen_s: float = 0.0  # of this coast, the time spent out of every view
+    camera: str = ""  # the camera of its last detection
     posture: np.ndarray = field(default_factory=lambda: pose.uniform(3))
     orientation: np.ndarray = field(default_factory=lambda: pose.uniform(pose.ORIENTATION_BINS))
 
@@ -262,7 +278,8 @@ class RobustTracker:
     def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
                measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
                view: FieldOfView | Views | None = None, aspects: np.ndarray | None = None,
-               orientations: np.ndarray | None = None, score_model: ScoreModel | None = None) -> FrameResult:
+               orientations: np.ndarray | None = None, score_model: ScoreModel | None = None,
+               camera: str = "") -> FrameResult:
         """Process one frame: ``stamp`` in seconds, ``positions`` (N, 3), ``descriptors``
         (N, D) or None (a NaN row: no descriptor), ``measurement_cov`` (N, 3, 3) or None,
         ``scores`` (N,) or None (the detector's confidences), ``view`` what the camera could
@@ -272,7 +289,10 @@ class RobustTracker:
         ``orientations`` (N, 8) an orientation classifier's probabilities per detection in the
         tracking frame's bins (NaN rows: none), used while the person is too slow for the
         walking direction to tell. ``score_model``: how this frame's detector's scores read
-        as P(true person), when several detectors feed the tracker (None: ``params.scores``)."""
+        as P(true person), when several detectors feed the tracker (None: ``params.scores``).
+        ``camera``: which camera the frame comes from, when several feed the tracker: a hand-over
+        by motion (``handover_gate_sq``) joins a track last seen by one camera to a new track
+        born in another's view only."""
         p = self.params
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         n = len(positions)
@@ -289,7 +309,7 @@ class RobustTracker:
         scores = np.zeros(n) if scores is None else np.asarray(scores, float).reshape(n)
         r = self._measurement_cov(measurement_cov, n)
         self._predict(stamp)
-        self.last_stamp = stamp
+        previous, self.last_stamp = self.last_stamp, stamp
         appearance = descriptors is not None and p.appearance is not None and descriptors.shape[1] > 0
         has_desc = np.all(np.isfinite(descriptors), axis=1) if appearance else np.zeros(n, bool)  # type: ignore[arg-type]
         score_model = p.scores if score_model is None else score_model
@@ -299,22 +319,20 @@ class RobustTracker:
         log_odds = self._pair_log_odds(positions, r, descriptors if appearance else None, has_desc, p_det)
         result = FrameResult(stamp=stamp, appearance_available=appearance)
         matches = self._associate(log_odds, confident)
-        self._update_matched(matches, positions, r, descriptors, has_desc, p_det, confident, stamp)
+        self._update_matched(matches, positions, r, descriptors, has_desc, p_det, confident, stamp, camera)
         self._update_pose(matches, positions, aspects, orientations)
         self._train_classifiers(matches, descriptors, has_desc, confident)
         matched_d = {d for d, _ in matches}
-        self._age(stamp, result, appearance)
+        self._age(stamp, result, appearance, view, previous)
         self._birth([d for d in range(n) if d not in matched_d and confident[d]], positions, descriptors, has_desc,
-                    p_det, stamp)
+                    p_det, stamp, camera)
         self._confirm(result)
         result.matches = len(matches)
         result.tracks = [self._view(t, stamp) for t in self.tracks]
         if view is not None:
-            coasting = [k for k, t in enumerate(self.tracks) if t.status is TrackStatus.COASTING]
-            if coasting:
-                seen = view.contains(np.array([self.tracks[k].mean[:3] for k in coasting]), self.params.view_margin)
-                for k, s in zip(coasting, seen.tolist()):
-                    result.tracks[k] = replace(result.tracks[k], in_view=s)
+            for k, t in enumerate(self.tracks):
+                if t.status is TrackStatus.COASTING:
+                    result.tracks[k] = replace(result.tracks[k], in_view=t.in_view)
         return result
 
     def _measurement_cov(self, cov: np.ndarray | None, n: int) -> np.ndarray:
@@ -451,7 +469,7 @@ class RobustTracker:
 
     def _update_matched(self, matches: list[tuple[int, int]], positions: np.ndarray, r: np.ndarray,
                         descriptors: np.ndarray | None, has_desc: np.ndarray, p_det: np.ndarray,
-                        confident: np.ndarray, stamp: float) -> None:
+                        confident: np.ndarray, stamp: float, camera: str = "") -> None:
         if not matches:
             return
         d_idx = np.array([d for d, _ in matches])
@@ -463,6 +481,8 @@ class RobustTracker:
             t = self.tracks[j]
             t.mean, t.cov = new_means[k], new_covs[k]
             t.last_update = stamp
+            t.unseen_s = 0.0
+            t.camera = camera
             t.total_hits += 1
             t.is_person = _bayes(t.is_person, p_det[d])
             if confident[d]:
@@ -491,17 +511,35 @@ class RobustTracker:
             elif orientations is not None and np.all(np.isfinite(orientations[d])):
                 t.orientation = pose.update(t.orientation, np.asarray(orientations[d], float) + 1e-3)
 
-    def _age(self, stamp: float, result: FrameResult, appearance: bool) -> None:
+    def _age(self, stamp: float, result: FrameResult, appearance: bool, view: FieldOfView | Views | None,
+             previous: float | None) -> None:
+        """Coasting, the tracks' view flags and deletion; ``previous``: the last frame's stamp."""
         p = self.params
         keep = []
         for t in self.tracks:
             gap = stamp - t.last_update
             if gap > 0 and t.status is TrackStatus.CONFIRMED:
                 t.status = TrackStatus.COASTING
+            if t.status is not TrackStatus.COASTING:
+                t.in_view = None
+        coasting = [t for t in self.tracks if t.status is TrackStatus.COASTING]
+        if view is not None and coasting:
+            seen = view.contains(np.array([t.mean[:3] for t in coasting]), p.view_margin)
+            for t, s in zip(coasting, seen.tolist()):
+                if t.in_view is False:  # out of view since the last frame
+                    t.unseen_s += max(0.0, stamp - max(previous if previous is not None else stamp, t.last_update))
+                t.in_view = s
+        for t in self.tracks:
+            # in view, a track is dropped on the usual limits; the time out of every view
+            # does not count towards max_coast_s, and a track that has been out of view has
+            # the wider variance bound (it may come back into a view far from its prediction)
+            gap = stamp - t.last_update
+            var = t.cov[0, 0] + t.cov[1, 1]
             if t.status is TrackStatus.TENTATIVE:
                 if gap > p.tentative_timeout_s:
                     continue  # a birth candidate that did not go on: clutter
-            elif gap > p.max_coast_s or t.cov[0, 0] + t.cov[1, 1] > p.max_position_var:
+            elif (gap - t.unseen_s > p.max_coast_s or gap > p.max_coast_unseen_s or var > p.max_position_var_unseen
+                  or (t.unseen_s == 0.0 and t.in_view is not False and var > p.max_position_var)):
                 t.status = TrackStatus.DELETED
                 result.deleted.append(self._view(t, stamp))
                 self._archive(t)
@@ -521,23 +559,61 @@ class RobustTracker:
             self.classifiers = {i: w for i, w in self.classifiers.items() if i in self.memory}
 
     def _birth(self, dets: list[int], positions: np.ndarray, descriptors: np.ndarray | None, has_desc: np.ndarray,
-               p_det: np.ndarray, stamp: float) -> None:
+               p_det: np.ndarray, stamp: float, camera: str = "") -> None:
         for d in dets:
             mean = np.concatenate([positions[d], np.zeros(4 if self._ukf else 3)])  # at rest, not turning
-            t = _Track(0, mean, self._p0, None, stamp, stamp, is_person=_bayes(0.5, p_det[d]))
+            t = _Track(0, mean, self._p0, None, stamp, stamp, is_person=_bayes(0.5, p_det[d]), camera=camera)
             if has_desc[d] and descriptors is not None:
                 self._add_descriptor(t, descriptors[d])
             self.tracks.append(t)
 
     def _confirm(self, result: FrameResult) -> None:
         p = self.params
-        for t in self.tracks:
+        for t in list(self.tracks):  # a hand-over removes the coasting track it replaces
             if t.status is TrackStatus.TENTATIVE and t.confident_hits >= p.n_init and t.is_person >= p.confirm_is_person:
                 t.status, t.ever_confirmed = TrackStatus.CONFIRMED, True
+                handed = self._handover(t)
+                if handed is not None:
+                    t.id = handed
+                    result.new_ids.append(t.id)
+                    result.recovered_ids.append(t.id)
+                    continue
                 t.id, recovered = self._identity(t)
                 result.new_ids.append(t.id)
                 if recovered:
                     result.recovered_ids.append(t.id)
+
+    def _handover(self, t: _Track) -> int | None:
+        """Hand-over by motion: the ID of the track coasting out of view, last seen by another
+        camera than the one ``t`` was born in, whose prediction the newly confirmed ``t`` is
+        nearest (squared Mahalanobis distance on (x, y) within ``handover_gate_sq``), which
+        ``t`` replaces (it takes its gallery and classifier too); None when there is none. A
+        person leaving one camera's view and coming back into it is left to appearance."""
+        gate = self.params.handover_gate_sq
+        if gate is None:
+            return None
+        best, best_d2 = None, gate
+        for c in self.tracks:
+            if (c.status is not TrackStatus.COASTING or c.in_view is not False or not c.id or c.forgotten
+                    or not c.camera or c.camera == t.camera):  # the same camera: re-identification's job
+                continue
+            s = c.cov[:2, :2] + t.cov[:2, :2]
+            diff = t.mean[:2] - c.mean[:2]
+            d2 = float(diff @ np.linalg.solve(s, diff))
+            if d2 <= best_d2:
+                best, best_d2 = c, d2
+        if best is None:
+            return None
+        if best.gallery is not None and len(best.gallery):
+            if t.gallery is None:
+                t.gallery = best.gallery
+            else:
+                for desc in best.gallery.descriptors:
+                    t.gallery.add(desc)
+        if best.clf_steps and t.clf_steps == 0:
+            t.clf, t.clf_steps = best.clf, best.clf_steps
+        self.tracks.remove(best)
+        return best.id
 
     def _identity(self, t: _Track) -> tuple[int, bool]:
         """Algorithm 2 through the calibrated model: a remembered person nearer than ``t_recover``."""

@@ -204,7 +204,8 @@ class Tracker:
     def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
                measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
                view: object | None = None, aspects: np.ndarray | None = None,
-               orientations: np.ndarray | None = None, score_model: object | None = None) -> FrameResult:
+               orientations: np.ndarray | None = None, score_model: object | None = None,
+               camera: str = "") -> FrameResult:
         """Process one frame.
 
         ``stamp`` in seconds (sensor time). ``positions`` (N, 3) in the tracking frame.
@@ -213,7 +214,7 @@ class Tracker:
         thesis's fixed ``R`` per detection when given. ``scores`` are accepted for the
         robust profile's interface and unused: the thesis has no detector confidence;
         ``view`` (the camera's field of view), ``aspects`` and ``orientations`` (for posture
-        and orientation) and ``score_model`` likewise: the thesis reports Confirmed tracks only and estimates no
+        and orientation), ``score_model`` and ``camera`` likewise: the thesis reports Confirmed tracks only and estimates no
         posture.
         """
         positions, descriptors = _checked_inputs(positions, descriptors)

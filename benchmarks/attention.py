@@ -1,4 +1,5 @@
-"""Command latency of the attention node: from a Tracks message to its HeadCommand.
+"""Command latency of the attention node: from a Tracks message to its HeadCommand; with
+``--loop``, how well the closed loop keeps person 1 in view on the simulator.
 
 In-memory transport, one process: the time from publishing a Tracks message (5 people,
 transforms and camera info known) to the HeadCommand the node publishes for it, i.e. the
@@ -6,6 +7,16 @@ node's own work (decode, choose, transform lookups, the control law, encode). Ov
 add the transport's hop (ZENOH_NOTES.md: about 0.2 ms through a router on loopback).
 
     python benchmarks/attention.py [--n 2000]
+    python benchmarks/attention.py --loop [--scenario people-following] [--json FILE]
+
+``--loop`` runs the scenario through the whole chain in one process (``run_chain``, 320x240
+at 10 fps) with the head driven four ways and scores person 1 each time (the centring
+error of their true torso centre, the share of frames where they are visible):
+
+- ``rest``: the head stays at its rest pose (attention target none);
+- ``nearest`` and ``lock``: the attention node on the tracker's tracks, with those targets;
+- ``truth``: the attention node on the ground truth (a perfect tracker, target ID 1): the
+  ceiling the walls, the robot's path and the head's limits leave on this scenario.
 """
 
 from __future__ import annotations
@@ -13,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -27,10 +39,41 @@ from services.attention.service import AttentionService
 from tools.simulator.messages import transform
 
 
+def loop(scenario: str, json_path: Path | None) -> None:
+    """The closed loop four ways (module docstring), one table row each."""
+    from tools.demo.inprocess import run_chain
+    from tools.simulator.core.scenarios import SCENARIOS
+
+    duration = SCENARIOS[scenario].duration_s
+    rows = {}
+    for name, target, truth in (("rest", "none", False), ("nearest", "nearest", False), ("lock", "lock", False),
+                                ("truth", "1", True)):
+        t0 = time.perf_counter()
+        r = run_chain(scenario, duration_s=duration, attention=AttentionConfig(target=target), attention_truth=truth)
+        assert r.attention is not None
+        rows[name] = {**r.attention, "mota": round(r.report["overall"]["mota"], 3)}
+        print(f"{name:8s} centring error p50 {r.attention['center_error_px_p50']} px, p95 "
+              f"{r.attention['center_error_px_p95']} px; person {r.attention['person_id']} visible "
+              f"{r.attention['target_visible_fraction']:.3f} ({time.perf_counter() - t0:.0f} s)", flush=True)
+    print(json.dumps({"scenario": scenario, "duration_s": duration, "runs": rows}))
+    if json_path is not None:
+        json_path.write_text(json.dumps({"scenario": scenario, "duration_s": duration, "runs": rows}, indent=1) + "\n")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n", type=int, default=2000, help="Tracks messages (default 2000)")
+    ap.add_argument("--loop", action="store_true", help="score the closed loop on the simulator instead (see above)")
+    ap.add_argument("--scenario", default="people-following", help="--loop: the scenario (default people-following)")
+    ap.add_argument("--json", type=Path, default=None, metavar="FILE", help="--loop: also write the figures here")
     args = ap.parse_args()
+    if args.loop:
+        from tools.simulator.core.scenarios import SCENARIOS
+
+        if args.scenario not in SCENARIOS:
+            ap.error(f"unknown scenario {args.scenario!r}; choose one of {', '.join(SCENARIOS)}")
+        loop(args.scenario, args.json)
+        return
     bus, keys = MemoryBus(), Keys(robot="bench")
     node = AttentionService(bus.transport(), keys, AttentionConfig(target="nearest"))
     t = bus.transport()

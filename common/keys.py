@@ -91,7 +91,7 @@ STREAMS: tuple[Stream, ...] = (
     Stream("forget_query", "query/forget", "query `?id=K` or `?all=1` → ForgetReply", "tracker (queryable)",
            "perception forget", None, "query"),
     Stream("head_command", "head/command", "HeadCommand", "attention", "the head's driver, simulator", COMMANDS),
-    Stream("attention_query", "query/attention", "query `?target=K`, `nearest` or `none` (none: the state) → AttentionReply",
+    Stream("attention_query", "query/attention", "query `?target=K`, `nearest`, `lock` or `none` (none: the state) → AttentionReply",
            "attention (queryable)", "perception look, HRI", None, "query"),
 )
 
@@ -179,7 +179,7 @@ class Keys:
         return self._join("head", "command")
 
     def attention_query(self) -> str:
-        """Whom the attention node looks at: ``?target=K``, ``?target=nearest``, ``?target=none``."""
+        """Whom the attention node looks at: ``?target=K``, ``?target=nearest``, ``?target=lock``, ``?target=none``."""
         return self._join("query", "attention")
 
     def all(self) -> str:

@@ -547,7 +547,8 @@ class HeadCommand(Message):
 class AttentionReply(Message):
     """The attention node's answer to a query on ``keys.attention_query()``: its state after the request."""
 
-    mode: Literal["none", "nearest", "id"] = Field(default="none", description="what the node is told to look at")
+    mode: Literal["none", "nearest", "id", "lock"] = Field(
+        default="none", description="what the node is told to look at ('lock' until someone is locked onto, then 'id')")
     requested_id: int = Field(default=-1, ge=-1, description="the ID asked for in mode 'id'")
     following_id: int = Field(default=-1, ge=-1, description="the person the head follows now, -1 for none")
     known_ids: list[int] = Field(default_factory=list, description="the IDs in the latest tracks")

@@ -139,6 +139,23 @@ def test_chooser_id_hold_then_rest_and_the_id_coming_back() -> None:
     assert c.decide([_person(4, 3.0)], origin, 9.1).phase == "rest"
 
 
+def test_chooser_lock_takes_the_nearest_then_waits_for_that_id() -> None:
+    c = Chooser(hold_s=1.0)
+    c.request("lock")
+    origin = np.zeros(3)
+    assert c.decide([], origin, 0.0).phase == "rest"  # no one yet: wait at rest, still locking
+    assert c.mode == "lock"
+    assert c.decide([_person(5, 3.0, confirmed=False)], origin, 0.1).phase == "rest"  # tentative: not chosen
+    d = c.decide([_person(5, 3.0), _person(2, 2.0)], origin, 0.2)
+    assert d.phase == "track" and d.target_id == 2 and (c.mode, c.requested_id) == ("id", 2)
+    assert c.decide([_person(5, 3.0), _person(2, 0.5)], origin, 0.3).target_id == 2
+    assert c.decide([_person(5, 1.0)], origin, 0.4).phase == "hold"  # 2 lost
+    # unlike 'nearest', a nearer person does not take over once the hold is over
+    assert c.decide([_person(5, 1.0), _person(7, 2.0)], origin, 2.0).phase == "rest"
+    d = c.decide([_person(5, 1.0), _person(2, 4.0)], origin, 5.0)  # the tracker gave the ID back
+    assert d.phase == "track" and d.target_id == 2
+
+
 def test_chooser_nearest_keeps_its_person_until_another_is_clearly_nearer() -> None:
     c = Chooser(hold_s=1.0, switch_margin_m=1.0)
     c.request("nearest")

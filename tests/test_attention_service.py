@@ -87,6 +87,20 @@ def test_the_query_chooses_the_person_and_refuses_unknown_ids(rig) -> None:  # t
     assert none.mode == "none"
 
 
+def test_lock_over_the_query_follows_the_nearest_then_keeps_that_id(rig) -> None:  # type: ignore[no-untyped-def]
+    bus, keys, node, tracks, commands = rig
+    (_, reply), = bus.transport().query(keys.attention_query() + "?target=lock")
+    assert not reply.error and reply.mode == "lock"
+    tracks.put(_tracks(STAMP, (1, (2.5, 1.0, 1.0)), (2, (4.0, -1.5, 1.0))))
+    node.poll(0.0)
+    assert _last(commands).target_id == 1
+    tracks.put(_tracks(STAMP + 10**8, (1, (4.0, 1.0, 1.0)), (2, (2.0, -1.5, 1.0))))  # 2 is now much nearer
+    node.poll(0.1)
+    assert _last(commands).target_id == 1  # locked: 'nearest' would have switched
+    (_, state), = bus.transport().query(keys.attention_query())
+    assert (state.mode, state.requested_id, state.following_id) == ("id", 1, 1)
+
+
 def test_a_lost_target_holds_then_the_head_returns_to_rest(rig) -> None:  # type: ignore[no-untyped-def]
     bus, keys, node, tracks, commands = rig
     tracks.put(_tracks(STAMP, (1, (2.5, 1.0, 1.0))))

@@ -13,13 +13,13 @@ _S = ServoParams()
 
 
 def parse_target(text: str) -> tuple[str, int]:
-    """``'nearest'``, ``'none'`` or a track ID as (mode, id); ValueError otherwise."""
+    """``'nearest'``, ``'lock'``, ``'none'`` or a track ID as (mode, id); ValueError otherwise."""
     t = text.strip().lower()
-    if t in ("nearest", "none"):
+    if t in ("nearest", "lock", "none"):
         return t, -1
     if t.isdigit():
         return "id", int(t)
-    raise ValueError(f"target {text!r} must be a track ID (0, 1, ...), 'nearest' or 'none'")
+    raise ValueError(f"target {text!r} must be a track ID (0, 1, ...), 'nearest', 'lock' or 'none'")
 
 
 class AttentionConfig(BaseModel):
@@ -28,7 +28,8 @@ class AttentionConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     # --- whom to look at
-    target: str = Field(default="none", description="at start: a track ID, 'nearest' or 'none' (change it with "
+    target: str = Field(default="none", description="at start: a track ID, 'nearest', 'lock' (the nearest person now, "
+                                                    "then their ID) or 'none' (change it with "
                                                     "perception look or the attention query)")
     hold_s: float = Field(default=2.0, ge=0.0, le=600.0, description="a lost target: hold still this long, then rest (s)")
     switch_margin_m: float = Field(default=1.5, ge=0.0, description="'nearest': another person must be this much nearer")

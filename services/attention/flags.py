@@ -12,7 +12,7 @@ __all__ = ["add_arguments", "overrides"]
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("attention")
-    g.add_argument("--target", default=None, metavar="ID|nearest|none",
+    g.add_argument("--target", default=None, metavar="ID|nearest|lock|none",
                    help="whom to look at from the start (default none; change it with perception look)")
     g.add_argument("--camera", default=None, help="the camera on the head, for its camera info (default head)")
     g.add_argument("--gain", type=float, default=None, metavar="PER_S", help="control gain (default 1.2 per s)")

@@ -16,7 +16,7 @@ joints, with a configurable gain, velocity limits and dead zone; when the person
 the head holds still for a while, then returns to its rest pose. Subscribes to the
 tracker's Tracks, the head camera's frames (for the camera info) and the transforms,
 publishes HeadCommand (pan/tilt rates) on the head/command key, and takes whom to look at
-from --target or at run time from the attention query (perception look ID|nearest|none).
+from --target or at run time from the attention query (perception look ID|nearest|lock|none).
 
 Settings come from defaults <- --service-config FILE (section 'attention' if present) <-
 PERCEPTION_ATTENTION__FIELD environment variables <- flags."""

@@ -6,7 +6,7 @@ person-of-interest visual servoing).
   every ``camera_info_period_s`` (the frames in between are discarded undecoded; the ring
   of one counts the ones overwritten before a poll as dropped);
 * ``tf``, ``tf_static``: where the camera and the head's joints are;
-* the queryable ``query/attention?target=K|nearest|none`` sets whom to look at and answers
+* the queryable ``query/attention?target=K|nearest|lock|none`` sets whom to look at and answers
   with an :class:`AttentionReply` (an unknown ID is refused, saying which IDs are known).
 
 A command goes out for every Tracks message, and at least ``command_rate_hz`` times a
@@ -46,7 +46,10 @@ BASE_DT_S = 0.1
 class AttentionService(Node):
     name = "attention"
 
-    def __init__(self, transport: Transport, keys: Keys, config: AttentionConfig, counters: Counters | None = None) -> None:
+    def __init__(self, transport: Transport, keys: Keys, config: AttentionConfig, counters: Counters | None = None,
+                 tracks_key: str | None = None) -> None:
+        """``tracks_key``: where the people come from instead of the tracker's ``tracks``
+        (a harness that feeds it the ground truth, to measure the loop without tracking errors)."""
         super().__init__(transport, keys, counters)
         self.config = config
         self.params = config.servo_params()
@@ -68,7 +71,7 @@ class AttentionService(Node):
         self.sub_tf_static = self.io.subscribe(keys.tf_static(), TransformBatch, RELIABLE)
         self.sub_tf = self.io.subscribe(keys.tf(), TransformBatch, RELIABLE)
         self.sub_frames = self.io.subscribe(keys.frames(config.camera), RGBDFrame, FRAMES)
-        self.sub_tracks = self.io.subscribe(keys.tracks(), Tracks, RELIABLE)
+        self.sub_tracks = self.io.subscribe(tracks_key or keys.tracks(), Tracks, RELIABLE)
         self.pub = self.io.publisher(keys.head_command(), HeadCommand, COMMANDS)
         self.io.serve(keys.attention_query(), self._answer)
 

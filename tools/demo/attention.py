@@ -17,11 +17,11 @@ import numpy as np
 
 from common.geometry import PinholeCamera, TransformBuffer, TransformError
 from common.geometry_messages import add_transform
-from common.keys import Delivery, Keys
-from common.schemas import Message, PeopleGroundTruth, TransformBatch
+from common.keys import RELIABLE, Delivery, Keys
+from common.schemas import Header, Message, PeopleGroundTruth, TrackState, Tracks, TransformBatch
 from common.transport import Transport
 
-__all__ = ["AttentionLog", "AttentionScore"]
+__all__ = ["AttentionLog", "AttentionScore", "TruthTracks"]
 
 #: The person of interest: the scenario's person 1 (in people-following, the one the robot follows).
 PERSON_OF_INTEREST = 1
@@ -102,3 +102,31 @@ class AttentionLog:
             self.score.add(msg)
         self._pending.clear()
         return self.score.report()
+
+
+class TruthTracks:
+    """The simulator's ground truth republished as ``Tracks``: a perfect tracker for the
+    attention node (``run_chain(attention_truth=True)``), so the loop's own limits (control,
+    the robot's path, walls) can be told from the tracker's errors.
+
+    Every person is reported, seen or not, with their true position and velocity and their
+    ground-truth ID; ``poll`` republishes the ground truth received since the last call."""
+
+    def __init__(self, transport: Transport, keys: Keys) -> None:
+        self.key = f"{keys.groundtruth()}/tracks"
+        self._sub = transport.subscribe(keys.groundtruth(), PeopleGroundTruth, RELIABLE)
+        self._pub = transport.publisher(self.key, Tracks, RELIABLE)
+
+    def poll(self, _now: float) -> None:
+        while (got := self._sub.try_recv()) is not None:
+            gt = got.msg
+            eye = np.eye(6) * 1e-4
+            self._pub.put(Tracks(
+                header=Header(stamp_ns=gt.header.stamp_ns, frame_id=gt.header.frame_id or "map", seq=gt.header.seq,
+                              source="truth"),
+                tracks=[TrackState(id=p.id, status="confirmed", position=p.position, velocity=p.velocity,
+                                   covariance=eye, last_update_ns=gt.header.stamp_ns, hits=1, age_s=0.0)
+                        for p in gt.people]))
+
+    def close(self) -> None:
+        self._sub.close()

@@ -29,9 +29,9 @@ from services.embedder.config import EmbedderConfig
 from services.embedder.service import EmbedderService
 from services.localizer.config import LocalizerConfig
 from services.localizer.service import LocalizerService
-from services.tracker.config import TrackerConfig
+from services.tracker.config import SEVERAL_CAMERAS, TrackerConfig
 from services.tracker.service import TrackerService
-from tools.demo.attention import AttentionScore
+from tools.demo.attention import AttentionScore, TruthTracks
 from tools.demo.scoring import score_tracks
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.cameras import BACK_CAMERA_OFFSET
@@ -76,7 +76,7 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
               seed: int = 0, tracker: TrackerConfig | None = None, detector: str = "depth",
               record: Callable[[Message], None] | None = None, plot: Path | None = None,
               attention: AttentionConfig | None = None, second: SecondDetector | None = None,
-              back_camera: str | None = None) -> ChainResult:
+              back_camera: str | None = None, attention_truth: bool = False) -> ChainResult:
     """Run ``scenario`` through the four nodes and score the tracks (Table II).
 
     ``record``, if given, is called with every ``PeopleGroundTruth``, ``LocalizedDetections``,
@@ -90,6 +90,9 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     ``back_camera``, if given, names the simulator's second camera (on the base, looking
     backwards): it gets its own detector, localizer and embedder, and the tracker fuses both
     cameras (the ground truth then counts a person seen by either).
+    ``attention_truth``: the attention node follows the ground truth's people
+    (:class:`TruthTracks`, a perfect tracker) instead of the tracker's tracks: the ceiling of
+    the loop on the scenario (the tracks are still scored).
     """
     keys = Keys(robot="inprocess")
     bus = MemoryBus()
@@ -107,8 +110,10 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         slow = [(0, DetectorService(bus.transport(), keys, DetectorConfig(
                     backend=second.backend, camera=camera, stream=stream))),  # type: ignore[arg-type]
                 (second.delay, LocalizerService(bus.transport(), keys, LocalizerConfig(camera=camera, stream=stream)))]
-    if back_camera is not None:
-        tracker_config = tracker_config.model_copy(update={"camera": "*"})
+    if back_camera is not None:  # the blind stretches between the views: SEVERAL_CAMERAS, unless set by the caller
+        robust = {k: v for k, v in SEVERAL_CAMERAS.items() if k not in tracker_config.robust.model_fields_set}
+        tracker_config = tracker_config.model_copy(update={
+            "camera": "*", "robust": tracker_config.robust.model_copy(update=robust)})
     nodes = [
         DetectorService(bus.transport(), keys, DetectorConfig(backend=detector)),  # type: ignore[arg-type]
         LocalizerService(bus.transport(), keys, LocalizerConfig()),
@@ -123,7 +128,10 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
                       LocalizerService(bus.transport(), keys, LocalizerConfig(camera=back_camera)),
                       EmbedderService(bus.transport(), keys, EmbedderConfig(camera=back_camera))]
     if attention is not None:
-        nodes.append(AttentionService(bus.transport(), keys, attention))
+        truth = TruthTracks(bus.transport(), keys) if attention_truth else None
+        if truth is not None:
+            nodes.append(truth)  # type: ignore[arg-type]
+        nodes.append(AttentionService(bus.transport(), keys, attention, tracks_key=truth.key if truth else None))
     looked = AttentionScore(default_camera(width, height)) if attention is not None else None
     watcher = bus.transport()
     gt_sub = watcher.subscribe(keys.groundtruth(), PeopleGroundTruth, RELIABLE)

@@ -29,6 +29,7 @@ from common.schemas import ServiceStatus
 from common.transport import Transport
 from common.zenoh_config import ZenohOptions
 from common.zenoh_transport import TransportError, open_transport
+from services.tracker.config import SEVERAL_CAMERAS
 from tools.demo.attention import AttentionLog
 from tools.demo.monitor import Monitor
 from tools.demo.scoring import GroundTruthLog, score
@@ -80,7 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--view-port", type=int, default=8080, metavar="PORT",
                         help="the page's port with --view (default 8080)")
     parser.add_argument("--attention", action="store_true",
-                        help="also run the attention node (target: the nearest person) and let it steer the simulated "
+                        help="also run the attention node (target lock: the nearest person, then their ID) and let it steer the simulated "
                              "head; the JSON gains attention: centring error and visible share of person 1")
     parser.add_argument("--json", action="store_true", help="print the final metrics as JSON")
     parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
@@ -125,13 +126,15 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
         names += ["detector-back", "localizer-back", "embedder-back"]
     own_env = {"detector-back": {"PERCEPTION_DETECTOR__DEPTH__CAMERA_HEIGHT_M": f"{BACK_CAMERA_OFFSET[2]:g}",
                                  "PERCEPTION_DETECTOR__DEPTH__TILT_DEG": "0"}}
+    if args.back_camera:  # the tracker bridges the blind stretches between the two views
+        own_env["tracker"] = {f"PERCEPTION_TRACKER__ROBUST__{k.upper()}": f"{v:g}" for k, v in SEVERAL_CAMERAS.items()}
     for name in names:
         command = name.partition("-")[0]  # detector-slow, localizer-back, ...: the service's command
         specs.append(ProcessSpec(name, _perception(command, *common, *extra[name]), {**env, **own_env.get(name, {})},
                                  restart="on-failure",
                                  backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
     if args.attention:
-        specs.append(ProcessSpec("attention", _perception("attention", *common, "--target", "nearest"), env,
+        specs.append(ProcessSpec("attention", _perception("attention", *common, "--target", "lock"), env,
                                  restart="on-failure", backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
     if args.view:
         specs.append(ProcessSpec("viewer", _perception("view", *common, "--port", str(args.view_port)), env,

@@ -1,6 +1,7 @@
 """Whom to look at: the person of interest, chosen by a command, and what to do when they go.
 
-Three requests: look at track ``k``, look at the nearest person, look at no one. The
+Four requests: look at track ``k``, look at the nearest person, lock onto the nearest person
+(take the nearest now, then follow that ID as if asked for it), look at no one. The
 chooser keeps its target while it is tracked; when it is gone the head holds still for
 ``hold_s`` (the tracker often gets a person back within a moment, with the same ID), then
 returns to its rest pose. Holding means looking at the place the person was last seen
@@ -9,7 +10,9 @@ there is none to follow (at the start and after the hold), and another person re
 the one followed only when nearer by ``switch_margin_m``, so two people at about the same
 distance do not make the head swing between them, and a confirmed person within
 ``reacquire_radius_m`` of where the followed one was last seen is taken as them (the
-tracker gave them a new ID).
+tracker gave them a new ID). 'lock' is for keeping one chosen person in view: 'nearest' hands
+the head to whoever is nearest once the person followed is lost, 'lock' waits for that ID
+to come back (the tracker's ID memory gives it back to a person it recognises).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import numpy as np
 __all__ = ["Chooser", "Decision", "Person", "Phase", "Request"]
 
 Phase = Literal["track", "hold", "rest"]
-Request = Literal["none", "nearest", "id"]
+Request = Literal["none", "nearest", "id", "lock"]
 
 
 @dataclass(frozen=True)
@@ -57,7 +60,8 @@ class Chooser:
         self._lost_at: float | None = None
 
     def request(self, mode: Request, track_id: int = -1) -> None:
-        """Look at ``track_id`` (mode 'id'), at the nearest person, or at no one."""
+        """Look at ``track_id`` (mode 'id'), at the nearest person, lock onto the nearest
+        person ('lock': the mode becomes 'id' with their ID once there is one), or at no one."""
         self.mode = mode
         self.requested_id = track_id if mode == "id" else -1
         self.following_id = track_id if mode == "id" else -1
@@ -83,6 +87,11 @@ class Chooser:
         """What to do with the people tracked now; ``origin`` (3,): the camera's position."""
         if self.mode == "none":
             return Decision("rest")
+        if self.mode == "lock":
+            chosen = self._nearest(people, origin)
+            if chosen is None:
+                return Decision("rest")
+            self.request("id", chosen.id)
         by_id = {p.id: p for p in people}
         current = by_id.get(self.following_id)
         if self.mode == "nearest" and current is not None:

@@ -98,3 +98,15 @@ def test_plot_only_without_a_plot_or_with_a_bad_file_fails_with_a_message(tmp_pa
                          capture_output=True, text=True, timeout=120, check=False, cwd=ROOT)
     assert res.returncode == 2 and "bad.json" in res.stderr and "no samples" in res.stderr
     assert not (tmp_path / "x.png").exists()
+
+
+def test_latest_only_frame_skips_are_reported_apart_from_drops(soak: ModuleType) -> None:
+    final = {"detector": {"drops": {"dropped_stale": 53.0}},
+             "embedder": {"drops": {"dropped_stale": 1.0, "dropped_unpaired": 2.0}},
+             "localizer": {"drops": {"dropped_no_depth_frame": 4.0, "dropped_no_transform": 1.0}},
+             "tracker": {"drops": {"dropped_late_embeddings": 3.0}}, "router": {}}
+    lost, skipped = soak.split_drops(final)
+    assert skipped == {"detector": {"dropped_stale": 53.0}, "embedder": {"dropped_stale": 1.0},
+                       "localizer": {"dropped_no_depth_frame": 4.0}}
+    assert lost == {"embedder": {"dropped_unpaired": 2.0}, "localizer": {"dropped_no_transform": 1.0},
+                    "tracker": {"dropped_late_embeddings": 3.0}}

@@ -69,6 +69,25 @@ def test_duplicates_are_dropped() -> None:
     assert push(buf, 10) == [] and buf.dropped_duplicate == 1
 
 
+def test_an_input_still_in_the_log_can_be_replaced_and_everything_after_it_is_applied_again() -> None:
+    rec = Recorder()
+    buf = rec.buffer()
+    for t in range(0, 700, 33):
+        buf.push((t * MS, "head", t), (t, "position"))
+    assert buf.get((495 * MS, "head", 495)) == (495, "position") and buf.get((496 * MS, "head", 496)) is None
+    results = buf.push((495 * MS, "head", 495), (495, "appearance"), replace=True)
+    assert (495, "appearance") in results and results[-1] == (693, "position")  # replayed from a snapshot before it
+    assert rec.applied == [(t, "appearance" if t == 495 else "position") for t in range(0, 700, 33)]
+    assert buf.rewinds == 1 and buf.dropped_duplicate == 0
+    # the newest input replaced; an input that left the log (or never came) is dropped as too old
+    assert buf.push((693 * MS, "head", 693), (693, "appearance"), replace=True)[-1] == (693, "appearance")
+    assert rec.applied[-2:] == [(660, "position"), (693, "appearance")]
+    for t in range(726, 2000, 33):
+        buf.push((t * MS, "head", t), (t, "position"))
+    assert buf.push((495 * MS, "head", 495), (495, "late"), replace=True) == [] and buf.dropped_old == 1
+    assert buf.push((1900 * MS, "head", 1900), (1900, "x"), replace=True) == [] and buf.dropped_old == 2
+
+
 def test_memory_stays_bounded() -> None:
     rec = Recorder()
     buf = rec.buffer(window_ms=200, period_ms=50)

@@ -111,7 +111,19 @@ def test_missing_embeddings_fall_back_to_position_only(tmp_path: Path, memory_bu
     assert not last.appearance_available and not last.tracks[0].appearance_available
     assert [t.id for t in last.tracks] == [1]
     assert rig.service.counters.extra["position_only_timeout"] == 1
-    rig.send(3, [(0, (2.0, 0.0, 1.0))], loc=False)  # the embeddings show up after all
+    gallery = rig.service.tracker.tracks[0].gallery
+    before = len(gallery) if gallery is not None else 0
+    rig.send(3, [(0, (2.0, 0.0, 1.0))], loc=False)  # the embeddings show up after all: frame 3 again, with them
+    assert rig.poll() == 1
+    extra = rig.service.counters.extra
+    assert extra["late_embeddings_applied"] == 1 and "dropped_late_embeddings" not in extra
+    again = rig.outputs()[-1]
+    assert again.header.seq == 3 and again.appearance_available and [t.id for t in again.tracks] == [1]
+    assert len(rig.service.tracker.tracks[0].gallery) == before + 1  # the late descriptor was learnt
+    for k in range(4, 12):  # 0.8 s on: frame 3 has left the reorder window
+        rig.send(k, [(0, (2.0, 0.0, 1.0))])
+        rig.poll()
+    rig.send(3, [(0, (2.0, 0.0, 1.0))], loc=False)  # a second copy, far too late: dropped and counted
     rig.poll()
     assert rig.service.counters.extra["dropped_late_embeddings"] == 1
 
@@ -131,6 +143,10 @@ def test_empty_frames_need_no_embeddings(tmp_path: Path, memory_bus: MemoryBus) 
     rig = Rig(memory_bus, config(tmp_path))
     rig.send(0, [], embeddings=False)
     assert rig.poll() == 1
+    rig.send(0, [], loc=False)  # the embedder's empty Embeddings for it, after the frame ran: no loss
+    assert rig.poll() == 0
+    extra = rig.service.counters.extra
+    assert not any(k in extra for k in ("dropped_late_embeddings", "late_embeddings_applied", "rewinds"))
 
 
 def test_out_of_order_frames_are_reordered_and_stale_ones_dropped(tmp_path: Path, memory_bus: MemoryBus) -> None:

@@ -6,6 +6,10 @@ the newest stamp applied, makes the buffer restore the most recent snapshot take
 it and re-apply the logged inputs after it in stamp order. Anything older than the window
 is counted and dropped, never applied out of order.
 
+An input may also be *replaced* while it is still in the log (``push(..., replace=True)``):
+the buffer rewinds to before it and re-applies it, and everything after it, with the new
+version (a frame applied by position alone whose appearance came late).
+
 Snapshots are taken at most every ``snapshot_period_s`` of sensor time (tracker snapshots
 share descriptor storage copy-on-write, so they are cheap), and the log keeps every input
 back to the oldest snapshot still needed.
@@ -50,10 +54,12 @@ class ReorderBuffer(Generic[In, S, R]):
     def __post_init__(self) -> None:
         self._snaps.append((_BEFORE_ALL, self.snapshot()))
 
-    def push(self, key: InputKey, item: In) -> list[R]:
+    def push(self, key: InputKey, item: In, replace: bool = False) -> list[R]:
         """Apply ``item``; returns the results of every input applied (several after a rewind).
 
-        Returns ``[]`` when the input was dropped (too old, or a duplicate key).
+        Returns ``[]`` when the input was dropped (too old, or a duplicate key). With
+        ``replace``, an input of the same key still in the log is replaced: everything from
+        it on is applied again (an input no longer in the log is dropped as too old).
         """
         if self.newest_ns is not None and key[0] < self.newest_ns - self.window_ns:
             self.dropped_old += 1
@@ -61,7 +67,16 @@ class ReorderBuffer(Generic[In, S, R]):
         keys = [k for k, _ in self._log]
         pos = bisect.bisect_left(keys, key)
         if pos < len(keys) and keys[pos] == key:
-            self.dropped_duplicate += 1
+            if not replace or key < self._snaps[0][0]:
+                self.dropped_duplicate += int(not replace)
+                self.dropped_old += int(replace)
+                return []
+            del self._log[pos]
+            results = self._rewind(key, item)
+            self._prune()
+            return results
+        if replace:
+            self.dropped_old += 1  # nothing to replace: it left the log (or never came)
             return []
         if pos == len(keys):
             results = [self._apply(key, item)]
@@ -88,6 +103,12 @@ class ReorderBuffer(Generic[In, S, R]):
         last = self._log[-1:]
         self._log = list(last)
         self._snaps = [(last[0][0] if last else _BEFORE_ALL, self.snapshot())]
+
+    def get(self, key: InputKey) -> In | None:
+        """The input logged under ``key`` (still replaceable), or None."""
+        keys = [k for k, _ in self._log]
+        pos = bisect.bisect_left(keys, key)
+        return self._log[pos][1] if pos < len(keys) and keys[pos] == key else None
 
     def latest(self) -> tuple[InputKey, In] | None:
         """The newest input applied (key, input), or None."""

@@ -2,7 +2,9 @@
 
 * Inputs of one source frame are joined on ``Header.join_key`` by a
   :class:`common.join.Joiner`. Localized detections wait up to ``join_wait_s`` for their
-  embeddings; then the frame runs position-only. A frame without detections needs no
+  embeddings; then the frame runs position-only, and if its embeddings come later while it
+  is within ``reorder_window_s`` it is applied again with them (a rewind:
+  ``late_embeddings_applied``); later still they are dropped (``dropped_late_embeddings``). A frame without detections needs no
   embeddings and runs at once; embeddings of another model are rejected and do not
   make their frame wait.
 * Joined frames go through a :class:`ReorderBuffer`: applied in sensor-time order,
@@ -221,8 +223,37 @@ class TrackerService(Node):
             if reason := self._refusal(emb.model):
                 self.counters.drop(reason)
                 emb = None  # known not to come: its frame need not wait
-            self._count(self.join.add("embeddings", got_emb.msg.header.join_key, emb, now))
+            key = got_emb.msg.header.join_key
+            dropped = self.join.add("embeddings", key, emb, now)
+            if emb is not None and any(d.reason == "late" for d in dropped):
+                # a frame without detections ran at once (it needs no embeddings): the empty
+                # embeddings the embedder sends for it after all are no loss
+                late = [] if not len(emb.indices) else self._apply_late(key, emb, now)
+                if late is not None:
+                    published += late
+                    dropped = [d for d in dropped if d.reason != "late"]
+            self._count(dropped)
         return published
+
+    def _apply_late(self, key: InputKey, emb: Embeddings, now: float) -> list[Tracks] | None:
+        """Embeddings of a frame already tracked by position alone (they came after
+        ``join_wait_s``): the frame is applied again with them, and every frame after it
+        (a rewind), while it is within ``reorder_window_s``. None when it is not (they
+        are then dropped as late, as before)."""
+        logged = self.buffer.get(key)
+        if logged is None or logged.emb is not None:
+            return None
+        try:
+            results = self.buffer.push(key, _Frame(logged.loc, emb), replace=True)
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            self.counters.count("update_errors")
+            self._log.error("update_error", "frame %s could not be tracked again: %s", key, exc)
+            return None
+        if not results:
+            return None
+        self.counters.count("late_embeddings_applied")
+        self.counters.count("rewinds")
+        return self._after_push(results, now)
 
     def _check_covariances(self, loc: LocalizedDetections) -> None:
         """Count (and log) detections whose covariance is not symmetric positive definite.
@@ -392,13 +423,18 @@ class TrackerService(Node):
                 continue
             if len(results) > 1:
                 self.counters.count("rewinds")
-            newest = self.buffer.latest() or (key, frame)
-            if self._period is None:
-                published.append(self._publish(newest[1], results[-1]))
-            else:  # published at the fixed rate, predicted to the publish time (poll: _tick)
-                self._latest = (newest[1], results[-1])
-                self._offset_ns = newest[1].loc.header.stamp_ns - int(now * 1e9)
+            published += self._after_push(results, now)
         return published
+
+    def _after_push(self, results: list[FrameResult], now: float) -> list[Tracks]:
+        """Publish (or keep for the fixed rate) the newest frame's result after a push."""
+        newest = self.buffer.latest()
+        assert newest is not None
+        if self._period is None:
+            return [self._publish(newest[1], results[-1])]
+        self._latest = (newest[1], results[-1])  # published at the fixed rate, predicted to the publish time (_tick)
+        self._offset_ns = newest[1].loc.header.stamp_ns - int(now * 1e9)
+        return []
 
     def _tick(self, now: float) -> list[Tracks]:
         """At the fixed output rate: the latest tracks predicted to now in the sensor's clock

@@ -6,8 +6,8 @@
 Starts what `perception demo` starts (a router and the four services as supervised
 processes, restarted on failure; the simulator feeding them at ``--fps``, 320x240 by
 default, its people walking on after the scenario's script ends) and, every
-``--interval`` seconds, samples each process's resident memory (RSS) and CPU share from
-/proc (Linux), the services' counters from their status (received, published, dropped,
+``--interval`` seconds, samples each process's resident memory (RSS, and apart the shared
+memory it maps: ``shmem_kib``) and CPU share from /proc (Linux), the services' counters from their status (received, published, dropped,
 invalid and every ``dropped_*`` reason) and the tracker's ID memory size
 (``ids_remembered``). ``--kill-router-at S`` SIGKILLs the router once, S seconds in, under
 load: the launcher restarts it, and the time until tracks flow again is measured.
@@ -59,11 +59,13 @@ PROCESSES = ("router", *SERVICES)
 GROWTH_FROM_S = 300.0
 
 
-def rss_kib(pid: int) -> int | None:
-    """Resident memory of a process in KiB (Linux /proc), or None."""
+def rss_kib(pid: int, field: str = "VmRSS") -> int | None:
+    """Resident memory of a process in KiB (Linux /proc), or None. ``field``: ``VmRSS`` (all
+    of it) or ``RssShmem`` (the shared memory it maps, e.g. Zenoh's pools, which every process
+    mapping a pool counts in full)."""
     try:
         for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
+            if line.startswith(f"{field}:"):
                 return int(line.split()[1])
     except OSError:
         return None
@@ -280,7 +282,8 @@ def main() -> int:
                     cpu_prev[name] = (pid or 0, cpu_s, now)
                     st = statuses.get(name)
                     procs[name] = {
-                        "pid": pid, "rss_kib": rss_kib(pid) if pid else None, "cpu_percent": share,
+                        "pid": pid, "rss_kib": rss_kib(pid) if pid else None,
+                        "shmem_kib": rss_kib(pid, "RssShmem") if pid else None, "cpu_percent": share,
                         "restarts": supervisor.restarts(name),
                         **({"received": st.received, "published": st.published, "dropped": st.dropped,
                             "invalid": st.invalid, "drops": drops(st), "extra": st.extra} if st else {}),

@@ -22,10 +22,19 @@ from typing import Literal
 
 from pydantic import BaseModel, Field, field_validator
 
-__all__ = ["DEFAULT_ROUTER", "ZenohOptions", "add_zenoh_arguments", "build_zenoh_config", "options_from_args"]
+__all__ = ["DEFAULT_ROUTER", "SHM_THRESHOLD_BYTES", "ZenohOptions", "add_zenoh_arguments", "build_zenoh_config",
+           "options_from_args"]
 
 DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
 _RETRY = {"period_init_ms": 100, "period_max_ms": 500, "period_increase_factor": 2}
+#: Only messages of at least this size go through Zenoh's shared memory (its default is
+#: 3,072 B). The first time a process publishes a message over the threshold it creates a
+#: 16 MiB pool, and every process that receives from the pool maps all of it: with 3 KB,
+#: an Embeddings or Tracks message with one person more than usual made the router, the
+#: embedder and the tracker grow 16-27 MiB each, mid-run (the soak's RSS steps). Messages of
+#: a few KB gain nothing from shared memory; camera frames (hundreds of KB) still use it.
+SHM_THRESHOLD_BYTES = 65536
+_SHM_THRESHOLD_KEY = "transport/shared_memory/transport_optimization/message_size_threshold"
 
 
 class ZenohOptions(BaseModel):
@@ -137,6 +146,8 @@ def build_zenoh_config(opts: ZenohOptions) -> "zenoh.Config":  # type: ignore[na
 
     conf = zenoh.Config.from_file(str(opts.config_file)) if opts.config_file else zenoh.Config()
     secure_config(conf, opts.config_file, opts.credentials)
+    if opts.config_file is None or json.loads(conf.get_json(_SHM_THRESHOLD_KEY)) == 3072:  # a file's own value stays
+        conf.insert_json5(_SHM_THRESHOLD_KEY, str(SHM_THRESHOLD_BYTES))
     conf.insert_json5("mode", json.dumps(opts.mode))
     connect = opts.effective_connect()
     if connect:

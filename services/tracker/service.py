@@ -167,6 +167,7 @@ class TrackerService(Node):
         self._period = 1.0 / config.output_rate_hz if config.output_rate_hz > 0 else None
         self._next_pub: float | None = None
         self._latest: tuple[_Frame, FrameResult] | None = None
+        self._published_key: InputKey | None = None  # once per frame: the newest frame published
         self._offset_ns: int | None = None  # sensor clock - this clock, at the newest frame
         self._last_expiry = -1e18
 
@@ -273,6 +274,7 @@ class TrackerService(Node):
         published = self._apply_ready(now + self.config.join_wait_s)  # the old clock's frames, without waiting
         ended = self.tracker.restart_clock()
         self.buffer.reset()
+        self._published_key = None
         self.join.forget_released()  # a looping replay sends the same keys again
         self._epoch_ns = None
         self._views.clear()
@@ -427,10 +429,15 @@ class TrackerService(Node):
         return published
 
     def _after_push(self, results: list[FrameResult], now: float) -> list[Tracks]:
-        """Publish (or keep for the fixed rate) the newest frame's result after a push."""
+        """Publish (or keep for the fixed rate) the newest frame's result after a push. Once
+        per frame (no fixed rate), a frame is published once: a late frame applied behind the
+        newest one changes the state the next frame's output will show, not a second output."""
         newest = self.buffer.latest()
         assert newest is not None
         if self._period is None:
+            if newest[0] == self._published_key:
+                return []
+            self._published_key = newest[0]
             return [self._publish(newest[1], results[-1])]
         self._latest = (newest[1], results[-1])  # published at the fixed rate, predicted to the publish time (_tick)
         self._offset_ns = newest[1].loc.header.stamp_ns - int(now * 1e9)

@@ -4,7 +4,6 @@ messages also go into an MCAP file in Foxglove's well-known schemas, read back h
 
 from __future__ import annotations
 
-import signal
 import subprocess
 import sys
 from collections.abc import Callable
@@ -18,7 +17,7 @@ from common.keys import Delivery, Keys
 from common.router_process import RouterProcess
 from common.zenoh_transport import ZenohTransport
 from tests.fixtures.viewer_scene import scene_messages
-from tests.helpers.recording import wait_recorded
+from tests.helpers.recording import stop_recording, wait_recorded
 
 pytest.importorskip("foxglove", reason="Foxglove needs foxglove-sdk (the 'view' extra)")
 
@@ -70,8 +69,7 @@ def test_record_writes_the_live_streams_in_foxglove_schemas_too(tmp_path: Path, 
             for key, msg in scene_messages(seq, seq / 15, KEYS):
                 pubs[key].put(msg)
         assert wait_recorded(client, KEYS, FRAMES * len(pubs), TIMEOUT) >= FRAMES * len(pubs)
-        recorder.send_signal(signal.SIGINT)
-        stdout, stderr = recorder.communicate(timeout=TIMEOUT)
+        stdout, stderr = stop_recording(recorder, TIMEOUT)
     finally:
         if recorder.poll() is None:
             recorder.kill()

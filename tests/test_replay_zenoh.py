@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import signal
 import subprocess
 import sys
 import time
@@ -19,7 +18,7 @@ from common.schemas import Detection, Detections, Header, Message, RGBDFrame, Tr
 from common.transport import Received, Subscription
 from common.zenoh_transport import ZenohTransport
 from tests.fixtures.replay_bags import SyntheticRun, write_bag
-from tests.helpers.recording import wait_recorded
+from tests.helpers.recording import stop_recording, wait_recorded
 from tools.replay.recorder import McapRecorder
 from tools.replay.sources import open_source
 
@@ -113,8 +112,7 @@ def test_record_then_replay_is_lossless_and_ordered(tmp_path: Path, router: Rout
                 pub.put(msg)
                 sent.append((key, msg))
         assert wait_recorded(client, KEYS, len(sent), TIMEOUT) >= len(sent)
-        recorder.send_signal(signal.SIGINT)
-        stdout, stderr = recorder.communicate(timeout=TIMEOUT)
+        stdout, stderr = stop_recording(recorder, TIMEOUT)
     finally:
         if recorder.poll() is None:
             recorder.kill()

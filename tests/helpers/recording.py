@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import signal
+import subprocess
 import time
 
 from common.keys import Keys
@@ -19,3 +21,15 @@ def wait_recorded(client: Transport, keys: Keys, n: int, timeout_s: float) -> fl
             return recorded
         time.sleep(0.1)  # polling a remote counter, not synchronising on time
     return recorded
+
+
+def stop_recording(recorder: subprocess.Popen[str], timeout_s: float) -> tuple[str, str]:
+    """Stop a ``perception record`` process as a user would (SIGINT) and return its (stdout,
+    stderr); killed if it has not ended within ``timeout_s``."""
+    recorder.send_signal(signal.SIGINT)
+    try:
+        return recorder.communicate(timeout=timeout_s)
+    finally:
+        if recorder.poll() is None:
+            recorder.kill()
+            recorder.wait()

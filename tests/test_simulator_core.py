@@ -11,7 +11,7 @@ from tools.simulator.core.body import Ellipsoids, PersonPose, body_ellipsoids
 from common.poses import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
 from tools.simulator.core.motion import WALK_RADIUS, Action, Walker
 from tools.simulator.core.render import Renderer, default_camera, depth_sigma
-from tools.simulator.core.robot import HeadMotion, Odometry, Robot, static_trajectory
+from tools.simulator.core.robot import HeadMotion, Odometry, Robot, follow_trajectory, static_trajectory
 from tools.simulator.core.scenarios import SCENARIOS, World, build_world
 from tools.simulator.core.simulation import Simulation
 from tools.simulator.core.wardrobe import OUTFITS
@@ -135,6 +135,44 @@ def test_people_stay_inside_and_clear_of_furniture(name: str) -> None:
             else:
                 # paths are checked every 5 cm: between checks a corner can come up to ~1 mm closer
                 assert apt.clearance_ok(p, WALK_RADIUS - 0.005)[0], f"{name}: person at {p} at t={t}"
+
+
+def test_line_of_sight_is_cut_by_walls_not_by_low_furniture() -> None:
+    apt = default_apartment()
+    assert not apt.line_of_sight(np.array([5.0, 2.0]), np.array([7.5, 2.0]))  # the partition wall
+    assert apt.line_of_sight(np.array([5.0, 4.2]), np.array([7.5, 4.2]))  # through the door
+    assert apt.line_of_sight(np.array([3.5, 5.4]), np.array([5.8, 5.4]))  # over the dining table
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_the_following_base_keeps_its_person_in_sight_and_clear_of_walls(seed: int) -> None:
+    world = build_world("people-following", seed=seed)
+    apt, target = world.apartment, world.walkers[0]
+    ts = np.arange(0.0, SCENARIOS["people-following"].duration_s, 0.05)
+    base = np.array([world.robot.trajectory(float(t)) for t in ts])
+    person = np.array([[target.state(float(t))[0].x, target.state(float(t))[0].y] for t in ts])
+    assert apt.clearance_ok(base[:, :2], WALK_RADIUS - 0.005).all()
+    assert np.linalg.norm(np.diff(base[:, :2], axis=0), axis=1).max() <= 1.0 * 0.05 + 1e-9  # max_speed
+    assert np.abs(np.angle(np.exp(1j * np.diff(base[:, 2])))).max() <= 1.5 * 0.05 + 1e-9  # max_turn_rate
+    gap = np.linalg.norm(base[:, :2] - person, axis=1)
+    assert gap.max() < 2.6 and gap.min() > 0.6  # it keeps up, and makes way when they walk back at it
+    in_sight = [apt.line_of_sight(b[:2], p) for b, p in zip(base, person)]
+    assert np.mean(in_sight) > 0.95  # the trail-only follower saw them 75 % of the time (walls, door frames)
+
+
+def test_the_following_base_cuts_the_corner_through_a_door() -> None:
+    # an L-shaped walk through the door and round the partition: the base cuts the corner, and
+    # stops where it sees the person (a base on the walk, 2.2 m behind, would stand at its corner)
+    def target(t: float) -> np.ndarray:
+        path = np.array([[4.0, 4.0], [6.8, 4.0], [6.8, 1.5]])
+        s = min(0.65 * t, 2.8 + 2.5)
+        return path[0] + [min(s, 2.8), 0.0] if s <= 2.8 else path[1] + [0.0, -(s - 2.8)]
+
+    apt = default_apartment()
+    pose = follow_trajectory(target, (3.0, 4.0, 0.0), apt)
+    end = np.array(pose(20.0)[:2])
+    assert apt.line_of_sight(end, target(20.0)) and np.linalg.norm(end - target(20.0)) <= 2.2 + 1e-6
+    assert min(abs(end[0] - 6.8), abs(end[1] - 4.0)) > 0.2  # off the walk (x = 6.8 or y = 4.0): it cut the corner
 
 
 def test_people_leave_the_view_and_come_back() -> None:

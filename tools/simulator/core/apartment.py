@@ -139,6 +139,18 @@ class Apartment:
         pts = a[None, :] + np.linspace(0.0, 1.0, n)[:, None] * (b - a)[None, :]
         return bool(np.all(self.clearance_ok(pts, radius)))
 
+    def line_of_sight(self, a: np.ndarray, b: np.ndarray, eye_height: float = 1.2) -> bool:
+        """Whether nothing that reaches above ``eye_height`` (walls, door frames, tall shelves)
+        stands on the straight segment a -> b (2,): a camera at that height sees across low
+        furniture, not through walls."""
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        fp = self.footprints(min_height=eye_height)
+        n = max(2, int(np.ceil(np.linalg.norm(b - a) / 0.05)) + 1)
+        pts = a[None, :] + np.linspace(0.0, 1.0, n)[:, None] * (b - a)[None, :]
+        inside = ((pts[:, None, 0] > fp[None, :, 0]) & (pts[:, None, 0] < fp[None, :, 2])
+                  & (pts[:, None, 1] > fp[None, :, 1]) & (pts[:, None, 1] < fp[None, :, 3]))
+        return not bool(inside.any())
+
     def plan(self, start: np.ndarray, goal: np.ndarray, radius: float) -> np.ndarray:
         """(K, 2) waypoints from ``start`` to ``goal`` keeping ``radius`` clearance (shortest grid path,
         then shortcut where the straight line is free). Raises ValueError if either end is blocked."""

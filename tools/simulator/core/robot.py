@@ -96,46 +96,89 @@ def loop_trajectory(
     return pose
 
 
+_LOOKAHEAD_S = np.arange(0.0, 2.01, 0.25)  # how far ahead a base making way looks at the target's path
+
+
+def _make_way(p: np.ndarray, ahead: np.ndarray, step: float, apartment: Apartment, radius: float) -> np.ndarray:
+    """The clear spot within ``step`` of ``p`` (or ``p`` itself) farthest from the target's
+    next positions ``ahead``: a base stepping out of the way of someone walking at it."""
+    angles = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+    spots = [p] + [p + step * np.array([np.cos(a), np.sin(a)]) for a in angles]
+    best, score = p, -np.inf
+    for spot in spots:
+        margin = float(np.min(np.linalg.norm(ahead - spot, axis=1)))
+        if margin > score + 1e-9 and (spot is p or apartment.segment_free(p, spot, radius)):
+            best, score = spot, margin
+    return best
+
+
 def follow_trajectory(
     target: Callable[[float], np.ndarray],
     start: tuple[float, float, float],
+    apartment: Apartment,
     gap: float = 2.2,
+    min_gap: float = 1.0,
     max_speed: float = 1.0,
+    max_turn_rate: float = 1.5,
     dt: float = 0.05,
 ) -> BaseTrajectory:
-    """Follow the trail of ``target(t) -> (2,)`` (which starts with the segment from ``start`` to the
-    target), ``gap`` metres behind along the trail and never closer than ``gap`` in a straight line,
-    at most ``max_speed``, facing the target when near it and the trail ahead otherwise.
-    The trail is collision-free because the target walked it."""
-    trail = [np.asarray(start[:2], float), np.asarray(target(0.0), float)]
-    cum = [0.0, float(np.linalg.norm(trail[1] - trail[0]))]
-    s_robot = [0.0]  # arclength reached at t = k * dt
+    """A base that follows ``target(t) -> (2,)`` the way a people-following robot does.
 
-    def at(s: float) -> np.ndarray:
-        c, tr = np.asarray(cum), np.asarray(trail)
-        return np.array([np.interp(s, c, tr[:, 0]), np.interp(s, c, tr[:, 1])])
+    It drives towards the farthest point of the target's trail (which starts with the segment
+    from ``start`` to the target) that it can reach in a straight, clear line, so it cuts
+    corners and skips the loops the target walked back out of, at most ``max_speed``. It
+    stops once it sees the target (no wall above eye height between them) within ``gap``; a
+    target hidden round a corner is followed closer, down to ``min_gap``, and when the target's
+    next two seconds come closer than that it steps out of the target's way (the scenario knows where
+    the target walks next: a stand-in for a robot reading the person's motion). It turns at most
+    ``max_turn_rate`` towards the target when it sees it, along its way otherwise. The
+    straight lines it drives keep the walkers' clearance, so it stays clear of walls and
+    furniture as the target's trail does.
+    """
+    radius = 0.3  # the trail's clearance (motion.WALK_RADIUS): a shortcut is as clear as the trail
+    p0 = np.asarray(start[:2], float)
+    trail = [p0, np.asarray(target(0.0), float)]
+    states = [(float(p0[0]), float(p0[1]), float(start[2]))]  # (x, y, yaw) at t = k * dt
+    carrot = [1]  # the farthest trail index reached in a straight line so far
 
-    def grow(t: float) -> None:
-        while (len(s_robot) - 1) * dt < t + dt:
-            k = len(s_robot)
-            p = np.asarray(target(k * dt), float)
-            cum.append(cum[-1] + float(np.linalg.norm(p - trail[-1])))
-            trail.append(p)
-            s_next = max(s_robot[-1], min(cum[-1] - gap, s_robot[-1] + max_speed * dt))
-            if np.linalg.norm(at(s_next) - p) < gap:  # the target turned back: wait for it to move away
-                s_next = s_robot[-1]
-            s_robot.append(s_next)
+    def step(k: int) -> None:
+        q = np.asarray(target(k * dt), float)
+        if np.linalg.norm(q - trail[-1]) > 0.02:
+            trail.append(q)
+        x, y, yaw = states[-1]
+        p = np.array([x, y])
+        seen = apartment.line_of_sight(p, q)
+        dist = float(np.linalg.norm(q - p))
+        # the farthest trail point drivable in a straight line (scanning back from the newest)
+        for i in range(len(trail) - 1, carrot[0] - 1, -1):
+            if apartment.segment_free(p, trail[i], radius):
+                carrot[0] = i
+                break
+        goal = trail[carrot[0]] - p
+        length = float(np.linalg.norm(goal))
+        move = 0.0 if (seen and dist <= gap) else min(max_speed * dt, length)
+        if move > 0.0:
+            nxt = p + goal / length * move
+            if not (np.linalg.norm(q - nxt) < min_gap and np.linalg.norm(q - nxt) < dist):
+                p = nxt
+        else:
+            ahead = np.array([target(k * dt + h) for h in _LOOKAHEAD_S], float)
+            if np.min(np.linalg.norm(ahead - p, axis=1)) < min_gap:  # it walks at the base: make way
+                p = _make_way(p, ahead, max_speed * dt, apartment, radius)
+        look = q - p if seen else (goal if length > 0.1 else q - p)
+        want = float(np.arctan2(look[1], look[0])) if np.linalg.norm(look) > 0.1 else yaw
+        turn = float(np.angle(np.exp(1j * (want - yaw))))
+        yaw = float(np.angle(np.exp(1j * (yaw + np.clip(turn, -max_turn_rate * dt, max_turn_rate * dt)))))
+        states.append((float(p[0]), float(p[1]), yaw))
 
     def pose(t: float) -> tuple[float, float, float]:
-        grow(t)
-        s = float(np.interp(t, np.arange(len(s_robot)) * dt, s_robot))
-        p = at(s)
-        # face the trail 1 m ahead (through doors, not through walls) unless the target is close
-        target_now = np.asarray(target(t), float)
-        ahead = target_now if np.linalg.norm(target_now - p) < gap + 0.3 else at(min(s + 1.0, cum[-1]))
-        goal = ahead - p
-        yaw = float(np.arctan2(goal[1], goal[0])) if np.linalg.norm(goal) > 0.1 else start[2]
-        return float(p[0]), float(p[1]), yaw
+        while (len(states) - 1) * dt < t + dt:
+            step(len(states))
+        k = max(0.0, t / dt)
+        i = min(int(k), len(states) - 2)
+        a, b, f = states[i], states[i + 1], k - i
+        yaw = a[2] + f * float(np.angle(np.exp(1j * (b[2] - a[2]))))
+        return a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), float(np.angle(np.exp(1j * yaw)))
 
     return pose
 

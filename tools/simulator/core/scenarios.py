@@ -151,7 +151,7 @@ def _following(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
     walkers = _walkers(rng, apt, plans, starts, alike)
     target = walkers[0]
     target.speed = 0.65  # a person being followed walks calmly
-    follow = follow_trajectory(lambda t: _xy(target, t), (3.0, 0.9, np.pi / 2))
+    follow = follow_trajectory(lambda t: _xy(target, t), (3.0, 0.9, np.pi / 2), apt)
     return World(apt, walkers, [1, 2, 3], _robot(follow, HeadMotion(tilt0=0.1), rng), False, 39.0)
 
 

@@ -82,6 +82,26 @@ def test_low_score_detections_keep_a_track_but_never_start_one() -> None:
     assert [v.status for v in trk.reported(r[-1])] == [TrackStatus.CONFIRMED]
 
 
+def test_a_second_report_of_a_tracked_person_does_not_start_a_track_with_birth_separation() -> None:
+    def run(sep: float) -> set[int]:
+        trk = RobustTracker(RobustParams(birth_separation_m=sep))
+        walk(trk, {0: (1.0, 0.0)}, 0.0, 1.0, 10.0, descriptors=False)
+        # a split cluster: the person reported twice, 15 cm apart, for a second; two people 0.6 m apart
+        r = [trk.update(float(t), np.array([[1.0, 0.0, 1.0], [1.15, 0.05, 1.0], [3.0, 0.0, 1.0], [3.6, 0.0, 1.0]]))
+             for t in np.arange(1.0, 2.0, 0.1)]
+        return set(ids(trk, r[-1]))
+
+    assert run(0.0) == {1, 2, 3, 4}  # off: the second report became a person
+    assert run(0.3) == {1, 2, 3}  # the person once, and both of the two people near each other
+
+
+def test_two_reports_of_a_new_person_start_one_track_with_birth_separation() -> None:
+    trk = RobustTracker(RobustParams(birth_separation_m=0.3, scores=ScoreModel(center=0.5, scale=0.1)))
+    r = [trk.update(float(t), np.array([[2.0, 1.0, 1.0], [2.1, 1.1, 1.0]]), None, None, np.array([0.9, 0.6]))
+         for t in np.arange(0.0, 1.0, 0.1)]
+    assert len(trk.tracks) == 1 and ids(trk, r[-1]) == {1: (2.0, 1.0)}  # the likelier report started it
+
+
 def test_is_person_gates_confirmation() -> None:
     # detections the detector is unsure of (P = 0.55 each) do not make a person in 3 hits
     scores = ScoreModel(center=0.0, scale=1.0, birth_score=None)

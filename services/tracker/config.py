@@ -206,6 +206,10 @@ class RobustConfig(BaseModel):
         default=_R.handover_gate_sq, gt=0.0,
         description="a track confirmed within this squared Mahalanobis distance of a track coasting out of view "
                     "takes its ID (a person walking from one camera's view into another's); null: off")
+    birth_separation_m: float = Field(
+        default=_R.birth_separation_m, ge=0.0, le=2.0,
+        description="a detection this near (m, ground plane) one that went to a track, or to a likelier new one, "
+                    "does not start a track (a second report of the same person); 0: off")
     gallery_size: int = Field(default=_R.gallery_size, ge=1, le=100_000, description="max descriptors per track")
     classifier: ClassifierConfig = Field(default_factory=ClassifierConfig)
     posture: PostureConfig = Field(default_factory=PostureConfig)

@@ -161,6 +161,10 @@ class RobustParams:
     #: of a track coasting out of view takes that track's ID (the person came back into a
     #: view elsewhere); None: off
     handover_gate_sq: float | None = None
+    #: two people's centres are never closer than this on the ground (m): a detection this near
+    #: one that went to a track, or to a stronger birth, is a second report of that person (a
+    #: split depth cluster, a double box), not a new track; 0: off
+    birth_separation_m: float = 0.3
     gallery_size: int = 100
     memory_size: int = 500
     #: seed 002's online per-track appearance classifiers; None: off
@@ -187,6 +191,8 @@ class RobustParams:
             raise ValueError(f"handover_gate_sq must be positive or None, got {self.handover_gate_sq}")
         if not 0 <= self.view_margin < 0.5:
             raise ValueError(f"view_margin must be in [0, 0.5), got {self.view_margin}")
+        if not self.birth_separation_m >= 0:
+            raise ValueError(f"birth_separation_m must not be negative, got {self.birth_separation_m}")
         if not 0.5 <= self.confirm_is_person < 1:
             raise ValueError("confirm_is_person must be in [0.5, 1)")
 
@@ -324,8 +330,8 @@ class RobustTracker:
         self._train_classifiers(matches, descriptors, has_desc, confident)
         matched_d = {d for d, _ in matches}
         self._age(stamp, result, appearance, view, previous)
-        self._birth([d for d in range(n) if d not in matched_d and confident[d]], positions, descriptors, has_desc,
-                    p_det, stamp, camera)
+        self._birth(self._births([d for d in range(n) if d not in matched_d and confident[d]], matched_d, positions,
+                                 p_det), positions, descriptors, has_desc, p_det, stamp, camera)
         self._confirm(result)
         result.matches = len(matches)
         result.tracks = [self._view(t, stamp) for t in self.tracks]
@@ -557,6 +563,20 @@ class RobustTracker:
             self.classifiers[t.id] = t.clf
         if len(self.classifiers) > len(self.memory):  # follow the memory's evictions and forgetting
             self.classifiers = {i: w for i, w in self.classifiers.items() if i in self.memory}
+
+    def _births(self, free: list[int], matched: set[int], positions: np.ndarray, p_det: np.ndarray) -> list[int]:
+        """The unmatched confident detections that start tracks: all of them, or with
+        ``birth_separation_m`` those not that near a matched detection or a likelier birth."""
+        sep = self.params.birth_separation_m
+        if sep <= 0 or not free:
+            return free
+        taken = [positions[d, :2] for d in matched]
+        out = []
+        for d in sorted(free, key=lambda d: -p_det[d]):
+            if all(float(np.linalg.norm(positions[d, :2] - q)) >= sep for q in taken):
+                out.append(d)
+                taken.append(positions[d, :2])
+        return sorted(out)
 
     def _birth(self, dets: list[int], positions: np.ndarray, descriptors: np.ndarray | None, has_desc: np.ndarray,
                p_det: np.ndarray, stamp: float, camera: str = "") -> None:

@@ -97,7 +97,7 @@ _SC = ScoreModel()
 #: --back-camera`` and ``run_chain(back_camera=...)`` use them. They are not the defaults: on
 #: one moving camera (the head turning away from people, the base driving) the longer
 #: coasting lets drifted predictions take the wrong person when the view comes back
-#: (simulator moving-head IDF1 0.736 -> 0.643, moving-base 0.705 -> 0.643).
+#: (simulator moving-base IDF1 0.705 -> 0.643; moving-head 0.798 -> 0.797).
 SEVERAL_CAMERAS: dict[str, float] = {"max_coast_unseen_s": 6.0, "max_position_var_unseen": 100.0,
                                      "handover_gate_sq": 13.8}
 

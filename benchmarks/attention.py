@@ -16,7 +16,8 @@ error of their true torso centre, the share of frames where they are visible):
 - ``rest``: the head stays at its rest pose (attention target none);
 - ``nearest`` and ``lock``: the attention node on the tracker's tracks, with those targets;
 - ``truth``: the attention node on the ground truth (a perfect tracker, target ID 1): the
-  ceiling the walls, the robot's path and the head's limits leave on this scenario.
+  loop without tracking errors (what the walls, the robot's path, the other people and the
+  head's limits leave on this scenario).
 """
 
 from __future__ import annotations

@@ -91,8 +91,8 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     backwards): it gets its own detector, localizer and embedder, and the tracker fuses both
     cameras (the ground truth then counts a person seen by either).
     ``attention_truth``: the attention node follows the ground truth's people
-    (:class:`TruthTracks`, a perfect tracker) instead of the tracker's tracks: the ceiling of
-    the loop on the scenario (the tracks are still scored).
+    (:class:`TruthTracks`, a perfect tracker) instead of the tracker's tracks: the loop
+    without tracking errors (the tracks are still scored).
     """
     keys = Keys(robot="inprocess")
     bus = MemoryBus()

@@ -1,5 +1,6 @@
-"""The attention loop's ceiling: the ground truth republished as tracks (a perfect tracker),
-and the closed loop on it centring person 1 better than a head left at rest."""
+"""The attention loop: the ground truth republished as tracks (a perfect tracker), the closed
+loop on it centring person 1 better than a head left at rest, and the loop on the tracker's
+tracks meeting the issue's targets on people-following."""
 
 from __future__ import annotations
 
@@ -41,3 +42,12 @@ def test_the_loop_on_perfect_tracks_centres_person_1_better_than_the_rest_pose()
     assert followed["target_visible_fraction"] == 1.0
     assert followed["center_error_px_p50"] <= 20.0  # the rest pose leaves them about 30 px off
     assert followed["center_error_px_p50"] < resting["center_error_px_p50"] - 5.0
+
+
+def test_lock_on_the_trackers_tracks_keeps_person_1_in_view_on_people_following() -> None:
+    # the issue's targets, as a gate on the whole scenario: the detector, the localizer, the
+    # embedder, the tracker and the attention node in the loop with the simulated head
+    loop = run_chain("people-following", duration_s=39.0, attention=AttentionConfig(target="lock")).attention
+    assert loop is not None and loop["frames"] == 390
+    assert loop["target_visible_fraction"] >= 0.95  # 0.969 when written
+    assert loop["center_error_px_p50"] <= 40.0  # 29.4 px

@@ -54,6 +54,22 @@ def test_finds_two_people_not_the_table(tilt: float) -> None:
     np.testing.assert_allclose(det.plane.offset, CAMERA_HEIGHT, atol=0.02)
 
 
+def test_a_wall_end_seen_edge_on_is_flat_and_not_a_person() -> None:
+    # a 2 m tall, 5 cm thick partition running away from the camera: person-tall and narrower
+    # than max_width_m, but all its points lie on one vertical plane
+    wall = Block(-1.0, 3.5, 0.05, 2.0, 1.0)
+    rgb, depth, K = scene([wall, PEOPLE[1]], 0.0)
+    found = {}
+    for thickness in (0.0, DepthParams().min_thickness_m):
+        det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, min_thickness_m=thickness))
+        for _ in range(2):
+            boxes, _ = det.detect(rgb, depth, K)
+        found[thickness] = iou_matrix(boxes, np.array([expected_box(b, K, 0.0) for b in (wall, PEOPLE[1])]))
+    assert found[0.0].shape[0] == 2 and found[0.0][:, 0].max() > 0.5  # without the rule: the wall is a person
+    (person,) = found[DepthParams().min_thickness_m]  # with it: only the person
+    assert person[1] > 0.7 and person[0] < 0.1
+
+
 def test_plane_converges_from_a_wrong_initial_guess() -> None:
     rgb, depth, K = scene([*PEOPLE, TABLE], 20.0)
     det = DepthClusterDetector(DepthParams(camera_height_m=1.3, tilt_deg=14.0))

@@ -134,7 +134,7 @@ def test_depth_backend_end_to_end(memory_bus: MemoryBus) -> None:
     config = DetectorConfig(backend="depth", depth={"camera_height_m": 1.2})  # type: ignore[arg-type]
     service, _, frames, out = make(memory_bus, config)
     K = scene_intrinsics(320, 240)
-    depth, rgb = render_depth([Block(0.0, 3.0, 0.5, 1.8, 0.3)], K, 320, 240, 1.2, 0.0)
+    depth, rgb = render_depth([Block(1.0, 3.0, 0.5, 1.8, 0.3)], K, 320, 240, 1.2, 0.0)  # off-axis: its side shows (a box seen square-on is flat)
     header = Header(stamp_ns=9, seq=2, source="head", frame_id="camera")
     info = camera_info(320, 240)
     info.K[:] = K

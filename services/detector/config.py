@@ -86,6 +86,9 @@ class DepthConfig(_Section):
                                 description="lower it (e.g. 1.0) to keep sitting people")
     max_height_m: float = Field(default=_DEPTH.max_height_m, gt=0.0)
     max_width_m: float = Field(default=_DEPTH.max_width_m, gt=0.0)
+    min_thickness_m: float = Field(default=_DEPTH.min_thickness_m, ge=0.0, le=0.5,
+                                   description="std of a cluster's floor footprint across its main direction must "
+                                               "reach this: walls and door frames seen edge-on are flat (0: off)")
     max_bottom_m: float = Field(default=_DEPTH.max_bottom_m, ge=0.0,
                                 description="a cluster must reach this close to the floor")
     plane_window_m: float = Field(default=_GROUND.window_m, gt=0.0,

@@ -147,7 +147,17 @@ class DepthClusterDetector:
         top, bottom = float(height[member].max()), float(height[member].min())
         if not p.min_height_m <= top <= p.max_height_m or bottom > p.max_bottom_m:
             return False
-        return bool(np.ptp(self.plane.project(points[member]), axis=0).max() <= p.max_width_m)
+        feet = self.plane.project(points[member])
+        return bool(np.ptp(feet, axis=0).max() <= p.max_width_m and self._thickness(feet) >= p.min_thickness_m)
+
+    @staticmethod
+    def _thickness(feet: np.ndarray) -> float:
+        """Std (m) of floor points (N, 3) across their main direction: the second of the three
+        principal spreads (the third is along the plane's normal, ~0)."""
+        if len(feet) < 3:
+            return 0.0
+        spreads = np.linalg.eigvalsh(np.cov((feet - feet.mean(axis=0)).T))
+        return float(np.sqrt(max(float(spreads[1]), 0.0)))
 
     def _people(self, points: np.ndarray, height: np.ndarray, count: int, labels: np.ndarray) -> list[np.ndarray]:
         """Member masks (N,) bool of the person-like clusters, splitting over-wide ones."""

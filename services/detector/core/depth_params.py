@@ -30,6 +30,11 @@ class DepthParams:
     max_height_m: float = 2.3
     max_width_m: float = 1.5
     max_bottom_m: float = 0.6
+    #: A person is not flat: the standard deviation of a cluster's floor footprint across its
+    #: main direction must reach this (m). A wall's end or a door frame seen edge-on makes a
+    #: person-tall, person-wide cluster of points on one vertical plane; a body's visible
+    #: front curves by 10-20 cm. 0: off.
+    min_thickness_m: float = 0.015
     #: A cluster wider than ``max_width_m`` (a person merged with a chair, a table or
     #: another person) is split by its parts above this height, one person per part.
     split_height_m: float = 1.05

@@ -70,6 +70,22 @@ def test_a_wall_end_seen_edge_on_is_flat_and_not_a_person() -> None:
     assert person[1] > 0.7 and person[0] < 0.1
 
 
+def test_a_person_close_enough_to_be_cut_by_the_lower_edge_is_still_a_person_a_wall_is_not() -> None:
+    # 0.95-1.25 m away the image's lower edge is 0.63-0.77 m over the floor: seed 002's rule (a
+    # cluster must come down to max_bottom_m, 0.6 m) alone would drop this person
+    person, wall = Block(0.3, 1.1, 0.4, 1.75, 0.3), Block(-0.6, 1.6, 0.05, 2.0, 1.2)
+    rgb, depth, K = scene([person, wall], 0.0)
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT))
+    for _ in range(2):
+        boxes, _ = det.detect(rgb, depth, K)
+    assert len(boxes) == 1  # the partition, cut by the same edge, is flat
+    box = boxes[0]
+    expected = np.clip(expected_box(person, K, 0.0), 0, [W, H, W, H])
+    assert box[3] >= H - 2 and iou_matrix(boxes, expected[None]).max() > 0.7
+    seen_bottom = CAMERA_HEIGHT - 1.25 * (H / 2) / K[1, 1]  # the lower edge's height at the back face
+    assert seen_bottom > DepthParams().max_bottom_m
+
+
 def test_plane_converges_from_a_wrong_initial_guess() -> None:
     rgb, depth, K = scene([*PEOPLE, TABLE], 20.0)
     det = DepthClusterDetector(DepthParams(camera_height_m=1.3, tilt_deg=14.0))

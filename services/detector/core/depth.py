@@ -83,6 +83,7 @@ class DepthClusterDetector:
         self.plane = self.initial
         self.plane_inliers = 0
         self.heights = np.zeros(0)
+        self._cut_low = np.zeros(0, bool)  # per point of the frame: seen at the image's lower edge
         self._hog = hog if hog is not None else (HogDetector() if self.params.hog_confirm else None)
         self._rng = np.random.default_rng(seed)
 
@@ -112,6 +113,7 @@ class DepthClusterDetector:
         height = self.plane.height(points)
         above = (height > p.floor_clearance_m) & (height < p.max_point_height_m)
         points, height = points[above], height[above]
+        self._cut_low = self._at_lower_edge(points, K, depth.shape[0])
         count, labels = cluster_points(points, p.cluster_tolerance_m)
         boxes, scores, heights = [], [], []
         for member in self._people(points, height, count, labels):
@@ -140,12 +142,23 @@ class DepthClusterDetector:
         self.heights = heights_arr[order]
         return out_boxes[order], out_scores[order].astype(np.float32)
 
-    def _is_person(self, member: np.ndarray, points: np.ndarray, height: np.ndarray) -> bool:
+    def _at_lower_edge(self, points: np.ndarray, K: np.ndarray, rows: int) -> np.ndarray:
+        """(N,) bool: points seen within a voxel (and a sampling step) of the image's lower edge."""
+        z = np.maximum(points[:, 2], 1e-3)
+        v = K[1, 1] * points[:, 1] / z + K[1, 2]
+        return v >= rows - 1 - (self.params.pixel_step + K[1, 1] * self.params.voxel_m / z)
+
+    def _is_person(self, member: np.ndarray, points: np.ndarray, height: np.ndarray, whole: bool = True) -> bool:
+        """Person-like: enough points, a person's height, down to the floor, a person's width,
+        not flat. ``whole``: a whole cluster may instead be cut by the image's lower edge (a person
+        close to the camera, seen from the knees up); a part split from a wider cluster must
+        reach the floor itself."""
         p = self.params
         if member.sum() < p.min_cluster_points:
             return False
         top, bottom = float(height[member].max()), float(height[member].min())
-        if not p.min_height_m <= top <= p.max_height_m or bottom > p.max_bottom_m:
+        floor = bottom <= p.max_bottom_m or (whole and bool(self._cut_low[member].any()))
+        if not (p.min_height_m <= top <= p.max_height_m and floor):
             return False
         feet = self.plane.project(points[member])
         return bool(np.ptp(feet, axis=0).max() <= p.max_width_m and self._thickness(feet) >= p.min_thickness_m)
@@ -185,7 +198,7 @@ class DepthClusterDetector:
                     continue
                 centre = ground[part].mean(axis=0)
                 near = member & (np.linalg.norm(ground - centre, axis=1) <= p.person_radius_m)
-                if self._is_person(near, points, height):
+                if self._is_person(near, points, height, whole=False):
                     out.append(near)
         return out
 

@@ -64,9 +64,8 @@ class ReorderBuffer(Generic[In, S, R]):
         if self.newest_ns is not None and key[0] < self.newest_ns - self.window_ns:
             self.dropped_old += 1
             return []
-        keys = [k for k, _ in self._log]
-        pos = bisect.bisect_left(keys, key)
-        if pos < len(keys) and keys[pos] == key:
+        pos, logged = self._find(key)
+        if logged:
             if not replace or key < self._snaps[0][0]:
                 self.dropped_duplicate += int(not replace)
                 self.dropped_old += int(replace)
@@ -78,7 +77,7 @@ class ReorderBuffer(Generic[In, S, R]):
         if replace:
             self.dropped_old += 1  # nothing to replace: it left the log (or never came)
             return []
-        if pos == len(keys):
+        if pos == len(self._log):
             results = [self._apply(key, item)]
         elif key < self._snaps[0][0]:
             self.dropped_old += 1  # older than every snapshot kept: cannot be placed in order
@@ -104,11 +103,16 @@ class ReorderBuffer(Generic[In, S, R]):
         self._log = list(last)
         self._snaps = [(last[0][0] if last else _BEFORE_ALL, self.snapshot())]
 
-    def get(self, key: InputKey) -> In | None:
-        """The input logged under ``key`` (still replaceable), or None."""
+    def _find(self, key: InputKey) -> tuple[int, bool]:
+        """Where ``key`` is, or would go, in the log, and whether it is there."""
         keys = [k for k, _ in self._log]
         pos = bisect.bisect_left(keys, key)
-        return self._log[pos][1] if pos < len(keys) and keys[pos] == key else None
+        return pos, pos < len(keys) and keys[pos] == key
+
+    def get(self, key: InputKey) -> In | None:
+        """The input logged under ``key`` (still replaceable), or None."""
+        pos, logged = self._find(key)
+        return self._log[pos][1] if logged else None
 
     def latest(self) -> tuple[InputKey, In] | None:
         """The newest input applied (key, input), or None."""

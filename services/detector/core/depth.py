@@ -83,7 +83,6 @@ class DepthClusterDetector:
         self.plane = self.initial
         self.plane_inliers = 0
         self.heights = np.zeros(0)
-        self._cut_low = np.zeros(0, bool)  # per point of the frame: seen at the image's lower edge
         self._hog = hog if hog is not None else (HogDetector() if self.params.hog_confirm else None)
         self._rng = np.random.default_rng(seed)
 
@@ -113,10 +112,10 @@ class DepthClusterDetector:
         height = self.plane.height(points)
         above = (height > p.floor_clearance_m) & (height < p.max_point_height_m)
         points, height = points[above], height[above]
-        self._cut_low = self._at_lower_edge(points, K, depth.shape[0])
+        cut_low = self._at_lower_edge(points, K, depth.shape[0])
         count, labels = cluster_points(points, p.cluster_tolerance_m)
         boxes, scores, heights = [], [], []
-        for member in self._people(points, height, count, labels):
+        for member in self._people(points, height, cut_low, count, labels):
             top = float(height[member].max())
             cluster = points[member]
             feet = self.plane.project(cluster)
@@ -148,16 +147,17 @@ class DepthClusterDetector:
         v = K[1, 1] * points[:, 1] / z + K[1, 2]
         return v >= rows - 1 - (self.params.pixel_step + K[1, 1] * self.params.voxel_m / z)
 
-    def _is_person(self, member: np.ndarray, points: np.ndarray, height: np.ndarray, whole: bool = True) -> bool:
+    def _is_person(self, member: np.ndarray, points: np.ndarray, height: np.ndarray,
+                   cut_low: np.ndarray | None) -> bool:
         """Person-like: enough points, a person's height, down to the floor, a person's width,
-        not flat. ``whole``: a whole cluster may instead be cut by the image's lower edge (a person
-        close to the camera, seen from the knees up); a part split from a wider cluster must
-        reach the floor itself."""
+        not flat. ``cut_low`` (N,) marks the points at the image's lower edge: a whole cluster
+        may reach that edge instead of the floor (a person close to the camera, seen from the
+        knees up); a part split from a wider cluster (``cut_low`` None) must reach the floor."""
         p = self.params
         if member.sum() < p.min_cluster_points:
             return False
         top, bottom = float(height[member].max()), float(height[member].min())
-        floor = bottom <= p.max_bottom_m or (whole and bool(self._cut_low[member].any()))
+        floor = bottom <= p.max_bottom_m or (cut_low is not None and bool(cut_low[member].any()))
         if not (p.min_height_m <= top <= p.max_height_m and floor):
             return False
         feet = self.plane.project(points[member])
@@ -172,7 +172,8 @@ class DepthClusterDetector:
         spreads = np.linalg.eigvalsh(np.cov((feet - feet.mean(axis=0)).T))
         return float(np.sqrt(max(float(spreads[1]), 0.0)))
 
-    def _people(self, points: np.ndarray, height: np.ndarray, count: int, labels: np.ndarray) -> list[np.ndarray]:
+    def _people(self, points: np.ndarray, height: np.ndarray, cut_low: np.ndarray, count: int,
+                labels: np.ndarray) -> list[np.ndarray]:
         """Member masks (N,) bool of the person-like clusters, splitting over-wide ones."""
         p = self.params
         out = []
@@ -180,7 +181,7 @@ class DepthClusterDetector:
             member = labels == label
             if member.sum() < p.min_cluster_points:
                 continue
-            if self._is_person(member, points, height):
+            if self._is_person(member, points, height, cut_low):
                 out.append(member)
                 continue
             top, bottom = float(height[member].max()), float(height[member].min())
@@ -198,7 +199,7 @@ class DepthClusterDetector:
                     continue
                 centre = ground[part].mean(axis=0)
                 near = member & (np.linalg.norm(ground - centre, axis=1) <= p.person_radius_m)
-                if self._is_person(near, points, height, whole=False):
+                if self._is_person(near, points, height, None):
                     out.append(near)
         return out
 

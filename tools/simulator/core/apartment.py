@@ -133,20 +133,22 @@ class Apartment:
         r = self.resolution
         return np.array([self.bounds_lo[0] + (i + 0.5) * r, self.bounds_lo[1] + (j + 0.5) * r])
 
+    @staticmethod
+    def _along(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Points (K, 2) every 5 cm or less on the segment a -> b, both ends included."""
+        n = max(2, int(np.ceil(np.linalg.norm(b - a) / 0.05)) + 1)
+        return a[None, :] + np.linspace(0.0, 1.0, n)[:, None] * (b - a)[None, :]
+
     def segment_free(self, a: np.ndarray, b: np.ndarray, radius: float) -> bool:
         """Whether the straight segment a -> b (2,) keeps ``radius`` clearance everywhere."""
-        n = max(2, int(np.ceil(np.linalg.norm(b - a) / 0.05)) + 1)
-        pts = a[None, :] + np.linspace(0.0, 1.0, n)[:, None] * (b - a)[None, :]
-        return bool(np.all(self.clearance_ok(pts, radius)))
+        return bool(np.all(self.clearance_ok(self._along(a, b), radius)))
 
     def line_of_sight(self, a: np.ndarray, b: np.ndarray, eye_height: float = 1.2) -> bool:
         """Whether nothing that reaches above ``eye_height`` (walls, door frames, tall shelves)
         stands on the straight segment a -> b (2,): a camera at that height sees across low
         furniture, not through walls."""
-        a, b = np.asarray(a, float), np.asarray(b, float)
         fp = self.footprints(min_height=eye_height)
-        n = max(2, int(np.ceil(np.linalg.norm(b - a) / 0.05)) + 1)
-        pts = a[None, :] + np.linspace(0.0, 1.0, n)[:, None] * (b - a)[None, :]
+        pts = self._along(np.asarray(a, float), np.asarray(b, float))
         inside = ((pts[:, None, 0] > fp[None, :, 0]) & (pts[:, None, 0] < fp[None, :, 2])
                   & (pts[:, None, 1] > fp[None, :, 1]) & (pts[:, None, 1] < fp[None, :, 3]))
         return not bool(inside.any())

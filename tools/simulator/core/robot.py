@@ -96,6 +96,21 @@ def loop_trajectory(
     return pose
 
 
+#: Half a person's width: a base stops only when it sees both shoulders, not the target's middle
+#: past a door frame that hides the rest.
+_HALF_WIDTH_M = 0.25
+
+
+def _whole_in_sight(p: np.ndarray, q: np.ndarray, apartment: Apartment) -> bool:
+    """Whether a person at ``q`` (2,) is in sight from ``p`` across their whole width."""
+    d = q - p
+    n = float(np.linalg.norm(d))
+    if n < 1e-6:
+        return True
+    side = np.array([-d[1], d[0]]) / n * _HALF_WIDTH_M
+    return apartment.line_of_sight(p, q + side) and apartment.line_of_sight(p, q - side)
+
+
 _LOOKAHEAD_S = np.arange(0.0, 2.01, 0.25)  # how far ahead a base making way looks at the target's path
 
 
@@ -127,7 +142,8 @@ def follow_trajectory(
     It drives towards the farthest point of the target's trail (which starts with the segment
     from ``start`` to the target) that it can reach in a straight, clear line, so it cuts
     corners and skips the loops the target walked back out of, at most ``max_speed``. It
-    stops once it sees the target (no wall above eye height between them) within ``gap``; a
+    stops once it sees the whole target (no wall above eye height between it and either of
+    their shoulders: not a person half hidden by a door frame) within ``gap``; a
     target hidden round a corner is followed closer, down to ``min_gap``, and when the target's
     next two seconds come closer than that it steps out of the target's way (the scenario knows where
     the target walks next: a stand-in for a robot reading the person's motion). It turns at most
@@ -149,6 +165,7 @@ def follow_trajectory(
         p = np.array([x, y])
         seen = apartment.line_of_sight(p, q)
         dist = float(np.linalg.norm(q - p))
+        whole = seen and _whole_in_sight(p, q, apartment)
         # the farthest trail point drivable in a straight line (scanning back from the newest)
         for i in range(len(trail) - 1, carrot[0] - 1, -1):
             if apartment.segment_free(p, trail[i], radius):
@@ -156,7 +173,7 @@ def follow_trajectory(
                 break
         goal = trail[carrot[0]] - p
         length = float(np.linalg.norm(goal))
-        move = 0.0 if (seen and dist <= gap) else min(max_speed * dt, length)
+        move = 0.0 if (whole and dist <= gap) else min(max_speed * dt, length)
         if move > 0.0:
             nxt = p + goal / length * move
             if not (np.linalg.norm(q - nxt) < min_gap and np.linalg.norm(q - nxt) < dist):

@@ -15,6 +15,7 @@ CAMERA_HEIGHT = 1.2
 PEOPLE = [Block(-0.8, 3.5, 0.5, 1.75, 0.3), Block(0.9, 4.5, 0.45, 1.60, 0.3)]
 TABLE = Block(0.0, 2.6, 1.0, 0.75, 0.6)
 SITTING = Block(1.3, 2.8, 0.5, 1.15, 0.5)
+OCCLUDED = 1.05  # occluded_max_bottom_m turned on (off by default)
 
 
 def expected_box(block: Block, K: np.ndarray, tilt_deg: float) -> np.ndarray:
@@ -84,6 +85,56 @@ def test_a_person_close_enough_to_be_cut_by_the_lower_edge_is_still_a_person_a_w
     assert box[3] >= H - 2 and iou_matrix(boxes, expected[None]).max() > 0.7
     seen_bottom = CAMERA_HEIGHT - 1.25 * (H / 2) / K[1, 1]  # the lower edge's height at the back face
     assert seen_bottom > DepthParams().max_bottom_m
+
+
+def test_a_person_behind_a_sofa_is_seen_from_the_waist_up() -> None:
+    # the sofa's back (0.9 m) hides the person below it: seed 002's rule (down to max_bottom_m)
+    # drops them; the occlusion rule keeps them, and only because the sofa is in front
+    person, sofa = Block(0.8, 3.6, 0.45, 1.75, 0.3), Block(0.8, 3.0, 1.2, 0.9, 0.5)  # off-axis: its side shows
+    rgb, depth, K = scene([person, sofa], 0.0)
+    found = {}
+    for occluded in (0.0, OCCLUDED):
+        det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, occluded_max_bottom_m=occluded))
+        for _ in range(2):
+            boxes, _ = det.detect(rgb, depth, K)
+        found[occluded] = boxes
+    assert len(found[0.0]) == 0
+    (box,) = found[OCCLUDED]
+    assert iou_matrix(box[None], expected_box(person, K, 0.0)[None])[0, 0] > 0.6  # down to the feet, behind the sofa
+    # the same upper body with nothing in front (floating: a picture, a lamp) is not a person
+    rgb, depth, K = scene([Block(0.8, 3.6, 0.45, 1.75, 0.3, bottom=0.9)], 0.0)
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, occluded_max_bottom_m=OCCLUDED))
+    assert len(det.detect(rgb, depth, K)[0]) == 0
+
+
+def test_a_person_behind_a_sofa_they_touch_is_split_out_of_it() -> None:
+    # the person leans on the sofa's back: one cluster 2 m wide, split by the parts above 1.05 m;
+    # the part's lowest points are hidden by the sofa, so it need not reach the floor
+    person, sofa = Block(1.0, 3.55, 0.45, 1.75, 0.3), Block(0.6, 3.2, 2.0, 0.9, 0.4)
+    rgb, depth, K = scene([person, sofa], 0.0)
+    assert len(DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT)).detect(rgb, depth, K)[0]) == 0  # off
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, occluded_max_bottom_m=OCCLUDED))
+    for _ in range(2):
+        boxes, _ = det.detect(rgb, depth, K)
+    assert len(boxes) == 1
+    assert iou_matrix(boxes, expected_box(person, K, 0.0)[None]).max() > 0.5
+
+
+def test_the_floor_from_the_transforms_replaces_a_lost_estimate() -> None:
+    # a detector configured for a level camera while the head pitches 20 deg down, beyond what
+    # it re-acquires: its own estimate fails, the floor given by the robot's transforms works
+    rgb, depth, K = scene([*PEOPLE, TABLE], 20.0)
+    truth = initial_plane(CAMERA_HEIGHT, 20.0)
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=0.0,
+                                           ground=GroundParams(acquire_max_deg=10.0)))
+    assert len(det.detect(rgb, depth, K)[0]) == 0  # beyond re-acquisition
+    off = initial_plane(CAMERA_HEIGHT + 0.05, 21.5)  # the transforms' floor, 5 cm and 1.5 deg off
+    boxes, _ = det.detect(rgb, depth, K, floor=off)
+    assert len(boxes) == 2
+    assert det.plane.angle_to(truth) < np.deg2rad(0.3) and abs(det.plane.offset - CAMERA_HEIGHT) < 0.02  # refined
+    wrong = initial_plane(CAMERA_HEIGHT + 0.4, 20.0)  # a floor refinement may not stray this far from
+    det.detect(rgb, depth, K, floor=wrong)
+    assert det.plane is wrong and det.plane_inliers == 0
 
 
 def test_plane_converges_from_a_wrong_initial_guess() -> None:

@@ -13,11 +13,14 @@ from common.keys import FRAMES, RELIABLE, Keys
 from common.memory import MemoryBus
 from common.runtime import Counters, ServiceRuntime
 from common.samples import camera_info, rgbd_frame
-from common.schemas import Detections, Header, Image, RGBDFrame
+from common.poses import OPTICAL_FROM_BODY, make_pose, rot_y
+from common.schemas import Detections, Header, Image, RGBDFrame, TransformBatch
 from services.detector.config import DetectorConfig, build_detector
 from services.detector.core.boxes import DetectorError
+from services.detector.core.ground import initial_plane
 from services.detector.service import DetectorService
 from tests.fixtures.detector_synthetic import Block, render_depth, scene_intrinsics
+from tools.simulator.messages import transform
 
 KEYS = Keys(robot="testbot")
 
@@ -196,3 +199,45 @@ def test_missing_model_fails_at_build(tmp_path) -> None:  # type: ignore[no-unty
     config = DetectorConfig(backend="yolo-onnx", yolo={"model": tmp_path / "absent.onnx"})  # type: ignore[arg-type]
     with pytest.raises(DetectorError, match="absent.onnx does not exist"):
         build_detector(config)
+
+
+def _depth_frame(stamp_ns: int, seq: int, tilt_deg: float) -> RGBDFrame:
+    K = scene_intrinsics(320, 240)
+    depth, rgb = render_depth([Block(1.0, 3.0, 0.5, 1.8, 0.3)], K, 320, 240, 1.2, tilt_deg)
+    header = Header(stamp_ns=stamp_ns, seq=seq, source="head", frame_id="camera")
+    info = camera_info(320, 240)
+    info.K[:] = K
+    return RGBDFrame(header=header, rgb=Image.from_array(rgb, "rgb8", header),
+                     depth=Image.from_array(np.nan_to_num(depth * 1000).astype(np.uint16), "16UC1", header),
+                     camera_info=info)
+
+
+def test_depth_backend_takes_the_floor_from_the_transforms(memory_bus: MemoryBus) -> None:
+    # the head pitches 20 deg down; the config says level. The transforms base_link -> camera give
+    # the floor at the frame's stamp; a frame with no transform near its stamp is counted and the
+    # detector tracks the floor alone
+    config = DetectorConfig(backend="depth", depth={"camera_height_m": 1.2, "tilt_deg": 0.0})  # type: ignore[arg-type]
+    service, counters, frames, out = make(memory_bus, config)
+    assert service.buffer is not None and "floor from base_link" in service.describe()
+    stamp = 10**18
+    head = make_pose(rot_y(np.deg2rad(20.0)) @ OPTICAL_FROM_BODY, (0.0, 0.0, 1.2))
+    memory_bus.transport().publisher(KEYS.tf(), TransformBatch, RELIABLE).put(TransformBatch(
+        header=Header(stamp_ns=stamp), transforms=[transform("base_link", "camera", head, stamp)]))
+    frames.put(_depth_frame(stamp, 1, 20.0))
+    step(service, 5.0)
+    got = out.recv(5.0)
+    assert got is not None and len(got.msg.detections) == 1
+    assert counters.extra["floor_from_transforms"] == 1 and "floor_estimated" not in counters.extra
+    truth = initial_plane(1.2, 20.0)
+    plane = service.detector.plane  # type: ignore[attr-defined]
+    assert plane.angle_to(truth) < np.deg2rad(0.5) and abs(plane.offset - 1.2) < 0.02
+    frames.put(_depth_frame(stamp + 10**9, 2, 20.0))  # 1 s later: no transform that recent
+    step(service, 5.0)
+    assert out.recv(5.0) is not None
+    assert counters.extra["floor_estimated"] == 1
+
+
+def test_floor_frame_off_or_a_backend_without_a_floor_reads_no_transforms(memory_bus: MemoryBus) -> None:
+    off, _, _, _ = make(memory_bus, DetectorConfig(backend="depth", floor_frame=""))
+    hog, _, _, _ = make(memory_bus, DetectorConfig(backend="hog"))
+    assert off.buffer is None and hog.buffer is None

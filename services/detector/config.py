@@ -91,11 +91,22 @@ class DepthConfig(_Section):
                                                "reach this: walls and door frames seen edge-on are flat (0: off)")
     max_bottom_m: float = Field(default=_DEPTH.max_bottom_m, ge=0.0,
                                 description="a cluster must reach this close to the floor")
+    occluded_max_bottom_m: float = Field(default=_DEPTH.occluded_max_bottom_m, ge=0.0, le=2.0,
+                                         description="a cluster whose lowest points are hidden by something "
+                                                     "nearer (a sofa, a table) need only come down to this, e.g. 1.05 "
+                                                     "(0: off, the default)")
+    occluder_gap_m: float = Field(default=_DEPTH.occluder_gap_m, gt=0.0, le=2.0,
+                                  description="how much nearer the depth just below a point must be to hide it")
     plane_window_m: float = Field(default=_GROUND.window_m, gt=0.0,
                                   description="floor candidates: distance from the last plane")
     plane_inlier_m: float = Field(default=_GROUND.inlier_m, gt=0.0)
     plane_max_step_deg: float = Field(default=_GROUND.max_step_deg, gt=0.0, le=45.0)
     ransac_iterations: int = Field(default=_GROUND.iterations, ge=1)
+    floor_max_deg: float = Field(default=_DEPTH.floor_max_deg, gt=0.0, le=45.0,
+                                 description="a floor from the transforms (floor_frame) is refined on the depth this "
+                                             "far at most (deg)")
+    floor_max_m: float = Field(default=_DEPTH.floor_max_m, gt=0.0, le=1.0,
+                               description="... and this far in height (m)")
     hog_confirm: bool = Field(default=_DEPTH.hog_confirm, description="score each cluster box with HOG and drop weak ones")
     hog_min_score: float = Field(default=_DEPTH.hog_min_score, ge=0.0, le=1.0)
 
@@ -169,6 +180,15 @@ class DetectorConfig(_Section):
         description="process at most this many frames per second of sensor time (a slow second detector, e.g. 3); "
                     "the frames between are skipped and counted; None: every frame it can")
     depth_available: bool = Field(default=True, description="whether the camera publishes registered depth")
+    floor_frame: str = Field(
+        default="base_link",
+        description="depth backend: the frame whose z = 0 plane is the floor (a base on the ground); its transform to "
+                    "the camera (tf) gives the detector the floor in every frame, so a pitching head or a floor hidden "
+                    "by furniture cannot lead its estimate astray. '' or no transform: it tracks the floor alone")
+    floor_height_m: float = Field(default=0.0, ge=-2.0, le=2.0, description="the floor's height in floor_frame")
+    floor_tolerance_s: float = Field(
+        default=0.2, ge=0.0, le=5.0,
+        description="use the newest transform when none is at the frame's stamp yet, if at most this much older")
     hog: HogConfig = Field(default_factory=HogConfig)
     depth: DepthConfig = Field(default_factory=DepthConfig)
     yolo: YoloOnnxConfig = Field(default_factory=YoloOnnxConfig)

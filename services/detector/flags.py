@@ -41,6 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="process at most HZ frames per second of sensor time, skipping the others (a slow second "
                              "detector: e.g. --max-rate 3)")
     parser.add_argument("--no-depth", action="store_true", help="the camera publishes no depth (refuses backend depth)")
+    parser.add_argument("--floor-frame", default=None, metavar="FRAME",
+                        help="depth: the frame whose z = 0 plane is the floor, read from tf each frame (default "
+                             "base_link; '' to estimate the floor from the depth alone)")
     add_backend_arguments(parser)
     add_node_arguments(parser, "detector")
 
@@ -48,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def node_overrides(args: argparse.Namespace) -> dict[str, Any]:
     """The node's settings from its flags."""
     return overrides(args, {"camera": args.camera, "stream": args.stream, "max_rate_hz": args.max_rate,
-                            "depth_available": False if args.no_depth else None})
+                            "depth_available": False if args.no_depth else None, "floor_frame": args.floor_frame})
 
 
 def prepare(config: DetectorConfig) -> dict[str, Any]:

@@ -4,6 +4,10 @@ Frames arrive on a latest-only subscription (a ring of one): while the model run
 newer frames overwrite older ones, and each overwritten frame is counted as dropped
 stale. Each published ``Detections`` carries the source frame's header (stamp, seq,
 source, frame_id) so downstream services can join on it.
+
+The depth backend also reads ``tf`` and ``tf_static`` when ``floor_frame`` is set: the
+floor's plane in the camera frame at each frame's stamp, from the robot's own transforms
+(``floor_from_transforms``); without one it tracks the floor alone (``floor_estimated``).
 """
 
 from __future__ import annotations
@@ -15,15 +19,18 @@ from typing import Any
 import cv2
 import numpy as np
 
+from common.geometry import FrameTreeError, TransformBuffer, TransformError
+from common.geometry_messages import add_transform
 from common.keys import FRAMES, RELIABLE, Keys
 from common.node import Node
 from common.ratelog import RateLimitedLog
 from common.runtime import Counters
-from common.schemas import Detection, Detections, RGBDFrame
+from common.schemas import Detection, Detections, RGBDFrame, TransformBatch
 from common.transport import Transport
 from services.detector.config import DetectorConfig, build_detector
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
+from services.detector.core.ground import Plane
 
 __all__ = ["DetectorService"]
 
@@ -45,6 +52,12 @@ class DetectorService(Node):
         self.config = config
         self.detector = detector if detector is not None else build_detector(config)
         self.frames = self.io.subscribe(keys.frames(config.camera), RGBDFrame, FRAMES)
+        self.buffer: TransformBuffer | None = None
+        if config.floor_frame and getattr(self.detector, "uses_floor", False):
+            self.buffer = TransformBuffer(history_s=max(2.0, 4 * config.floor_tolerance_s),
+                                          tolerance_s=config.floor_tolerance_s)
+            self.sub_tf_static = self.io.subscribe(keys.tf_static(), TransformBatch, RELIABLE)
+            self.sub_tf = self.io.subscribe(keys.tf(), TransformBatch, RELIABLE)
         self.publisher = self.io.publisher(keys.detections(config.output), Detections, RELIABLE)
         self.processed = 0
         self._total_ms = 0.0
@@ -55,10 +68,41 @@ class DetectorService(Node):
         self._log = RateLimitedLog(log)
 
     def describe(self) -> str:
-        return f"detector {self.detector.name} on {self.frames.key}"
+        floor = f", floor from {self.config.floor_frame} (tf)" if self.buffer is not None else ""
+        return f"detector {self.detector.name} on {self.frames.key}{floor}"
+
+    def _take_transforms(self) -> None:
+        assert self.buffer is not None
+        for sub, static in ((self.sub_tf_static, True), (self.sub_tf, False)):
+            while (got := sub.try_recv()) is not None:
+                for msg in got.msg.transforms:
+                    try:
+                        add_transform(self.buffer, msg, static=static)
+                    except FrameTreeError as exc:
+                        self.counters.count("transforms_rejected")
+                        self._log.warning("tf_tree", "rejected transform from %s: %s", got.key, exc)
+
+    def floor(self, frame: RGBDFrame) -> Plane | None:
+        """The floor's plane in ``frame``'s camera frame from the transforms, or None (counted)."""
+        if self.buffer is None:
+            return None
+        self._take_transforms()
+        camera = frame.header.frame_id or frame.camera_info.header.frame_id
+        try:
+            cam_from_floor = self.buffer.lookup(camera, self.config.floor_frame, frame.header.stamp_ns)
+        except TransformError as exc:
+            self.counters.count("floor_estimated")
+            self._log.warning("no_floor", "no transform %s -> %s for frame %d: the detector tracks the floor alone "
+                              "(%s)", self.config.floor_frame, camera, frame.header.seq, exc)
+            return None
+        self.counters.count("floor_from_transforms")
+        normal = cam_from_floor.matrix[:3, 2].copy()
+        return Plane(normal, float(-normal @ cam_from_floor.translation - self.config.floor_height_m))
 
     def poll(self, now: float) -> list[Any]:
         """Process the newest frame, if one arrived; returns what was published."""
+        if self.buffer is not None:
+            self._take_transforms()
         got = self.frames.try_recv()
         self.counters.gauge("dropped_stale", self.frames.stats.dropped)
         if got is None:
@@ -91,7 +135,11 @@ class DetectorService(Node):
             return None
         start = time.perf_counter()
         try:
-            boxes, scores = self.detector.detect(rgb, depth, np.asarray(frame.camera_info.K))
+            K = np.asarray(frame.camera_info.K)
+            if self.buffer is not None:
+                boxes, scores = self.detector.detect(rgb, depth, K, floor=self.floor(frame))  # type: ignore[call-arg]
+            else:
+                boxes, scores = self.detector.detect(rgb, depth, K)
         except (DetectorError, cv2.error) as exc:
             self.counters.drop("detector_error")
             self._log.warning("detector_error", "frame %d from %s: detection failed: %s", frame.header.seq,

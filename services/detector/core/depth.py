@@ -11,6 +11,8 @@ file, no GPU: this is the detector a CPU-only robot runs at frame rate.
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
+
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -18,7 +20,7 @@ from scipy.spatial import cKDTree
 
 from services.detector.core.boxes import DetectorError, as_rgb, clip_boxes, empty_result
 from services.detector.core.depth_params import DepthParams
-from services.detector.core.ground import acquire_plane, initial_plane, refine_plane
+from services.detector.core.ground import Plane, acquire_plane, initial_plane, refine_plane
 from services.detector.core.hog import HogDetector
 
 __all__ = ["DepthClusterDetector", "DepthParams", "backproject", "cluster_points", "voxel_grid"]
@@ -76,6 +78,7 @@ class DepthClusterDetector:
 
     name = "depth"
     needs_depth = True
+    uses_floor = True  # detect() takes the floor from the robot's transforms
 
     def __init__(self, params: DepthParams | None = None, hog: HogDetector | None = None, seed: int = 0) -> None:
         self.params = params if params is not None else DepthParams()
@@ -91,7 +94,11 @@ class DepthClusterDetector:
         self.plane = self.initial
 
     def detect(self, rgb: np.ndarray, depth: np.ndarray | None = None,
-               camera: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+               camera: np.ndarray | None = None, floor: Plane | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``floor``: the ground plane in the camera frame from the robot's transforms, if known.
+        It is refined on the depth (within ``floor_max_deg``/``floor_max_m``) instead of the
+        plane tracked from the previous frame: a head that pitches, or a floor hidden by
+        furniture for a while, then cannot lead the estimate astray."""
         image = as_rgb(rgb)
         if depth is None:
             raise DetectorError("the depth backend needs a depth image registered to the colour image")
@@ -103,8 +110,12 @@ class DepthClusterDetector:
             raise DetectorError(f"depth shape {depth.shape} differs from the image {image.shape[:2]}")
         p = self.params
         points = voxel_grid(backproject(depth, K, p.pixel_step, p.min_depth_m, p.max_depth_m), p.voxel_m)
-        self.plane, self.plane_inliers = refine_plane(points, self.plane, p.ground, self._rng)
-        if self.plane_inliers == 0:
+        if floor is not None:
+            bounded = replace(p.ground, max_step_deg=p.floor_max_deg, max_step_m=p.floor_max_m)
+            self.plane, self.plane_inliers = refine_plane(points, floor, bounded, self._rng)
+        else:
+            self.plane, self.plane_inliers = refine_plane(points, self.plane, p.ground, self._rng)
+        if self.plane_inliers == 0 and floor is None:
             # Lost (or never found) the floor: search afresh around the configured plane.
             self.plane, self.plane_inliers = acquire_plane(points, self.initial, p.ground, self._rng)
             if self.plane_inliers == 0:
@@ -113,9 +124,10 @@ class DepthClusterDetector:
         above = (height > p.floor_clearance_m) & (height < p.max_point_height_m)
         points, height = points[above], height[above]
         cut_low = self._at_lower_edge(points, K, depth.shape[0])
+        hidden = self._hidden_below(points, K, depth)
         count, labels = cluster_points(points, p.cluster_tolerance_m)
         boxes, scores, heights = [], [], []
-        for member in self._people(points, height, cut_low, count, labels):
+        for member in self._people(points, height, cut_low, hidden, count, labels):
             top = float(height[member].max())
             cluster = points[member]
             feet = self.plane.project(cluster)
@@ -147,21 +159,52 @@ class DepthClusterDetector:
         v = K[1, 1] * points[:, 1] / z + K[1, 2]
         return v >= rows - 1 - (self.params.pixel_step + K[1, 1] * self.params.voxel_m / z)
 
-    def _is_person(self, member: np.ndarray, points: np.ndarray, height: np.ndarray,
-                   cut_low: np.ndarray | None) -> bool:
+    def _hidden_below(self, points: np.ndarray, K: np.ndarray, depth: np.ndarray) -> np.ndarray:
+        """(N,) bool: points under which, a voxel and two sampling steps lower in the image,
+        the depth is nearer by ``occluder_gap_m``: something in front hides what is below them."""
+        p = self.params
+        hidden = np.zeros(len(points), bool)
+        if p.occluded_max_bottom_m <= 0 or len(points) == 0:
+            return hidden
+        z = np.maximum(points[:, 2], 1e-3)
+        u = np.rint(K[0, 0] * points[:, 0] / z + K[0, 2]).astype(np.int64)
+        v = np.rint(K[1, 1] * points[:, 1] / z + K[1, 2] + K[1, 1] * p.voxel_m / z + 2 * p.pixel_step).astype(np.int64)
+        rows, cols = depth.shape
+        inside = (u >= 0) & (u < cols) & (v >= 0) & (v < rows)
+        below = np.full(len(points), np.nan, np.float32)
+        below[inside] = depth[v[inside], u[inside]]
+        with np.errstate(invalid="ignore"):
+            hidden = below < z - p.occluder_gap_m  # NaN (no depth, outside) compares False
+        return hidden
+
+    def _is_person(self, member: np.ndarray, points: np.ndarray, height: np.ndarray, cut_low: np.ndarray | None,
+                   hidden: np.ndarray) -> bool:
         """Person-like: enough points, a person's height, down to the floor, a person's width,
         not flat. ``cut_low`` (N,) marks the points at the image's lower edge: a whole cluster
         may reach that edge instead of the floor (a person close to the camera, seen from the
-        knees up); a part split from a wider cluster (``cut_low`` None) must reach the floor."""
+        knees up); a part split from a wider cluster (``cut_low`` None) may not. ``hidden``
+        (N,) marks the points hidden from below by something nearer: a cluster or part most of
+        whose lowest points are hidden need only come down to ``occluded_max_bottom_m`` (a
+        person behind a sofa or a table, seen from the waist up)."""
         p = self.params
         if member.sum() < p.min_cluster_points:
             return False
-        top, bottom = float(height[member].max()), float(height[member].min())
-        floor = bottom <= p.max_bottom_m or (cut_low is not None and bool(cut_low[member].any()))
-        if not (p.min_height_m <= top <= p.max_height_m and floor):
+        top = float(height[member].max())
+        if not (p.min_height_m <= top <= p.max_height_m and self._grounded(member, height, cut_low, hidden)):
             return False
         feet = self.plane.project(points[member])
         return bool(np.ptp(feet, axis=0).max() <= p.max_width_m and self._thickness(feet) >= p.min_thickness_m)
+
+    def _grounded(self, member: np.ndarray, height: np.ndarray, cut_low: np.ndarray | None,
+                  hidden: np.ndarray) -> bool:
+        """Whether the cluster comes down to the floor, or to where it is cut or hidden (see _is_person)."""
+        p = self.params
+        bottom = float(height[member].min())
+        if bottom <= p.max_bottom_m or (cut_low is not None and bool(cut_low[member].any())):
+            return True
+        if bottom > p.occluded_max_bottom_m:
+            return False
+        return float(hidden[member & (height <= bottom + p.voxel_m)].mean()) >= 0.5
 
     @staticmethod
     def _thickness(feet: np.ndarray) -> float:
@@ -172,7 +215,7 @@ class DepthClusterDetector:
         spreads = np.linalg.eigvalsh(np.cov((feet - feet.mean(axis=0)).T))
         return float(np.sqrt(max(float(spreads[1]), 0.0)))
 
-    def _people(self, points: np.ndarray, height: np.ndarray, cut_low: np.ndarray, count: int,
+    def _people(self, points: np.ndarray, height: np.ndarray, cut_low: np.ndarray, hidden: np.ndarray, count: int,
                 labels: np.ndarray) -> list[np.ndarray]:
         """Member masks (N,) bool of the person-like clusters, splitting over-wide ones."""
         p = self.params
@@ -181,12 +224,12 @@ class DepthClusterDetector:
             member = labels == label
             if member.sum() < p.min_cluster_points:
                 continue
-            if self._is_person(member, points, height, cut_low):
+            if self._is_person(member, points, height, cut_low, hidden):
                 out.append(member)
                 continue
-            top, bottom = float(height[member].max()), float(height[member].min())
+            top = float(height[member].max())
             wide = np.ptp(self.plane.project(points[member]), axis=0).max() > p.max_width_m
-            if not (wide and p.min_height_m <= top <= p.max_height_m and bottom <= p.max_bottom_m):
+            if not (wide and p.min_height_m <= top <= p.max_height_m and self._grounded(member, height, None, hidden)):
                 continue
             # Over-wide: split by the parts above furniture height (heads and shoulders).
             upper = member & (height > p.split_height_m)
@@ -199,7 +242,7 @@ class DepthClusterDetector:
                     continue
                 centre = ground[part].mean(axis=0)
                 near = member & (np.linalg.norm(ground - centre, axis=1) <= p.person_radius_m)
-                if self._is_person(near, points, height, None):
+                if self._is_person(near, points, height, None, hidden):
                     out.append(near)
         return out
 

@@ -30,6 +30,13 @@ class DepthParams:
     max_height_m: float = 2.3
     max_width_m: float = 1.5
     max_bottom_m: float = 0.6
+    #: A whole cluster whose lowest points are hidden by something nearer (the back of a sofa,
+    #: a table, a person in front) need not reach ``max_bottom_m``, only come down to this
+    #: height (m): a person standing behind furniture is seen from the waist up. 0: off (the
+    #: default: the localizer then takes the furniture's depth for theirs; the README).
+    occluded_max_bottom_m: float = 0.0
+    #: A point is hidden from below when the depth just under it in the image is nearer by this (m).
+    occluder_gap_m: float = 0.25
     #: A person is not flat: the standard deviation of a cluster's floor footprint across its
     #: main direction must reach this (m). A wall's end or a door frame seen edge-on makes a
     #: person-tall, person-wide cluster of points on one vertical plane; a body's visible
@@ -40,6 +47,10 @@ class DepthParams:
     split_height_m: float = 1.05
     #: Radius on the ground plane around a split part's centre that belongs to that person.
     person_radius_m: float = 0.4
+    #: A floor from the robot's transforms (``detect(floor=...)``) is refined on the depth only
+    #: this far (deg, m); a refinement that strays further is dropped for the given floor.
+    floor_max_deg: float = 3.0
+    floor_max_m: float = 0.1
     hog_confirm: bool = False
     hog_min_score: float = 0.5
 

@@ -7,7 +7,7 @@ node's own work (decode, choose, transform lookups, the control law, encode). Ov
 add the transport's hop (ZENOH_NOTES.md: about 0.2 ms through a router on loopback).
 
     python benchmarks/attention.py [--n 2000]
-    python benchmarks/attention.py --loop [--scenario people-following] [--json FILE]
+    python benchmarks/attention.py --loop [--scenario people-following] [--seeds 0 1 2] [--json FILE]
 
 ``--loop`` runs the scenario through the whole chain in one process (``run_chain``, 320x240
 at 10 fps) with the head driven four ways and scores person 1 each time (the centring
@@ -40,25 +40,29 @@ from services.attention.service import AttentionService
 from tools.simulator.messages import transform
 
 
-def loop(scenario: str, json_path: Path | None) -> None:
-    """The closed loop four ways (module docstring), one table row each."""
+def loop(scenario: str, seeds: list[int], json_path: Path | None) -> None:
+    """The closed loop four ways (module docstring) on each scenario seed, one table row each."""
     from tools.demo.inprocess import run_chain
     from tools.simulator.core.scenarios import SCENARIOS
 
     duration = SCENARIOS[scenario].duration_s
-    rows = {}
-    for name, target, truth in (("rest", "none", False), ("nearest", "nearest", False), ("lock", "lock", False),
-                                ("truth", "1", True)):
-        t0 = time.perf_counter()
-        r = run_chain(scenario, duration_s=duration, attention=AttentionConfig(target=target), attention_truth=truth)
-        assert r.attention is not None
-        rows[name] = {**r.attention, "mota": round(r.report["overall"]["mota"], 3)}
-        print(f"{name:8s} centring error p50 {r.attention['center_error_px_p50']} px, p95 "
-              f"{r.attention['center_error_px_p95']} px; person {r.attention['person_id']} visible "
-              f"{r.attention['target_visible_fraction']:.3f} ({time.perf_counter() - t0:.0f} s)", flush=True)
-    print(json.dumps({"scenario": scenario, "duration_s": duration, "runs": rows}))
+    runs: dict[str, dict[str, dict]] = {}
+    for seed in seeds:
+        rows = runs.setdefault(str(seed), {})
+        for name, target, truth in (("rest", "none", False), ("nearest", "nearest", False), ("lock", "lock", False),
+                                    ("truth", "1", True)):
+            t0 = time.perf_counter()
+            r = run_chain(scenario, duration_s=duration, seed=seed, attention=AttentionConfig(target=target),
+                          attention_truth=truth)
+            assert r.attention is not None
+            rows[name] = {**r.attention, "mota": round(r.report["overall"]["mota"], 3)}
+            print(f"seed {seed} {name:8s} centring error p50 {r.attention['center_error_px_p50']} px, p95 "
+                  f"{r.attention['center_error_px_p95']} px; person {r.attention['person_id']} visible "
+                  f"{r.attention['target_visible_fraction']:.3f} ({time.perf_counter() - t0:.0f} s)", flush=True)
+    result = {"scenario": scenario, "duration_s": duration, "runs": runs}
+    print(json.dumps(result))
     if json_path is not None:
-        json_path.write_text(json.dumps({"scenario": scenario, "duration_s": duration, "runs": rows}, indent=1) + "\n")
+        json_path.write_text(json.dumps(result, indent=1) + "\n")
 
 
 def main() -> None:
@@ -66,6 +70,8 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=2000, help="Tracks messages (default 2000)")
     ap.add_argument("--loop", action="store_true", help="score the closed loop on the simulator instead (see above)")
     ap.add_argument("--scenario", default="people-following", help="--loop: the scenario (default people-following)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0], metavar="N",
+                    help="--loop: the scenario's seeds, each run four ways (default 0)")
     ap.add_argument("--json", type=Path, default=None, metavar="FILE", help="--loop: also write the figures here")
     args = ap.parse_args()
     if args.loop:
@@ -73,7 +79,7 @@ def main() -> None:
 
         if args.scenario not in SCENARIOS:
             ap.error(f"unknown scenario {args.scenario!r}; choose one of {', '.join(SCENARIOS)}")
-        loop(args.scenario, args.json)
+        loop(args.scenario, args.seeds, args.json)
         return
     bus, keys = MemoryBus(), Keys(robot="bench")
     node = AttentionService(bus.transport(), keys, AttentionConfig(target="nearest"))

@@ -60,6 +60,9 @@ def test_demo_runs_the_pipeline_and_scores_it() -> None:
     assert tracker["messages"] > 100
     assert result["overall"]["objects"] > 100
     assert result["overall"]["mota"] >= MOTA_FLOOR, result["overall"]
+    cpu = result["cpu_percent"]
+    assert set(cpu) == {"detector", "localizer", "embedder", "tracker"}, cpu
+    assert all(v is not None and v > 0 for v in cpu.values()), cpu
     assert _wait_gone(f"--robot demo{proc.pid}") == []
 
 
@@ -76,6 +79,8 @@ def test_demo_fuses_two_detectors_and_two_cameras_through_processes() -> None:
     # the people behind the robot count (the back camera's view): handover has them there half the time
     assert result["overall"]["objects"] > 200, result["overall"]  # head camera alone: 156
     assert result["overall"]["mota"] >= 0.5, result["overall"]
+    # one CPU figure per process, not per service name (three detectors here)
+    assert {"detector", "detector-slow", "detector-back", "localizer-slow", "embedder-back"} <= set(result["cpu_percent"])
     assert _wait_gone(f"--robot demo{proc.pid}") == []
 
 

@@ -25,7 +25,6 @@ from common.cli_util import CliError
 from common.keys import Keys
 from common.router_process import free_port
 from common.runtime import Shutdown
-from common.schemas import ServiceStatus
 from common.transport import Transport
 from common.zenoh_config import ZenohOptions
 from common.zenoh_transport import TransportError, open_transport
@@ -178,7 +177,10 @@ def main(args: argparse.Namespace) -> int:
     robot = f"demo{os.getpid()}"
     keys = Keys(robot=robot)
     log_file = open(log_dir / "processes.log", "wb")  # noqa: SIM115
-    supervisor = Supervisor(_specs(endpoint, port, robot, args, log_dir / "id-memory.json"), log_file, handle_signals=False)
+    specs = _specs(endpoint, port, robot, args, log_dir / "id-memory.json")
+    # CPU is reported per process (detector, detector-slow, detector-back, ...), not per service
+    measured = [s.name for s in specs if s.name not in ("router", "viewer")]
+    supervisor = Supervisor(specs, log_file, handle_signals=False)
     codes: list[int] = []
     sup_thread = threading.Thread(target=lambda: codes.append(supervisor.run()), name="supervisor", daemon=True)
     sim: subprocess.Popen[bytes] | None = None
@@ -215,8 +217,8 @@ def main(args: argparse.Namespace) -> int:
             if args.view:
                 print(f"the live page is on http://127.0.0.1:{args.view_port}/", flush=True)
                 _open_page(f"http://127.0.0.1:{args.view_port}/")
-            pids = {m.name: m.pid for _, m in transport.query(keys.status(), timeout=2.0) if isinstance(m, ServiceStatus)}
-            cpu_start = {n: (pid, _cpu_seconds(pid)) for n, pid in pids.items() if n in (*SERVICES, "attention")}
+            pids = {n: supervisor.pid(n) for n in measured}
+            cpu_start = {n: (pid, _cpu_seconds(pid)) for n, pid in pids.items() if pid is not None}
             tty = sys.stdout.isatty() and not args.no_view
             last_line = 0.0
             while not shutdown.is_set():

@@ -168,6 +168,53 @@ def test_a_person_beside_furniture_is_split_out_of_the_merged_cluster() -> None:
     assert iou_matrix(boxes, expected_box(person, K, 0.0)[None]).max() > 0.6
 
 
+def _person(x: float, z: float, height: float) -> list[Block]:
+    """A body (0.45 m wide, up to the shoulders) and a head (0.2 m wide) on top of it."""
+    shoulders = height - 0.28
+    return [Block(x, z, 0.45, shoulders, 0.3), Block(x, z, 0.2, height, 0.2, bottom=shoulders)]
+
+
+def test_two_people_side_by_side_in_one_cluster_are_split_by_their_heads() -> None:
+    """Shoulder to shoulder, two people make one cluster narrower than max_width_m (0.9 m):
+    without the head rule it is one person between them; with it, one per head."""
+    left, right = _person(-0.225, 3.5, 1.80), _person(0.225, 3.5, 1.70)
+    rgb, depth, K = scene([*left, *right], 0.0)
+    found = {}
+    for separation in (0.0, DepthParams().head_separation_m):
+        det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, head_separation_m=separation))
+        for _ in range(2):
+            boxes, _ = det.detect(rgb, depth, K)
+        found[separation] = (boxes, np.sort(det.heights))
+    assert len(found[0.0][0]) == 1  # without the rule
+    boxes, heights = found[DepthParams().head_separation_m]
+    assert len(boxes) == 2
+    np.testing.assert_allclose(heights, [1.70, 1.80], atol=0.08)
+    truth = np.array([expected_box(b, K, 0.0) for b in (left[0], right[0])])  # the bodies' boxes
+    assert iou_matrix(boxes, truth).max(axis=0).min() > 0.5, iou_matrix(boxes, truth)
+
+
+def test_a_flat_topped_wall_end_is_not_split_into_heads() -> None:
+    """A partition's top has points far apart at the same height but no dip between them:
+    one cluster, no heads, and (being flat) no person; a person beside it is still found."""
+    wall = Block(-1.0, 3.5, 0.6, 1.9, 0.05)  # 0.6 m wide, thin, facing the camera
+    person = _person(0.9, 4.5, 1.75)
+    rgb, depth, K = scene([wall, *person], 0.0)
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT))
+    seen: list[int] = []
+    real = det._heads
+
+    def counting(*args: np.ndarray) -> np.ndarray:
+        heads = real(*args)
+        seen.append(len(heads))
+        return heads
+
+    det._heads = counting  # type: ignore[method-assign]
+    boxes, _ = det.detect(rgb, depth, K)
+    assert sorted(seen) == [1, 1]  # the wall's top and the person's head: one peak each
+    assert len(boxes) == 1
+    assert iou_matrix(boxes, expected_box(person[0], K, 0.0)[None]).max() > 0.5
+
+
 def test_sitting_people_need_a_lower_height_range() -> None:
     rgb, depth, K = scene([PEOPLE[0], SITTING], 10.0)
     default = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=10.0))

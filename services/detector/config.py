@@ -95,6 +95,11 @@ class DepthConfig(_Section):
                                          description="a cluster whose lowest points are hidden by something "
                                                      "nearer (a sofa, a table) need only come down to this, e.g. 1.05 "
                                                      "(0: off, the default)")
+    head_separation_m: float = Field(default=_DEPTH.head_separation_m, ge=0.0, le=2.0,
+                                     description="a cluster's highest points (above min_height_m) this far apart are "
+                                                 "separate heads, one person each (0: off)")
+    head_dip_m: float = Field(default=_DEPTH.head_dip_m, ge=0.0, le=1.0,
+                              description="... if the cluster dips this much between them (a neck and shoulders)")
     occluder_gap_m: float = Field(default=_DEPTH.occluder_gap_m, gt=0.0, le=2.0,
                                   description="how much nearer the depth just below a point must be to hide it")
     plane_window_m: float = Field(default=_GROUND.window_m, gt=0.0,

@@ -16,6 +16,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from scipy.ndimage import label
 from scipy.spatial import cKDTree
 
 from services.detector.core.boxes import DetectorError, as_rgb, clip_boxes, empty_result
@@ -64,6 +65,16 @@ def cluster_points(points: np.ndarray, tolerance: float) -> tuple[int, np.ndarra
     graph = coo_matrix((np.ones(len(pairs), np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     count, labels = connected_components(graph, directed=False)
     return int(count), labels
+
+
+def _linked(cells: np.ndarray, tops: np.ndarray, a: int, b: int, level: float) -> bool:
+    """Whether points ``a`` and ``b`` lie in one 8-connected region of the floor grid cells
+    (``cells`` (N, 2) int) whose highest point (``tops`` (N,)) reaches ``level``."""
+    shape = tuple(cells.max(axis=0) + 1)
+    grid = np.full(shape, -np.inf)
+    np.maximum.at(grid, (cells[:, 0], cells[:, 1]), tops)
+    regions, _ = label(grid >= level, structure=np.ones((3, 3), bool))
+    return bool(regions[tuple(cells[a])] == regions[tuple(cells[b])])
 
 
 class DepthClusterDetector:
@@ -220,9 +231,17 @@ class DepthClusterDetector:
         """Member masks (N,) bool of the person-like clusters, splitting over-wide ones."""
         p = self.params
         out = []
+        ground = self.plane.project(points)
         for label in range(count):
             member = labels == label
             if member.sum() < p.min_cluster_points:
+                continue
+            heads = self._heads(member, points, ground, height)
+            if len(heads) >= 2:  # two people side by side, or a wall's top: one part per head
+                owner = np.argmin(np.linalg.norm(ground[:, None, :] - heads[None, :, :], axis=2), axis=1)
+                close = np.linalg.norm(ground - heads[owner], axis=1) <= p.person_radius_m
+                out.extend(part for k in range(len(heads))
+                           if self._is_person(part := member & close & (owner == k), points, height, None, hidden))
                 continue
             if self._is_person(member, points, height, cut_low, hidden):
                 out.append(member)
@@ -235,7 +254,6 @@ class DepthClusterDetector:
             upper = member & (height > p.split_height_m)
             idx = np.flatnonzero(upper)
             n_up, up_labels = cluster_points(points[idx], p.cluster_tolerance_m)
-            ground = self.plane.project(points)
             for sub in range(n_up):
                 part = idx[up_labels == sub]
                 if len(part) < max(3, p.min_cluster_points // 3):
@@ -245,6 +263,38 @@ class DepthClusterDetector:
                 if self._is_person(near, points, height, None, hidden):
                     out.append(near)
         return out
+
+    def _heads(self, member: np.ndarray, points: np.ndarray, ground: np.ndarray, height: np.ndarray) -> np.ndarray:
+        """Floor positions (H, 3) of the cluster's heads: greedily, its highest points above
+        ``min_height_m`` with no higher head within ``head_separation_m`` (none when off)."""
+        p = self.params
+        top = np.flatnonzero(member & (height >= p.min_height_m))
+        if p.head_separation_m <= 0 or len(top) == 0 or float(height[top].max()) > p.max_height_m:
+            return np.zeros((0, 3))
+        order = top[np.argsort(-height[top], kind="stable")]
+        peaks = []  # greedy: the highest point left, then none within head_separation_m of it
+        while len(order):
+            peaks.append(order[0])
+            order = order[np.linalg.norm(ground[order] - ground[order[0]], axis=1) >= p.head_separation_m]
+        if len(peaks) < 2:
+            return ground[peaks]
+        # A head is a peak: the cluster dips (a neck and shoulders, or a gap) between it and
+        # every higher head, i.e. on a floor grid of cluster_tolerance_m cells they are apart
+        # among the cells whose top reaches the lower one less head_dip_m (seed 002's height
+        # map). The flat top of a wall or of a box has peaks but no dip.
+        mine = np.flatnonzero(member)
+        normal = self.plane.normal
+        e1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        uv = ground[mine] @ np.column_stack([e1, np.cross(normal, e1)])  # (M, 2) on the floor
+        cells = np.floor((uv - uv.min(axis=0)) / p.cluster_tolerance_m).astype(int)
+        at = np.searchsorted(mine, peaks)  # the peaks' rows in cells
+        heads = [0]
+        for n in range(1, len(peaks)):
+            if not any(_linked(cells, height[mine], at[n], at[k], min(height[peaks[n]], height[peaks[k]]) - p.head_dip_m)
+                       for k in heads):
+                heads.append(n)
+        return ground[[peaks[k] for k in heads]]
 
     def _project(self, points: np.ndarray, K: np.ndarray) -> np.ndarray | None:
         """Image box (4,) of ``points`` (N, 3), padded by half a voxel; None if behind the camera."""

@@ -47,6 +47,14 @@ class DepthParams:
     split_height_m: float = 1.05
     #: Radius on the ground plane around a split part's centre that belongs to that person.
     person_radius_m: float = 0.4
+    #: Heads (seed 002's height-map maxima): a cluster's highest points above ``min_height_m``
+    #: at least this far apart on the floor (m) are separate heads. A cluster with two or more
+    #: is split, each point going to the nearest head within ``person_radius_m``: two people
+    #: side by side, merged into one cluster below their heads. A person's shoulders lie
+    #: within about 0.25 m of their head's centre. 0: off.
+    head_separation_m: float = 0.4
+    #: ... and between two heads the cluster must dip this much (m) below the lower one.
+    head_dip_m: float = 0.15
     #: A floor from the robot's transforms (``detect(floor=...)``) is refined on the depth only
     #: this far (deg, m); a refinement that strays further is dropped for the given floor.
     floor_max_deg: float = 3.0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -133,6 +134,39 @@ def test_max_speed_waits_for_the_detector_so_it_sees_every_frame(memory_bus: Mem
         stop.set()
         thread.join(timeout=5.0)
     assert seen == list(range(20))
+    assert "detector_timeouts" not in service.counters.extra
+
+
+def test_max_speed_waits_for_both_cameras_detectors(memory_bus: MemoryBus) -> None:
+    """With a back camera, --max paces on both detectors: the slower one sees every frame too."""
+    seen: dict[str, list[int]] = {"head": [], "back": []}
+    stop = threading.Event()
+
+    def detector(camera: str, delay_s: float) -> None:
+        side = memory_bus.transport()
+        frames = side.subscribe(KEYS.frames(camera), RGBDFrame, FRAMES)
+        out = side.publisher(KEYS.detections(camera), Detections, RELIABLE)
+        while not stop.is_set():
+            got = frames.recv(timeout=0.1)
+            if got is not None:
+                time.sleep(delay_s)
+                seen[camera].append(got.msg.header.seq)
+                out.put(Detections(header=Header(**got.msg.header.model_dump())))
+
+    threads = [threading.Thread(target=detector, args=(c, d), daemon=True) for c, d in (("head", 0.0), ("back", 0.03))]
+    for thread in threads:
+        thread.start()
+    time.sleep(0.2)  # both subscribed
+    service = SimulatorService(memory_bus.transport(), KEYS,
+                               _config(max_speed=True, max_wait_s=10.0, duration_s=2.0, back_camera="back"))
+    try:
+        with Shutdown() as shutdown:
+            service.run(shutdown)
+    finally:
+        stop.set()
+        for thread in threads:
+            thread.join(timeout=5.0)
+    assert seen["head"] == list(range(20)) and seen["back"] == list(range(20))  # FRAMES keeps only the newest
     assert "detector_timeouts" not in service.counters.extra
 
 

@@ -69,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         dest="max_speed",
         action="store_true",
         default=None,
-        help="publish each frame once the detector has answered the previous one",
+        help="publish each frame once the detector (each camera's, with --back-camera) has answered the previous one",
     )
     parser.add_argument("--alike", action="store_true", default=None, help="dress the first two people alike")
     parser.add_argument(

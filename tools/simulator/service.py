@@ -9,7 +9,7 @@ from typing import Any
 from common.keys import COMMANDS, FRAMES, RELIABLE, Keys
 from common.runtime import Counters, Shutdown
 from common.schemas import Detections, HeadCommand, Message, PeopleGroundTruth, RGBDFrame, TransformBatch
-from common.transport import Publisher, Transport
+from common.transport import Publisher, Subscription, Transport
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.groundtruth import GroundTruthCsv
 from tools.simulator.source import SimulatedStream
@@ -51,9 +51,11 @@ class SimulatorService:
             keys.tf_static(): transport.publisher(keys.tf_static(), TransformBatch, RELIABLE),
             keys.groundtruth(): transport.publisher(keys.groundtruth(), PeopleGroundTruth, RELIABLE),
         }
-        self._detections = (
-            transport.subscribe(keys.detections(config.camera), Detections, RELIABLE) if config.max_speed else None
-        )
+        # --max: each camera's detector (the head's, and the back camera's if there is one)
+        self._detections: dict[str, Subscription[Detections]] = {
+            camera: transport.subscribe(keys.detections(camera), Detections, RELIABLE)
+            for camera in self.stream.cameras
+        } if config.max_speed else {}
         self._head = transport.subscribe(keys.head_command(), HeadCommand, COMMANDS) if config.head_control else None
 
     @property
@@ -79,31 +81,35 @@ class SimulatorService:
         return pairs
 
     def _wait_for_detector(self, seq: int, shutdown: Shutdown) -> None:
-        """--max: wait until the detector has published the detections of frame ``seq``.
+        """--max: wait until the detector of every camera that has one listening has published
+        the detections of frame ``seq``.
 
-        After ``GIVE_UP`` timeouts in a row the detector is taken as absent and frames go out
-        unpaced, until it answers again.
+        After ``GIVE_UP`` timeouts in a row the detectors are taken as absent and frames go out
+        unpaced, until one answers again.
         """
-        assert self._detections is not None
-        if not self.publishers[self.keys.frames(self.config.camera)].has_subscribers():
+        waiting = {camera: sub for camera, sub in self._detections.items()
+                   if self.publishers[self.keys.frames(camera)].has_subscribers()}
+        if not waiting:
             return
         if self._timeouts_in_row >= self.GIVE_UP:
-            if self._detections.try_recv() is None:
+            if all(sub.try_recv() is None for sub in waiting.values()):
                 return
             self._timeouts_in_row = 0
         deadline = time.monotonic() + self.config.max_wait_s
-        while not shutdown.is_set():
+        while waiting and not shutdown.is_set():
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 self.counters.count("detector_timeouts")
                 self._timeouts_in_row += 1
                 if self._timeouts_in_row == self.GIVE_UP:
-                    log.warning("no detections for %d frames: unpaced until the detector answers", self.GIVE_UP)
+                    log.warning("no detections from %s for %d frames: unpaced until the detector answers",
+                                ", ".join(waiting), self.GIVE_UP)
                 return
-            got = self._detections.recv(timeout=min(remaining, 0.1))
-            if got is not None and got.msg.header.seq >= seq:
-                self._timeouts_in_row = 0
-                return
+            for camera, sub in list(waiting.items()):
+                got = sub.recv(timeout=min(remaining, 0.1 / len(waiting)))
+                if got is not None and got.msg.header.seq >= seq:
+                    del waiting[camera]
+        self._timeouts_in_row = 0
 
     def run(self, shutdown: Shutdown) -> None:
         """Publish until the scenario ends or ``shutdown`` is set."""
@@ -119,7 +125,7 @@ class SimulatorService:
                     self.counters.count("late_frames")
             seq = self.seq
             self.step()
-            if self._detections is not None:
+            if self._detections:
                 self._wait_for_detector(seq, shutdown)
             elapsed = time.monotonic() - wall0
             if elapsed > 0:
@@ -129,6 +135,6 @@ class SimulatorService:
     def close(self) -> None:
         for pub in self.publishers.values():
             pub.close()
-        for sub in (self._detections, self._head):
+        for sub in (*self._detections.values(), self._head):
             if sub is not None:
                 sub.close()

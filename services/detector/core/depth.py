@@ -16,7 +16,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
-from scipy.ndimage import label
+from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from services.detector.core.boxes import DetectorError, as_rgb, clip_boxes, empty_result
@@ -73,7 +73,7 @@ def _linked(cells: np.ndarray, tops: np.ndarray, a: int, b: int, level: float) -
     shape = tuple(cells.max(axis=0) + 1)
     grid = np.full(shape, -np.inf)
     np.maximum.at(grid, (cells[:, 0], cells[:, 1]), tops)
-    regions, _ = label(grid >= level, structure=np.ones((3, 3), bool))
+    regions, _ = ndimage.label(grid >= level, structure=np.ones((3, 3), bool))
     return bool(regions[tuple(cells[a])] == regions[tuple(cells[b])])
 
 

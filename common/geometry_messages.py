@@ -5,12 +5,17 @@ Kept apart from :mod:`common.geometry` so that the geometry stays free of pydant
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any, Iterable
 
 import numpy as np
 
-from common.geometry import PinholeCamera, RigidTransform, TransformBuffer
+from common.geometry import FrameTreeError, PinholeCamera, RigidTransform, TransformBuffer
 from common.schemas import CameraInfo, Header, Transform, TransformBatch
+
+if TYPE_CHECKING:
+    from common.ratelog import RateLimitedLog
+    from common.runtime import Counters
+    from common.transport import Subscription
 
 __all__ = [
     "add_batch",
@@ -18,6 +23,7 @@ __all__ = [
     "batch_from_ros",
     "camera_from_info",
     "rigid_from_msg",
+    "take_transforms",
     "transform_from_ros",
     "transform_msg",
 ]
@@ -67,6 +73,21 @@ def add_batch(buffer: TransformBuffer, batch: TransformBatch, static: bool = Fal
     for msg in batch.transforms:
         add_transform(buffer, msg, static)
     return len(batch.transforms)
+
+
+def take_transforms(buffer: TransformBuffer, subscriptions: Iterable[tuple[Subscription[TransformBatch], bool]],
+                    counters: Counters, log: RateLimitedLog) -> None:
+    """A node's transform input: drain each ``(subscription, static)`` pair (``tf_static``
+    first) into ``buffer``. A transform that breaks the frame tree is counted
+    (``transforms_rejected``) and logged; the others of its batch are kept."""
+    for sub, static in subscriptions:
+        while (got := sub.try_recv()) is not None:
+            for msg in got.msg.transforms:
+                try:
+                    add_transform(buffer, msg, static=static)
+                except FrameTreeError as exc:
+                    counters.count("transforms_rejected")
+                    log.warning("tf_tree", "rejected transform from %s: %s", got.key, exc)
 
 
 def transform_from_ros(ts: Any, static: bool = False) -> Transform:

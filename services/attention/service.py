@@ -24,8 +24,8 @@ import time
 
 import numpy as np
 
-from common.geometry import FrameTreeError, PinholeCamera, RigidTransform, TransformBuffer, TransformError
-from common.geometry_messages import add_transform, camera_from_info
+from common.geometry import PinholeCamera, RigidTransform, TransformBuffer, TransformError
+from common.geometry_messages import camera_from_info, take_transforms
 from common.keys import COMMANDS, FRAMES, RELIABLE, Keys
 from common.node import Node
 from common.ratelog import RateLimitedLog
@@ -81,14 +81,7 @@ class AttentionService(Node):
 
     # ------------------------------------------------------------------ inputs
     def _take_transforms(self) -> None:
-        for sub, static in ((self.sub_tf_static, True), (self.sub_tf, False)):
-            while (got := sub.try_recv()) is not None:
-                for msg in got.msg.transforms:
-                    try:
-                        add_transform(self.buffer, msg, static=static)
-                    except FrameTreeError as exc:
-                        self.counters.count("transforms_rejected")
-                        self._log.warning("tf_tree", "rejected transform from %s: %s", got.key, exc)
+        take_transforms(self.buffer, ((self.sub_tf_static, True), (self.sub_tf, False)), self.counters, self._log)
 
     def _take_camera_info(self, now: float) -> None:
         if now - self._last_info_at < self.config.camera_info_period_s:

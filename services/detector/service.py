@@ -19,8 +19,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from common.geometry import FrameTreeError, TransformBuffer, TransformError
-from common.geometry_messages import add_transform
+from common.geometry import TransformBuffer, TransformError
+from common.geometry_messages import take_transforms
 from common.keys import FRAMES, RELIABLE, Keys
 from common.node import Node
 from common.ratelog import RateLimitedLog
@@ -73,14 +73,7 @@ class DetectorService(Node):
 
     def _take_transforms(self) -> None:
         assert self.buffer is not None
-        for sub, static in ((self.sub_tf_static, True), (self.sub_tf, False)):
-            while (got := sub.try_recv()) is not None:
-                for msg in got.msg.transforms:
-                    try:
-                        add_transform(self.buffer, msg, static=static)
-                    except FrameTreeError as exc:
-                        self.counters.count("transforms_rejected")
-                        self._log.warning("tf_tree", "rejected transform from %s: %s", got.key, exc)
+        take_transforms(self.buffer, ((self.sub_tf_static, True), (self.sub_tf, False)), self.counters, self._log)
 
     def floor(self, frame: RGBDFrame) -> Plane | None:
         """The floor's plane in ``frame``'s camera frame from the transforms, or None (counted)."""

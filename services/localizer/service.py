@@ -30,13 +30,12 @@ import numpy as np
 
 from common.geometry import (
     ExtrapolationError,
-    FrameTreeError,
     MissingTransformError,
     PinholeCamera,
     RigidTransform,
     TransformBuffer,
 )
-from common.geometry_messages import add_transform, camera_from_info
+from common.geometry_messages import camera_from_info, take_transforms
 from common.join import Dropped, Joined, Joiner
 from common.keys import FRAMES, RELIABLE, Keys
 from common.node import Node
@@ -116,14 +115,7 @@ class LocalizerService(Node):
     # ------------------------------------------------------------------ inputs
 
     def _take_transforms(self) -> None:
-        for sub, static in ((self.sub_tf_static, True), (self.sub_tf, False)):
-            while (got := sub.try_recv()) is not None:
-                for msg in got.msg.transforms:  # one bad edge must not cost the others of its batch
-                    try:
-                        add_transform(self.buffer, msg, static=static)
-                    except FrameTreeError as exc:
-                        self.counters.count("transforms_rejected")
-                        self._log.warning("tf_tree", "rejected transform from %s: %s", got.key, exc)
+        take_transforms(self.buffer, ((self.sub_tf_static, True), (self.sub_tf, False)), self.counters, self._log)
 
     def _take_frames(self, now: float) -> None:
         while (got := self.sub_frames.try_recv()) is not None:

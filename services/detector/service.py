@@ -71,15 +71,11 @@ class DetectorService(Node):
         floor = f", floor from {self.config.floor_frame} (tf)" if self.buffer is not None else ""
         return f"detector {self.detector.name} on {self.frames.key}{floor}"
 
-    def _take_transforms(self) -> None:
-        assert self.buffer is not None
-        take_transforms(self.buffer, ((self.sub_tf_static, True), (self.sub_tf, False)), self.counters, self._log)
-
     def floor(self, frame: RGBDFrame) -> Plane | None:
-        """The floor's plane in ``frame``'s camera frame from the transforms, or None (counted)."""
+        """The floor's plane in ``frame``'s camera frame from the transforms (taken in by
+        :meth:`poll` before the frame), or None (counted)."""
         if self.buffer is None:
             return None
-        self._take_transforms()
         camera = frame.header.frame_id or frame.camera_info.header.frame_id
         try:
             cam_from_floor = self.buffer.lookup(camera, self.config.floor_frame, frame.header.stamp_ns)
@@ -95,7 +91,7 @@ class DetectorService(Node):
     def poll(self, now: float) -> list[Any]:
         """Process the newest frame, if one arrived; returns what was published."""
         if self.buffer is not None:
-            self._take_transforms()
+            take_transforms(self.buffer, ((self.sub_tf_static, True), (self.sub_tf, False)), self.counters, self._log)
         got = self.frames.try_recv()
         self.counters.gauge("dropped_stale", self.frames.stats.dropped)
         if got is None:

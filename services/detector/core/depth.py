@@ -14,9 +14,9 @@ import logging
 from dataclasses import replace
 
 import numpy as np
+from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
-from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from services.detector.core.boxes import DetectorError, as_rgb, clip_boxes, empty_result
@@ -237,17 +237,22 @@ class DepthClusterDetector:
             if member.sum() < p.min_cluster_points:
                 continue
             heads = self._heads(member, points, ground, height)
-            if len(heads) >= 2:  # two people side by side, or a wall's top: one part per head
-                owner = np.argmin(np.linalg.norm(ground[:, None, :] - heads[None, :, :], axis=2), axis=1)
-                close = np.linalg.norm(ground - heads[owner], axis=1) <= p.person_radius_m
-                out.extend(part for k in range(len(heads))
-                           if self._is_person(part := member & close & (owner == k), points, height, None, hidden))
+            if len(heads) >= 2:  # two people side by side: one part per head
+                mine = np.flatnonzero(member)
+                to_head = np.linalg.norm(ground[mine, None, :] - heads[None, :, :], axis=2)  # (M, H)
+                owner = np.argmin(to_head, axis=1)
+                close = to_head[np.arange(len(mine)), owner] <= p.person_radius_m
+                for k in range(len(heads)):
+                    part = np.zeros_like(member)
+                    part[mine[close & (owner == k)]] = True
+                    if self._is_person(part, points, height, None, hidden):
+                        out.append(part)
                 continue
             if self._is_person(member, points, height, cut_low, hidden):
                 out.append(member)
                 continue
             top = float(height[member].max())
-            wide = np.ptp(self.plane.project(points[member]), axis=0).max() > p.max_width_m
+            wide = np.ptp(ground[member], axis=0).max() > p.max_width_m
             if not (wide and p.min_height_m <= top <= p.max_height_m and self._grounded(member, height, None, hidden)):
                 continue
             # Over-wide: split by the parts above furniture height (heads and shoulders).

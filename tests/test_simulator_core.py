@@ -11,7 +11,7 @@ from tools.simulator.core.body import Ellipsoids, PersonPose, body_ellipsoids
 from common.poses import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
 from tools.simulator.core.motion import WALK_RADIUS, Action, Walker
 from tools.simulator.core.render import Renderer, default_camera, depth_sigma
-from tools.simulator.core.robot import HeadMotion, Odometry, Robot, _whole_in_sight, follow_trajectory, static_trajectory
+from tools.simulator.core.robot import HeadMotion, Odometry, Robot, whole_in_sight, follow_trajectory, static_trajectory
 from tools.simulator.core.scenarios import SCENARIOS, World, build_world
 from tools.simulator.core.simulation import Simulation
 from tools.simulator.core.wardrobe import OUTFITS
@@ -158,15 +158,15 @@ def test_the_following_base_keeps_its_person_in_sight_and_clear_of_walls(seed: i
     assert gap.max() < 2.6 and gap.min() > 0.6  # it keeps up, and makes way when they walk back at it
     in_sight = [apt.line_of_sight(b[:2], p) for b, p in zip(base, person)]
     assert np.mean(in_sight) > 0.95  # the trail-only follower saw them 75 % of the time (walls, door frames)
-    whole = [_whole_in_sight(b[:2], p, apt) for b, p in zip(base, person)]
+    whole = [whole_in_sight(b[:2], p, apt) for b, p in zip(base, person)]
     assert np.mean(whole) > 0.95  # 0.89-0.90 when it stopped on seeing their middle past a door frame
 
 
 def test_a_person_half_behind_a_door_frame_is_not_wholly_in_sight() -> None:
     apt = default_apartment()  # the door in the partition (x = 6.0-6.12) spans y = 3.6-4.8
     base, person = np.array([4.5, 4.6]), np.array([7.0, 3.2])
-    assert apt.line_of_sight(base, person) and not _whole_in_sight(base, person, apt)  # a shoulder behind the frame
-    assert _whole_in_sight(np.array([4.5, 4.2]), np.array([7.0, 4.2]), apt)  # straight through the door
+    assert apt.line_of_sight(base, person) and not whole_in_sight(base, person, apt)  # a shoulder behind the frame
+    assert whole_in_sight(np.array([4.5, 4.2]), np.array([7.0, 4.2]), apt)  # straight through the door
 
 
 def test_the_following_base_cuts_the_corner_through_a_door() -> None:

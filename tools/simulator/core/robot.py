@@ -24,6 +24,7 @@ __all__ = [
     "follow_trajectory",
     "loop_trajectory",
     "static_trajectory",
+    "whole_in_sight",
 ]
 
 ROBOT_RADIUS = 0.35
@@ -101,7 +102,7 @@ def loop_trajectory(
 _HALF_WIDTH_M = 0.25
 
 
-def _whole_in_sight(p: np.ndarray, q: np.ndarray, apartment: Apartment) -> bool:
+def whole_in_sight(p: np.ndarray, q: np.ndarray, apartment: Apartment) -> bool:
     """Whether a person at ``q`` (2,) is in sight from ``p`` across their whole width."""
     d = q - p
     n = float(np.linalg.norm(d))
@@ -165,7 +166,7 @@ def follow_trajectory(
         p = np.array([x, y])
         seen = apartment.line_of_sight(p, q)
         dist = float(np.linalg.norm(q - p))
-        whole = seen and _whole_in_sight(p, q, apartment)
+        whole = seen and whole_in_sight(p, q, apartment)
         # the farthest trail point drivable in a straight line (scanning back from the newest)
         for i in range(len(trail) - 1, carrot[0] - 1, -1):
             if apartment.segment_free(p, trail[i], radius):

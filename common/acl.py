@@ -1,7 +1,8 @@
 """Least-privilege Zenoh access control for the secure deployment, derived from :mod:`common.keys`.
 
 Each role (a user name of Zenoh's user/password authentication, see
-:data:`common.certs.ROLES`) may publish, subscribe, serve, ask and declare liveliness on
+:data:`common.certs.ROLES`: one per node of :data:`common.registry.NODES`, and the parties that
+are not nodes) may publish, subscribe, serve, ask and declare liveliness on
 its own keys only; the routers deny everything else (``default_permission: deny``). The
 routers' ``access_control`` sections in ``deploy/secure/`` are this module's output
 (``perception certs --print-acl``), and a test keeps them equal.
@@ -21,13 +22,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from common.keys import DEFAULT_PREFIX, STREAMS, Keys
+from common.keys import DEFAULT_PREFIX, Keys
+from common.registry import NODES, NodeEntry, node
 
 __all__ = ["Grant", "access_control", "grants"]
 
 #: The common name of the routers' certificate (:func:`common.certs.make_certs`).
 ROUTER_COMMON_NAME = "router"
 _ROBOT = "robot-name"  # stands for any robot, replaced by '*' in the rules
+#: The roles that are not one node's own: the routers, the sensors, the tools and the people.
+ROLES_NOT_NODES: tuple[str, ...] = ("router", "sensors", "monitor", "consumer", "operator", "launcher")
 
 
 @dataclass(frozen=True)
@@ -47,28 +51,32 @@ class Grant:
     everything: bool = False
 
 
-def _service(k: Keys, name: str, publish: tuple[str, ...] = (), subscribe: tuple[str, ...] = (),
-             serve: tuple[str, ...] = ()) -> Grant:
-    """A node run by :func:`common.node.run_node`: its streams plus its own status and liveliness."""
-    status = k.status(name, "*")
-    return Grant(publish=(*publish, status), subscribe=subscribe, serve=(*serve, status), token=(k.alive(name, "*"),),
-                 answers=(k.status(),))
+def _node_grant(k: Keys, entry: NodeEntry) -> Grant:
+    """A node run by :func:`common.node.run_node`: its streams as :data:`common.registry.NODES`
+    declares them, plus its own status and liveliness."""
+    status = k.status(entry.name, "*")
+
+    def patterns(streams: tuple[str, ...]) -> tuple[str, ...]:
+        return tuple(k.pattern(s) for s in streams)
+
+    return Grant(publish=(*patterns(entry.publishes), status), subscribe=patterns(entry.subscribes),
+                 serve=(*patterns(entry.serves), status), token=(k.alive(entry.name, "*"),),
+                 watch=patterns(entry.watches), answers=(k.status(),))
 
 
 def grants(prefix: str = DEFAULT_PREFIX) -> dict[str, Grant]:
-    """Role -> grant, with keys of any robot under ``prefix``."""
+    """Role -> grant, with keys of any robot under ``prefix``.
+
+    Every node of :data:`common.registry.NODES` logs in under its own name and is granted
+    exactly the streams its entry declares.
+    """
     k = Keys(robot=_ROBOT, prefix=prefix)
     sensors = ("simulator", "replay", "camera")
-    # The tracker's queryables, as common.keys lists them (query/track, ...).
-    tracker_queries = tuple(f"{k.base}/{s.template}" for s in STREAMS if s.kind == "query" and s.publishers.startswith("tracker"))
-    return {
+    # The tracker's queryables, as the registry lists them (query/track, ...).
+    tracker_queries = tuple(k.pattern(s) for s in node("tracker").serves)
+    out = {
         "router": Grant(everything=True),
-        "detector": _service(k, "detector", publish=(k.detections("*"),), subscribe=(k.frames("*"),)),
-        "localizer": _service(k, "localizer", publish=(k.localized("*"),),
-                              subscribe=(k.frames("*"), k.detections("*"), k.tf(), k.tf_static())),
-        "embedder": _service(k, "embedder", publish=(k.embeddings("*"),), subscribe=(k.frames("*"), k.detections("*"))),
-        "tracker": _service(k, "tracker", publish=(k.tracks(),), subscribe=(k.localized("*"), k.embeddings("*")),
-                            serve=tracker_queries),
+        **{entry.name: _node_grant(k, entry) for entry in NODES},
         # The camera driver, the simulator or a replay: the robot's sensor streams (the
         # simulator reads detections to pace itself) and their own status.
         "sensors": Grant(publish=(k.frames("*"), k.tf(), k.tf_static(), k.groundtruth(), *(k.status(s, "*") for s in sensors)),
@@ -83,6 +91,7 @@ def grants(prefix: str = DEFAULT_PREFIX) -> dict[str, Grant]:
         # perception launch reports services that stopped for good under their own status key.
         "launcher": Grant(publish=(k.status(),), serve=(k.status(),)),
     }
+    return out
 
 
 def _any_robot(key: str, prefix: str) -> str:

@@ -26,13 +26,13 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
-from common.acl import ROUTER_COMMON_NAME
+from common.acl import ROLES_NOT_NODES, ROUTER_COMMON_NAME
+from common.registry import NODES
 
 __all__ = ["CertsError", "DEFAULT_HOSTS", "ROLES", "make_certs", "issue_certificate", "make_ca"]
 
 #: Who gets a user name and password: each service, the other router, the tools.
-ROLES: tuple[str, ...] = ("router", "detector", "localizer", "embedder", "tracker", "sensors", "monitor",
-                          "consumer", "operator", "launcher")
+ROLES: tuple[str, ...] = tuple(dict.fromkeys(("router", *(n.name for n in NODES), *ROLES_NOT_NODES)))
 #: Names the router certificate always holds, so that local clients can verify it.
 DEFAULT_HOSTS: tuple[str, ...] = ("localhost", "127.0.0.1")
 _CURVE = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]

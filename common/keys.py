@@ -5,7 +5,7 @@ version segment changes only with an incompatible schema change, so old and new
 services never read each other's payloads by mistake.
 
 :data:`STREAMS` describes each stream: message type, publisher, subscribers and delivery
-policy. The README's key table is generated from it (``perception keys --markdown``).
+policy; who among the nodes publishes and subscribes comes from :data:`common.registry.NODES`. The README's key table is generated from it (``perception keys --markdown``).
 """
 
 from __future__ import annotations
@@ -13,7 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
-__all__ = ["COMMANDS", "DEFAULT_PREFIX", "DEFAULT_ROBOT", "STREAMS", "AliveKey", "Delivery", "Keys", "Stream", "validate_chunk"]
+from common.registry import NODES
+
+__all__ = ["COMMANDS", "DEFAULT_PREFIX", "DEFAULT_ROBOT", "STREAMS", "AliveKey", "Delivery", "Keys", "Stream", "stream", "validate_chunk"]
 
 DEFAULT_PREFIX = "pp"
 DEFAULT_ROBOT = "robot"
@@ -64,36 +66,67 @@ COMMANDS = Delivery(latest=True, queue=1, congestion="drop", express=True)
 
 @dataclass(frozen=True)
 class Stream:
-    """One kind of key: its template under the base key and who uses it."""
+    """One kind of key: its template under the base key and who uses it.
+
+    Who publishes and who subscribes among the project's nodes comes from
+    :data:`common.registry.NODES`; ``others_publish`` and ``others_subscribe`` name the parties
+    that are not nodes (a camera driver, the simulator, navigation).
+    """
 
     name: str
     template: str
     message: str
-    publishers: str
-    subscribers: str
+    others_publish: str
+    others_subscribe: str
     delivery: Delivery | None
     kind: Literal["pub/sub", "liveliness", "query"] = "pub/sub"
 
+    def published_by(self) -> tuple[str, ...]:
+        """The nodes that publish (or, for a query, serve) this stream."""
+        return tuple(n.name for n in NODES if self.name in n.publishes or self.name in n.serves)
+
+    def subscribed_by(self) -> tuple[str, ...]:
+        return tuple(n.name for n in NODES if self.name in n.subscribes or self.name in n.watches)
+
+    @property
+    def publishers(self) -> str:
+        return ", ".join(p for p in (*self.published_by(), self.others_publish) if p)
+
+    @property
+    def subscribers(self) -> str:
+        return ", ".join(p for p in (*self.subscribed_by(), self.others_subscribe) if p)
+
 
 STREAMS: tuple[Stream, ...] = (
-    Stream("frames", "frames/{camera}", "RGBDFrame", "camera driver, simulator, replay",
-           "detector, embedder (latest-only); localizer (FIFO of a few frames, to pair each with its detections)", FRAMES),
-    Stream("detections", "detections/{camera}", "Detections", "detector", "localizer, embedder", RELIABLE),
-    Stream("localized", "localized/{camera}", "LocalizedDetections", "localizer", "tracker", RELIABLE),
-    Stream("embeddings", "embeddings/{camera}", "Embeddings", "embedder", "tracker", RELIABLE),
-    Stream("tracks", "tracks", "Tracks", "tracker", "navigation, HRI, recorder", RELIABLE),
-    Stream("tf", "tf", "TransformBatch", "localization, odometry, replay", "localizer", RELIABLE),
-    Stream("tf_static", "tf_static", "TransformBatch", "robot description, replay", "localizer", RELIABLE),
-    Stream("groundtruth", "groundtruth", "PeopleGroundTruth", "simulator, replay", "perception demo, evaluation, recorder", RELIABLE),
-    Stream("status", "status/{service}/{instance}", "ServiceStatus", "every service (1 Hz, and on query)", "perception status, monitors", STATUS),
-    Stream("alive", "alive/{service}/{instance}", "liveliness token", "every service", "perception status, launcher", None, "liveliness"),
-    Stream("track_query", "query/track", "query `?id=K` → TrackState", "tracker (queryable)", "any client", None, "query"),
-    Stream("forget_query", "query/forget", "query `?id=K` or `?all=1` → ForgetReply", "tracker (queryable)",
-           "perception forget", None, "query"),
-    Stream("head_command", "head/command", "HeadCommand", "attention", "the head's driver, simulator", COMMANDS),
-    Stream("attention_query", "query/attention", "query `?target=K`, `nearest`, `lock` or `none` (none: the state) → AttentionReply",
-           "attention (queryable)", "perception look, HRI", None, "query"),
+    Stream("frames", "frames/{camera}", "RGBDFrame", "camera driver, simulator, replay", "", FRAMES),
+    Stream("detections", "detections/{camera}", "Detections", "", "simulator (paces itself with --max)", RELIABLE),
+    Stream("localized", "localized/{camera}", "LocalizedDetections", "", "", RELIABLE),
+    Stream("embeddings", "embeddings/{camera}", "Embeddings", "", "", RELIABLE),
+    Stream("tracks", "tracks", "Tracks", "", "navigation, HRI, recorder", RELIABLE),
+    Stream("tf", "tf", "TransformBatch", "localization, odometry, simulator, replay", "", RELIABLE),
+    Stream("tf_static", "tf_static", "TransformBatch", "robot description, simulator, replay", "", RELIABLE),
+    Stream("groundtruth", "groundtruth", "PeopleGroundTruth", "simulator, replay", "perception demo, evaluation, recorder",
+           RELIABLE),
+    Stream("status", "status/{service}/{instance}", "ServiceStatus", "every node (1 Hz, and on query)",
+           "perception status, doctor, monitors", STATUS),
+    Stream("alive", "alive/{service}/{instance}", "liveliness token", "every node", "perception status, launcher",
+           None, "liveliness"),
+    Stream("track_query", "query/track", "query `?id=K` → TrackState", "", "any client", None, "query"),
+    Stream("forget_query", "query/forget", "query `?id=K` or `?all=1` → ForgetReply", "", "perception forget", None,
+           "query"),
+    Stream("head_command", "head/command", "HeadCommand", "", "the head's driver, simulator", COMMANDS),
+    Stream("attention_query", "query/attention",
+           "query `?target=K`, `nearest`, `lock` or `none` (none: the state) → AttentionReply", "",
+           "perception look, HRI", None, "query"),
 )
+
+
+def stream(name: str) -> Stream:
+    """The stream named ``name``; KeyError for an unknown one."""
+    for s in STREAMS:
+        if s.name == name:
+            return s
+    raise KeyError(f"no stream {name!r}")
 
 
 class AliveKey(NamedTuple):
@@ -181,6 +214,11 @@ class Keys:
     def attention_query(self) -> str:
         """Whom the attention node looks at: ``?target=K``, ``?target=nearest``, ``?target=lock``, ``?target=none``."""
         return self._join("query", "attention")
+
+    def pattern(self, stream_name: str) -> str:
+        """The key expression of every key of the stream ``stream_name`` (``frames/*``, ``status/*/*``)."""
+        template = stream(stream_name).template
+        return f"{self.base}/" + template.format(camera="*", service="*", instance="*")
 
     def all(self) -> str:
         return self._join("**")

@@ -9,6 +9,7 @@ import sys
 from types import ModuleType
 
 from common.cli_util import CliError, fail, setup_logging
+from common.registry import NODES
 
 #: name -> (module, one-line help). Each module has add_arguments(parser) and main(args) -> int,
 #: and may have a DESCRIPTION string for its --help.
@@ -20,20 +21,16 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 #: Packages whose ``commands`` module adds to COMMANDS (a ``COMMANDS`` dict of the same
-#: shape). Those modules only name modules, so ``perception --help`` stays fast.
+#: shape): every node of the registry, then the tools that are not nodes. Those modules only
+#: name modules, so ``perception --help`` stays fast.
 COMMAND_PACKAGES = (
-    "services.detector",
-    "services.localizer",
-    "services.embedder",
-    "services.tracker",
-    "services.attention",
+    *dict.fromkeys(n.package for n in NODES),
     "tools.evaluation",
     "tools.replay",
     "tools.simulator",
     "tools.launcher",
     "tools.demo",
     "tools.doctor",
-    "tools.viewer",
 )
 
 

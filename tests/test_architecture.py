@@ -16,9 +16,12 @@ from pathlib import Path
 
 import pytest
 
+from common.registry import NODES as REGISTRY
+
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("common", "services", "tools", "perception")
-NODES = ("detector", "localizer", "embedder", "tracker")
+#: The pipeline nodes (services/), from the registry: attention included.
+NODES = tuple(n.package.split(".")[1] for n in REGISTRY if n.package.startswith("services."))
 
 
 def test_import_contracts_hold() -> None:

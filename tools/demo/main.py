@@ -23,6 +23,7 @@ from pathlib import Path
 
 from common.cli_util import CliError
 from common.keys import Keys
+from common.registry import stages
 from common.router_process import free_port
 from common.runtime import Shutdown
 from common.transport import Transport
@@ -45,7 +46,7 @@ latency per stage; at the end the tracks are scored against the simulator's grou
 (objects, misses, FP, ID switches, recall errors, MOTP, MOTA). Ctrl-C ends the run early
 and still prints the table. Nothing is left running afterwards."""
 
-SERVICES = ("detector", "localizer", "embedder", "tracker")
+SERVICES = stages()
 _CLK_TCK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
 
 

@@ -16,19 +16,18 @@ from typing import Any
 
 import numpy as np
 
-from common.keys import STATUS, Delivery, Keys
-from common.schemas import Detections, Embeddings, LocalizedDetections, Message, ServiceStatus, Tracks
+from common import schemas
+from common.keys import STATUS, Delivery, Keys, stream
+from common.registry import pipeline
+from common.schemas import Message, ServiceStatus, Tracks
 from common.transport import Subscription, Transport
 
 __all__ = ["STAGES", "Monitor", "StageStats"]
 
-#: (stage name, key method, message type), in pipeline order.
-STAGES: tuple[tuple[str, str, type[Message]], ...] = (
-    ("detector", "detections", Detections),
-    ("localizer", "localized", LocalizedDetections),
-    ("embedder", "embeddings", Embeddings),
-    ("tracker", "tracks", Tracks),
-)
+#: (stage name, key method, message type), in pipeline order: each stage of the registry and
+#: the stream it publishes (the :class:`~common.keys.Keys` method of the same name).
+STAGES: tuple[tuple[str, str, type[Message]], ...] = tuple(
+    (n.name, n.publishes[0], getattr(schemas, stream(n.publishes[0]).message)) for n in pipeline())
 _WINDOW = 300
 
 

@@ -20,6 +20,7 @@ from common.geometry import TransformBuffer, TransformError
 from common.geometry_messages import add_batch
 from common.keys import RELIABLE, STATUS, Delivery, Keys
 from common.node import Node
+from common.registry import stages
 from common.runtime import Counters, Shutdown
 from common.schemas import (Detections, Embeddings, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
                             TransformBatch)
@@ -46,7 +47,7 @@ _EVERY_STATUS = replace(STATUS, wake=False)
 #: every stream at once.
 POLL_HZ = 20.0
 #: The stages whose rate and latency the page shows, in pipeline order ("camera": the frames).
-STAGES = ("camera", "detector", "localizer", "embedder", "tracker")
+STAGES = ("camera", *stages())
 #: A browser watches while it has asked for something within this long (s): images are
 #: encoded, and states built at the page's rate, only then.
 _IMAGE_INTEREST_S = 2.0

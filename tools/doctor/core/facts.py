@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
+from common.registry import stages
 
 __all__ = ["CHAIN", "NODES", "SYMBOLS", "Check", "EdgeFacts", "FrameFacts", "NodeFacts", "Observation", "Status",
            "StreamFacts"]
@@ -21,8 +22,8 @@ __all__ = ["CHAIN", "NODES", "SYMBOLS", "Check", "EdgeFacts", "FrameFacts", "Nod
 Status = Literal["ok", "warn", "fail"]
 #: How each status is printed.
 SYMBOLS: dict[str, str] = {"ok": "✓", "warn": "!", "fail": "✗"}
-#: The pipeline's nodes, in data-flow order.
-NODES = ("detector", "localizer", "embedder", "tracker")
+#: The pipeline's nodes, in data-flow order (the registry's stages).
+NODES = stages()
 #: The chain's stages: (stream, the node that produces it, the stream it is made from).
 CHAIN: tuple[tuple[str, str, str], ...] = (
     ("frames", "", ""),

@@ -419,7 +419,7 @@ class LocalizedDetections(Message):
 
 
 class AppearanceThresholds(_Model):
-    """Tracker thresholds on this model's distance scale (seed 000, Algorithms 1 and 2)."""
+    """Tracker thresholds on this model's distance scale (Pinto's thesis, Algorithms 1 and 2)."""
 
     t_lower: float = Field(ge=0.0)
     t_upper: float = Field(gt=0.0)

@@ -1,4 +1,4 @@
-"""The attention core: the point feature's joint Jacobian (seed 003, Eq 12-18), the control
+"""The attention core: the point feature's joint Jacobian (Ban et al., Eq 12-18), the control
 law (Eq 19) with its limits and dead zone, and the choice of the person of interest."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""depth backend (seed 002): ground plane, clustering, person-height filter, boxes, on rendered scenes."""
+"""depth backend (Basso/Munaro): ground plane, clustering, person-height filter, boxes, on rendered scenes."""
 
 from __future__ import annotations
 
@@ -72,7 +72,7 @@ def test_a_wall_end_seen_edge_on_is_flat_and_not_a_person() -> None:
 
 
 def test_a_person_close_enough_to_be_cut_by_the_lower_edge_is_still_a_person_a_wall_is_not() -> None:
-    # 0.95-1.25 m away the image's lower edge is 0.63-0.77 m over the floor: seed 002's rule (a
+    # 0.95-1.25 m away the image's lower edge is 0.63-0.77 m over the floor: Basso/Munaro's rule (a
     # cluster must come down to max_bottom_m, 0.6 m) alone would drop this person
     person, wall = Block(0.3, 1.1, 0.4, 1.75, 0.3), Block(-0.6, 1.6, 0.05, 2.0, 1.2)
     rgb, depth, K = scene([person, wall], 0.0)
@@ -88,7 +88,7 @@ def test_a_person_close_enough_to_be_cut_by_the_lower_edge_is_still_a_person_a_w
 
 
 def test_a_person_behind_a_sofa_is_seen_from_the_waist_up() -> None:
-    # the sofa's back (0.9 m) hides the person below it: seed 002's rule (down to max_bottom_m)
+    # the sofa's back (0.9 m) hides the person below it: Basso/Munaro's rule (down to max_bottom_m)
     # drops them; the occlusion rule keeps them, and only because the sofa is in front
     person, sofa = Block(0.8, 3.6, 0.45, 1.75, 0.3), Block(0.8, 3.0, 1.2, 0.9, 0.5)  # off-axis: its side shows
     rgb, depth, K = scene([person, sofa], 0.0)

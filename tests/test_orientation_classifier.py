@@ -1,4 +1,4 @@
-"""The optional orientation classifier on the crops (seed 001): the embedder attaches its
+"""The optional orientation classifier on the crops (TU Ilmenau): the embedder attaches its
 probabilities, the tracker turns them into the map frame and uses them for a person who
 stands still."""
 

@@ -68,7 +68,7 @@ def test_demo_runs_the_pipeline_and_scores_it() -> None:
 
 @pytest.mark.slow
 def test_demo_fuses_two_detectors_and_two_cameras_through_processes() -> None:
-    """Seed 001's fusion through real processes and a router: depth and HOG (3 Hz, its own
+    """TU Ilmenau's fusion through real processes and a router: depth and HOG (3 Hz, its own
     stream) on the head camera, a back camera with its own chain, one tracker on every stream."""
     proc = subprocess.Popen([PY, "-m", "perception", "demo", "--scenario", "handover", "--duration", "20",
                              "--second-detector", "hog", "--back-camera", "back", "--json", "--no-view"],

@@ -1,4 +1,4 @@
-"""Seed 002's online per-track classifiers: learning, the association cue, ID recovery
+"""Basso/Munaro's online per-track classifiers: learning, the association cue, ID recovery
 after a full occlusion, and what a person alone in view does not teach."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Seed 001's fusion in the tracker: two detectors on one camera (a fast one on every frame, a
+"""TU Ilmenau's fusion in the tracker: two detectors on one camera (a fast one on every frame, a
 slow one whose results arrive late, each with its own score model) and two cameras (one set
 of tracks; a person seen by either camera stays reported). Core, then the service on the
 in-memory transport."""

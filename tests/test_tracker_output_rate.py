@@ -1,4 +1,4 @@
-"""Tracks at a fixed rate (seed 001): the output holds its rate whatever the input rate,
+"""Tracks at a fixed rate (TU Ilmenau): the output holds its rate whatever the input rate,
 through a pause, predicted to each publish time; late frames still go in stamp order."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Posture and orientation per track (seed 001): the evidence, the filters over time, and
+"""Posture and orientation per track (TU Ilmenau): the evidence, the filters over time, and
 what the service publishes."""
 
 from __future__ import annotations

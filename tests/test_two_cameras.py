@@ -1,4 +1,4 @@
-"""Two cameras into one set of tracks (seed 001), the whole chain in process: the simulator's
+"""Two cameras into one set of tracks (TU Ilmenau), the whole chain in process: the simulator's
 head and back cameras, each with its own detector, localizer and embedder, one tracker. The
 people of ``handover`` walk from in front of the robot to behind it and back."""
 

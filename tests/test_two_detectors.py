@@ -1,4 +1,4 @@
-"""Two detectors on one camera (seed 001), node side: the second publishes its own stream at
+"""Two detectors on one camera (TU Ilmenau), node side: the second publishes its own stream at
 its own rate, its localizer keeps the frames' join keys apart, and the whole chain on the
 simulated apartment tracks no worse with both than with either alone."""
 

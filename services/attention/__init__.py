@@ -1,1 +1,1 @@
-"""The attention node: keeps a chosen person in view with the pan/tilt head (seed 003)."""
+"""The attention node: keeps a chosen person in view with the pan/tilt head (Ban et al.)."""

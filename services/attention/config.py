@@ -39,7 +39,7 @@ class AttentionConfig(BaseModel):
         default=1.15, gt=0.0, le=3.0,
         description="aim at this height in the tracking frame (a standing adult's torso) instead of the track's z, which follows the "
                     "box centre and drifts when the box is clipped by the image; null: the track's z")
-    # --- the control law (seed 003, Eq 19)
+    # --- the control law (Ban et al., Eq 19)
     gain: float = Field(default=_S.gain, gt=0.0, le=20.0, description="1/s: the centring error decays as exp(-gain t)")
     feedforward: float = Field(default=_S.feedforward, ge=0.0, le=2.0,
                                description="weight of the target's own motion (its track velocity); 0: feedback only")

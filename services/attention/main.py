@@ -10,7 +10,7 @@ from services.attention.config import AttentionConfig
 from services.attention.service import AttentionService
 
 DESCRIPTION = """\
-Keep a chosen person in view with the robot's pan/tilt head (seed 003's visual servoing):
+Keep a chosen person in view with the robot's pan/tilt head (Ban et al.'s visual servoing):
 the control law inverts the image Jacobian of the person's point for the pan and tilt
 joints, with a configurable gain, velocity limits and dead zone; when the person is lost
 the head holds still for a while, then returns to its rest pose. Subscribes to the

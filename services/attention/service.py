@@ -1,4 +1,4 @@
-"""AttentionService: tracks, camera info and transforms in, HeadCommand out (seed 003's
+"""AttentionService: tracks, camera info and transforms in, HeadCommand out (Ban et al.'s
 person-of-interest visual servoing).
 
 * ``tracks`` (Tracks): the people, in the tracking frame (``map``);

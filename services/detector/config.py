@@ -1,6 +1,6 @@
 """DetectorConfig: which backend, its settings, and how to build it.
 
-Defaults: the ``hog`` backend (no model file); seed 002's values for ``depth``. Every
+Defaults: the ``hog`` backend (no model file); Basso/Munaro's values for ``depth``. Every
 backend setting's default is the core's (its ``*Params`` dataclass), written there only;
 each section's ``params()`` builds those params. Model paths are plain settings, nothing
 is downloaded. :func:`build_detector` turns the config into a core detector and fails
@@ -67,7 +67,7 @@ class HogConfig(_Section):
 
 
 class DepthConfig(_Section):
-    """Seed 002's depth-cluster detector; needs depth registered to the colour image."""
+    """Basso/Munaro's depth-cluster detector; needs depth registered to the colour image."""
 
     camera_height_m: float = Field(default=_DEPTH.camera_height_m, gt=0.0, le=5.0,
                                    description="initial plane: camera height over the floor")

@@ -15,14 +15,14 @@ Detect people in the frames of one camera and publish Detections.
 Subscribes to frames/{camera} latest-only (a slow model never builds a queue; the
 overwritten frames are counted as dropped_stale) and publishes detections/{camera}
 with the source frame's header. Backends: hog (default, no model file), depth
-(seed 002's depth clusters; needs registered depth), yolo-onnx (--model FILE.onnx)
+(Basso/Munaro's depth clusters; needs registered depth), yolo-onnx (--model FILE.onnx)
 and darknet (--darknet-cfg/--darknet-weights). Inference time and drops appear in
 'perception status'.
 
-Two detectors on one camera (seed 001: a fast one on every frame, a slow one a few
-times a second): run the second with --stream NAME; it publishes detections/NAME, and a
-localizer with --camera CAMERA --stream NAME turns them into localized/NAME for the
-tracker, which fuses both streams (deploy/two-detectors.yaml)."""
+Two detectors on one camera (as in the TU Ilmenau framework: a fast one on every frame,
+a slow one a few times a second): run the second with --stream NAME; it publishes
+detections/NAME, and a localizer with --camera CAMERA --stream NAME turns them into
+localized/NAME for the tracker, which fuses both streams (deploy/two-detectors.yaml)."""
 
 add_arguments = flags.add_arguments
 

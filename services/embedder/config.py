@@ -109,7 +109,7 @@ class DepthMaskConfig(BaseModel):
 
 
 class OrientationConfig(BaseModel):
-    """An optional ONNX classifier of the upper body's orientation on each crop (seed 001):
+    """An optional ONNX classifier of the upper body's orientation on each crop (TU Ilmenau):
     (N, 3, H, W) in, (N, 8) scores out, bins relative to the camera (see
     services/embedder/core/orientation.py)."""
 

@@ -39,7 +39,7 @@ class LocalizerConfig(BaseModel):
         default="", description="camera frame id used when a frame's header and camera_info carry none"
     )
     percentile: float = Field(
-        default=_D.percentile, ge=0.0, le=100.0, description="depth percentile inside the box (seed 000: 25)"
+        default=_D.percentile, ge=0.0, le=100.0, description="depth percentile inside the box (Pinto's thesis: 25)"
     )
     min_depth_m: float = Field(default=_D.min_depth_m, ge=0.0, description="depth pixels nearer than this are invalid")
     max_depth_m: float = Field(

@@ -1,4 +1,4 @@
-"""TrackerConfig: the tracker's settings, with seed 000's values as defaults (the core's
+"""TrackerConfig: the tracker's settings, with the thesis's values as defaults (the core's
 :class:`TrackerParams` defaults, written there only).
 
 Appearance thresholds depend on the embedding model's distance scale, so they live under
@@ -31,8 +31,9 @@ from services.tracker.core.tracker import Tracker
 __all__ = ["DEFAULT_APPEARANCE", "DEFAULT_EMBEDDING_MODEL", "PROFILES", "SEVERAL_CAMERAS", "AppearanceConfig",
            "RobustConfig", "ScoreConfig", "TrackerConfig", "default_memory_path"]
 
-#: The tracker's profiles: ``robust`` (the default, built from all four seeds) and
-#: ``thesis`` (seed 000 exactly, for comparison and reproduction).
+#: The tracker's profiles: ``robust`` (the default, built from Pinto's thesis, the TU Ilmenau
+#: framework, Basso/Munaro and Ban et al.) and ``thesis`` (Pinto's thesis exactly, for
+#: comparison and reproduction).
 PROFILES = ("robust", "thesis")
 
 #: The project's default embedder (services/embedder): an L2-normalised colour histogram.
@@ -60,7 +61,7 @@ class AppearanceConfig(BaseModel):
 
 # --------------------------------------------------------------------------------------
 # Shipped thresholds, per embedding model. THE place to change them.
-#  * trinet: seed 000 (eq. 17 and 18), in TriNet's raw 128-D feature scale.
+#  * trinet: Pinto's thesis (eq. 17 and 18), in TriNet's raw 128-D feature scale.
 #  * colour: the default colour-histogram embedder; L2-normalised, so distances lie in
 #    [0, sqrt(2)]. Calibrated on PETS09 crops and synthetic lighting changes with
 #    `perception calibrate-embedder`; the embedder's model card carries the same values
@@ -121,7 +122,7 @@ _CL = ClassifierParams()
 
 
 class ClassifierConfig(BaseModel):
-    """Seed 002's online per-track appearance classifiers (services/tracker/core/classifier.py)."""
+    """Basso/Munaro's online per-track appearance classifiers (services/tracker/core/classifier.py)."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -141,7 +142,7 @@ _PO = PostureParams()
 
 
 class PostureConfig(BaseModel):
-    """Seed 001's posture and orientation filters (services/tracker/core/posture.py)."""
+    """The TU Ilmenau framework's posture and orientation filters (services/tracker/core/posture.py)."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -227,9 +228,11 @@ class TrackerConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     profile: Literal["robust", "thesis"] = Field(
-        default="robust", description="'robust': all four seeds (default); 'thesis': seed 000 exactly")
+        default="robust",
+        description="'robust' (default): cue fusion, staged association, life cycle in seconds; "
+                    "'thesis': Pinto's thesis exactly")
     robust: RobustConfig = Field(default_factory=RobustConfig, description="the robust profile's settings")
-    # --- thesis profile: Kalman filter (seed 000, III-C)
+    # --- thesis profile: Kalman filter (Pinto's thesis, III-C)
     sigma0: tuple[float, float, float, float, float, float] = Field(
         default=_D.sigma0, description="initial std of (x, y, z, vx, vy, vz); P0 = diag(sigma0^2)")
     sigma_q: tuple[float, float, float, float, float, float] = Field(
@@ -250,10 +253,10 @@ class TrackerConfig(BaseModel):
     infinite_cost: float = Field(default=_D.inf, gt=0.0, description="cost of an inadmissible pair")
     position_gate_probability: float = Field(default=_D.position_gate_probability, gt=0.0, lt=1.0,
                                              description="chi-square (2 dof) gate of position-only association")
-    # --- life cycle (seed 000, III-E)
+    # --- life cycle (Pinto's thesis, III-E)
     n_init: int = Field(default=_D.n_init, ge=1, le=100, description="consecutive associated frames to confirm")
     max_misses: int = Field(default=_D.max_misses, ge=1, le=1000, description="frames without association to delete")
-    # --- bounded memory (seed 001)
+    # --- bounded memory (the TU Ilmenau framework)
     gallery_size: int = Field(default=_D.gallery_size, ge=1, le=100_000,
                               description="max descriptors per track gallery")
     memory_size: int = Field(default=_D.memory_size, ge=1, le=100_000, description="max descriptors per remembered ID")
@@ -264,7 +267,7 @@ class TrackerConfig(BaseModel):
     frame_id: str = Field(default="map", min_length=1, description="tracking frame; inputs in another frame are dropped")
     output_rate_hz: float = Field(
         default=10.0, ge=0.0, le=1000.0,
-        description="Tracks published at this rate, predicted to the publish time (seed 001); 0: once per input frame")
+        description="Tracks published at this rate, predicted to the publish time (TU Ilmenau); 0: once per input frame")
     join_wait_s: float = Field(default=0.1, ge=0.0, le=10.0,
                                description="how long localized detections wait for their embeddings")
     no_embeddings: list[str] = Field(

@@ -12,9 +12,10 @@ from services.tracker.service import TrackerService
 DESCRIPTION = """\
 Track people in 3-D: Kalman filters, association by position, appearance and detector
 confidence, an ID memory that gives a returning person their old ID (the thesis's
-Algorithm 2). Profile 'robust' (default) fuses the cues of all four seeds and publishes
-confirmed and briefly coasting tracks; 'thesis' is seed 000 exactly (Algorithm 1,
-Confirmed tracks only). Subscribes to the localizer's LocalizedDetections and the
+Algorithm 2). Profile 'robust' (default) adds the log-odds of position, appearance,
+detector confidence and a per-track appearance classifier, and publishes confirmed and
+briefly coasting tracks; 'thesis' is Pinto's thesis exactly (Algorithm 1, Confirmed
+tracks only). Subscribes to the localizer's LocalizedDetections and the
 embedder's Embeddings, publishes Tracks after every frame, and answers `?id=K`
 queries on the track query key.
 

@@ -1,4 +1,4 @@
-"""Out-of-order inputs (seed 001, section 4): apply in sensor-time order, rewinding if needed.
+"""Out-of-order inputs (TU Ilmenau, section 4): apply in sensor-time order, rewinding if needed.
 
 Inputs are applied at once when they are newer than everything applied so far, so an
 in-order stream costs no latency. An input that arrives late, but within ``window_s`` of

@@ -163,7 +163,7 @@ class TrackerService(Node):
         for track_id in memory.entries:
             self._seen.setdefault(track_id, start)
         self._forgotten: set[int] = set()  # forgotten IDs of tracks still live: the query answers "not found"
-        # the fixed output rate (seed 001): None publishes once per input frame
+        # the fixed output rate (TU Ilmenau): None publishes once per input frame
         self._period = 1.0 / config.output_rate_hz if config.output_rate_hz > 0 else None
         self._next_pub: float | None = None
         self._latest: tuple[_Frame, FrameResult] | None = None

@@ -36,7 +36,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--time-step", choices=("time", "frame"), default=None,
                         help="thesis profile: 'time': dt from stamps (default); 'frame': dt = 1 per frame, as the thesis")
     parser.add_argument("--profile", choices=PROFILES, default=None,
-                        help="'robust' (default): all four seeds; 'thesis': seed 000 exactly")
+                        help="'robust' (default): cue fusion, staged association, life cycle in seconds; "
+                             "'thesis': Pinto's thesis exactly")
     parser.add_argument("--birth-score", type=float, default=None, metavar="S",
                         help="robust: detections scoring below S update tracks but never start one")
     parser.add_argument("--status", action="store_true",

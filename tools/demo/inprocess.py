@@ -43,11 +43,11 @@ __all__ = ["ChainResult", "SecondDetector", "run_chain"]
 
 @dataclass(frozen=True)
 class SecondDetector:
-    """A second detector on the same camera (seed 001: a fast one on every frame, a slow one a
-    few times a second whose results arrive late). It runs on every ``every``-th frame and its
-    localized results reach the tracker ``delay`` frames after their frame; it has no
-    embedder, so the tracker fuses its boxes by position and IsPerson. ``stream`` defaults to
-    ``head-{backend}``."""
+    """A second detector on the same camera (as in the TU Ilmenau framework: a fast one on
+    every frame, a slow one a few times a second whose results arrive late). It runs on every
+    ``every``-th frame and its localized results reach the tracker ``delay`` frames after
+    their frame; it has no embedder, so the tracker fuses its boxes by position and IsPerson.
+    ``stream`` defaults to ``head-{backend}``."""
 
     backend: str = "hog"
     every: int = 3

@@ -38,8 +38,8 @@ The KITTI pedestrian dev set in one go:
   perception evaluate --gt kitti_ped_dev/ --gt-ignore kitti_ped_dev/ --tracks out/
   (out/ holding 0000.csv or tracks_0000.csv, ... from perception track)
 
-Prints seed 000's Table II (objects, matches, misses, FP, IDSW, recall errors, MOTP,
-MOTA), then IDF1/IDP/IDR, MT/PT/ML, fragmentations and seed 001's ID consistency, then
+Prints the thesis's Table II (objects, matches, misses, FP, IDSW, recall errors, MOTP,
+MOTA), then IDF1/IDP/IDR, MT/PT/ML, fragmentations and TU Ilmenau's ID consistency, then
 HOTA, DetA and AssA (Luiten et al. 2021, as TrackEval computes them: the mean over
 alpha = 0.05..0.95 of a per-alpha score). HOTA's similarity is IoU for motchallenge and
 max(0, 1 - d / (2 * threshold)) for tracks (TrackEval's for points: 2 m for the 1 m

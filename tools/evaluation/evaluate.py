@@ -23,7 +23,7 @@ __all__ = ["FORMATS", "Report", "SequenceFiles", "default_threshold", "evaluate_
 log = logging.getLogger(__name__)
 
 #: format -> (default threshold, inclusive gate, distance unit).
-#: tracks: a match needs a ground-plane (or 3-D) distance < 1 m (seed 000, SPEC §4).
+#: tracks: a match needs a ground-plane (or 3-D) distance < 1 m (Pinto's thesis, SPEC §4).
 #: motchallenge: IoU >= 0.5, i.e. 1 - IoU <= 0.5, as py-motmetrics.
 FORMATS: dict[str, tuple[float, bool, str]] = {
     "tracks": (1.0, False, "m"),
@@ -287,7 +287,7 @@ def _num(x: float, digits: int = 3) -> str:
 
 
 def format_table(report: Report) -> str:
-    """Table II of seed 000 (CLEAR MOT and recall errors), then the identity measures."""
+    """Table II of Pinto's thesis (CLEAR MOT and recall errors), then the identity measures."""
     rows = list(report.sequences)
     if len(rows) > 1:
         rows.append(("overall", report.overall))

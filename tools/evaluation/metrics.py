@@ -13,7 +13,7 @@ Matching follows py-motmetrics's ``MOTAccumulator`` (Bernardin and Stiefelhagen 
 3. The remaining objects and hypotheses are matched by a minimum-cost assignment over
    the valid pairs (invalid pairs priced so that the most valid pairs are matched
    first, then the cheapest). A match whose object was last matched to another
-   hypothesis is an ID switch; it is also a *recall error* (seed 000, §V-C) when its
+   hypothesis is an ID switch; it is also a *recall error* (Pinto's thesis, §V-C) when its
    hypothesis had earlier been matched to a different object.
 4. Unmatched objects are misses, unmatched hypotheses false positives, except that a
    hypothesis still unmatched but within the gate of an *ignored* person (KITTI's ignore
@@ -89,9 +89,10 @@ class ClearMot:
     """Counts of one evaluation (one sequence, or several combined).
 
     ``matches`` counts continued or new correspondences that are not ID switches, so
-    ``objects == matches + id_switches + misses``. ``consistency_counts`` is seed 001's
-    histogram: per GT person the matched-frame counts of each hypothesis ID, sorted
-    descending, summed element-wise over people (not normalised, so it can be combined).
+    ``objects == matches + id_switches + misses``. ``consistency_counts`` is the TU Ilmenau
+    framework's histogram: per GT person the matched-frame counts of each hypothesis ID,
+    sorted descending, summed element-wise over people (not normalised, so it can be
+    combined).
     ``ignored`` counts the hypotheses dropped by ignore regions (not in ``predictions``).
     ``hota_counts`` holds HOTA's sums when they were computed (``None`` otherwise, and then
     ``hota``, ``deta`` and ``assa`` are NaN).
@@ -152,7 +153,7 @@ class ClearMot:
 
     @property
     def consistency_histogram(self) -> list[float]:
-        """Seed 001's sorted ID histogram, normalised to sum to 1 (empty if nothing matched)."""
+        """TU Ilmenau's sorted ID histogram, normalised to sum to 1 (empty if nothing matched)."""
         total = sum(self.consistency_counts)
         return [c / total for c in self.consistency_counts] if total else []
 

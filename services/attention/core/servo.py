@@ -1,4 +1,4 @@
-"""Visual servoing of a point feature with a pan/tilt head (seed 003, Eq 11-19).
+"""Visual servoing of a point feature with a pan/tilt head (Ban et al., Eq 11-19).
 
 A static point ``X`` (camera frame, optical: z forward, x right, y down) projects to
 ``V = K X / X3`` (Eq 11). Its image Jacobian (Eq 12) is
@@ -7,7 +7,7 @@ A static point ``X`` (camera frame, optical: z forward, x right, y down) project
 
 and turning a joint at unit rate about a unit axis ``a`` through a pivot ``p`` (both in the
 camera frame) moves the point, seen from the camera, by ``dX/dq = -a x (X - p)``: the
-columns of ``J_mw`` (3, 2), seed 003's Eq 14-16 for a pan axis and a tilt axis. The joint
+columns of ``J_mw`` (3, 2), Ban et al.'s Eq 14-16 for a pan axis and a tilt axis. The joint
 Jacobian ``J = J_wi @ J_mw`` (2, 2, Eq 18) maps (pan rate, tilt rate) to the point's image
 velocity, and the control law (Eq 19) asks for the joint rates that shrink the centring
 error exponentially, less the image motion the target causes itself (feed-forward):

@@ -1,4 +1,4 @@
-"""Seed 002's RGB-D people detector: depth clusters standing on the ground plane.
+"""Basso/Munaro's RGB-D people detector: depth clusters standing on the ground plane.
 
 Per frame: back-project the (sub-sampled) depth image, average it on a voxel grid,
 update the ground plane (RANSAC then least squares, started from the previous
@@ -285,7 +285,7 @@ class DepthClusterDetector:
             return ground[peaks]
         # A head is a peak: the cluster dips (a neck and shoulders, or a gap) between it and
         # every higher head, i.e. on a floor grid of cluster_tolerance_m cells they are apart
-        # among the cells whose top reaches the lower one less head_dip_m (seed 002's height
+        # among the cells whose top reaches the lower one less head_dip_m (Basso/Munaro's height
         # map). The flat top of a wall or of a box has peaks but no dip.
         mine = np.flatnonzero(member)
         normal = self.plane.normal

@@ -13,7 +13,7 @@ __all__ = ["DepthParams"]
 
 @dataclass(frozen=True)
 class DepthParams:
-    """Settings of :class:`DepthClusterDetector` (seed 002 defaults)."""
+    """Settings of :class:`DepthClusterDetector` (Basso/Munaro defaults)."""
 
     camera_height_m: float = 1.2
     tilt_deg: float = 0.0
@@ -47,7 +47,7 @@ class DepthParams:
     split_height_m: float = 1.05
     #: Radius on the ground plane around a split part's centre that belongs to that person.
     person_radius_m: float = 0.4
-    #: Heads (seed 002's height-map maxima): a cluster's highest points above ``min_height_m``
+    #: Heads (Basso/Munaro's height-map maxima): a cluster's highest points above ``min_height_m``
     #: at least this far apart on the floor (m) are separate heads. A cluster with two or more
     #: is split, each point going to the nearest head within ``person_radius_m``: two people
     #: side by side, merged into one cluster below their heads. A person's shoulders lie

@@ -1,4 +1,4 @@
-"""Ground-plane estimation for the depth detector (seed 002, section 4.1).
+"""Ground-plane estimation for the depth detector (Basso/Munaro, section 4.1).
 
 A plane is ``(normal (3,), offset)`` with ``normal . p + offset = height above the
 ground`` for a point ``p`` (3,) in the camera optical frame (x right, y down, z forward)

@@ -1,8 +1,9 @@
 """The ``colour`` descriptor: striped, foreground-weighted colour histograms and a colour profile, 224-D.
 
-Design (seed 001 §3.2.3 and seed 002 §5.2 use colour histograms of the person for
-re-identification; this one needs no training; the parts are those known to work for
-hand-made Re-ID features: body-part stripes, light-robust colour, foreground weighting):
+Design (the TU Ilmenau framework, §3.2.3, and Basso/Munaro, §5.2, use colour histograms of
+the person for re-identification; this one needs no training; the parts are those known to
+work for hand-made Re-ID features: body-part stripes, light-robust colour, foreground
+weighting):
 
 * Every crop is resized to :data:`CROP_H` x :data:`CROP_W` (64 x 32) pixels.
 * **Lighting robustness.** A grey-world white balance first scales R, G and B so the

@@ -1,4 +1,4 @@
-"""An optional upper-body orientation classifier on the person crop (seed 001), any ONNX model.
+"""An optional upper-body orientation classifier on the person crop (TU Ilmenau), any ONNX model.
 
 The graph takes the crops as float32 (N, 3, H, W), like the Re-ID backends, and returns
 (N, 8) scores of 8 orientation bins of 45 degrees *relative to the camera*: bin k means

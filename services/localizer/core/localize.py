@@ -1,4 +1,4 @@
-"""Boxes + depth image + camera model -> 3-D points with covariance (seed 000, section III-B).
+"""Boxes + depth image + camera model -> 3-D points with covariance (Pinto's thesis, section III-B).
 
 For each box: take the valid depth pixels inside it (finite, non-zero, within
 ``[min_depth_m, max_depth_m]``), use their ``percentile``-th percentile as the person's
@@ -89,7 +89,7 @@ class Localization:
     def body_center_z(self) -> np.ndarray:
         """(M,) z of each position: the height of the body centre when ``frame`` has z up (map).
 
-        A hint only (standing, sitting, lying), never for matching people (seed 000).
+        A hint only (standing, sitting, lying), never for matching people (Pinto's thesis).
         """
         return self.positions[:, 2].copy()
 

@@ -7,7 +7,7 @@ and ``dz = z^2 / (f b) * dd``. Khoshelham and Elberink (2012, "Accuracy and reso
 Kinect depth data for indoor mapping applications", Sensors 12(2)) measured
 ``sigma_z ~= 1.425e-3 * z^2`` m for the Kinect v1 (about 1.4 mm at 1 m, 3.6 cm at 5 m);
 Nguyen, Izadi and Lovell (2012, 3DIMPVT) fit ``0.0012 + 0.0019 (z - 0.4)^2`` m.
-Seed 002 (section 5.1) uses the same z^2 growth for its measurement noise.
+Basso and Munaro (section 5.1) use the same z^2 growth for their measurement noise.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The tracker's pure core (numpy and scipy only): Kalman filter, association, galleries,
-ID memory and the multi-person tracker of seed 000, sections III-C to III-E."""
+ID memory and the multi-person tracker of Pinto's thesis, sections III-C to III-E."""
 
 from services.tracker.core.association import AppearanceGate, match
 from services.tracker.core.gallery import Gallery

@@ -1,4 +1,4 @@
-"""Data association: Algorithm 1 of seed 000 (III-D) and the position-only fallback.
+"""Data association: Algorithm 1 of Pinto's thesis (III-D) and the position-only fallback.
 
 All cost matrices are (N detections, T tracks) and come from broadcasting; the only Python
 loop is over tracks' galleries, each handled with one matrix product.

@@ -1,6 +1,6 @@
-"""Per-track online appearance classifiers (seed 002's online colour classifier, an equivalent).
+"""Per-track online appearance classifiers (Basso/Munaro's online colour classifier, an equivalent).
 
-Seed 002 keeps one online AdaBoost per track on colour histograms: the track's own
+Basso and Munaro keep one online AdaBoost per track on colour histograms: the track's own
 detections are its positives, the other people's detections its negatives, and during a
 new track's first frames the classifiers of missing tracks score it, so a person who was
 fully occluded gets their ID back. Here each track keeps an online **logistic
@@ -8,7 +8,7 @@ regression** on the embedder's descriptors instead (any descriptor, not only col
 
 * ``score(x) = w . u(x) + b``, with ``u(x) = x / |x|``: the log-odds that descriptor
   ``x`` shows this track's person. An untrained classifier scores 0, "no information",
-  which is what a missing cue contributes in seed 001's fusion.
+  which is what a missing cue contributes in TU Ilmenau's fusion.
 * One stochastic gradient step per frame in which the track is matched with a descriptor
   **and** at least one other person is in view with a descriptor: the positive is the
   track's detection, the negatives are every other detection of the frame; positives and

@@ -1,6 +1,6 @@
-"""Bounded appearance galleries (seed 000's track gallery, with seed 001's bound).
+"""Bounded appearance galleries (Pinto's track gallery, with the TU Ilmenau framework's bound).
 
-A :class:`Gallery` holds at most ``capacity`` descriptors (default 500, as seed 001's
+A :class:`Gallery` holds at most ``capacity`` descriptors (default 500, as TU Ilmenau's
 appearance sample sets). When a new descriptor arrives at a full gallery, the two most
 similar descriptors among the stored ones and the new one are found, and the older of the
 two is pruned: redundant views go first, the newest appearance is always kept.
@@ -43,7 +43,7 @@ class Gallery:
         self.dim = dim
         self.capacity = capacity
         #: which descriptor a full gallery drops for a new one: the older of the closest
-        #: pair among the stored and the new one (seed 000/001), or the stored one nearest
+        #: pair among the stored and the new one (Pinto and TU Ilmenau), or the stored one nearest
         #: to the new one (no neighbour bookkeeping: one matrix-vector product per insertion)
         self.prune = prune
         self.n = 0

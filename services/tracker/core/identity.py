@@ -1,4 +1,4 @@
-"""The ID memory and Algorithm 2 of seed 000 (III-E): recovering a person's old ID.
+"""The ID memory and Algorithm 2 of Pinto's thesis (III-E): recovering a person's old ID.
 
 The thesis keeps, for every ID, the list of galleries of the past tracks that carried it,
 and measures a detection against an ID by the smallest distance to any descriptor of any

@@ -1,4 +1,4 @@
-"""The thesis's Kalman filter (seed 000, III-C) as pure functions.
+"""The Kalman filter of Pinto's thesis (III-C) as pure functions.
 
 State ``(x, y, z, vx, vy, vz)`` in the tracking frame. x and y follow a constant-velocity
 model; z is a random walk (the z-velocity row of the transition is zero, so ``vz`` is

@@ -1,4 +1,4 @@
-"""Posture and upper-body orientation per track (seed 001): two discrete Bayes filters.
+"""Posture and upper-body orientation per track (TU Ilmenau): two discrete Bayes filters.
 
 * **Posture**: standing, sitting, lying. The evidence is a detection's body height (the
   localized point's height above the floor, ``z`` in the map frame: the torso's centre)

@@ -1,44 +1,45 @@
-"""The ``robust`` tracker profile: the thesis's tracker rebuilt from all four seeds.
+"""The ``robust`` tracker profile: the thesis's tracker rebuilt from four papers' ideas.
 
 One call of :meth:`RobustTracker.update` processes one frame, in time (seconds), not in
-nominal frames, so the same settings hold at 5, 10 or 30 Hz:
+nominal frames, so the same settings hold at 5, 10 or 30 Hz. The papers are Pinto's thesis,
+the TU Ilmenau framework, Basso/Munaro's RGB-D tracker and Ban et al.'s robotic head.
 
 1. **Predict** every track with a constant-velocity model whose process noise is white
    acceleration (``q_accel``, m^2/s^3) on (x, y) and a random walk on z; or, with
-   ``motion="ukf"``, seed 002's unscented filter with a coordinated-turn model (a person
+   ``motion="ukf"``, Basso/Munaro's unscented filter with a coordinated-turn model (a person
    walks arcs of constant turn rate, :mod:`services.tracker.core.ukf`).
-2. **Score every (detection, track) pair** by seed 001's cue fusion: each cue gives a
-   probability that the pair is the same person, 0.5 meaning "no information", and the
-   cues combine by the Bayesian product (Eq 1), i.e. their log-odds add:
+2. **Score every (detection, track) pair** by the TU Ilmenau framework's cue fusion: each
+   cue gives a probability that the pair is the same person, 0.5 meaning "no information",
+   and the cues combine by the Bayesian product (Eq 1), i.e. their log-odds add:
 
    * *position*: the log-likelihood ratio of the detection under the track's predicted
      Gaussian (innovation covariance ``S = HPH^T + R``) against a uniform density
      ``new_density`` (people per m^2) of someone else or clutter. A track that has coasted
-     long has a wide ``S`` and scores lower everywhere (seed 001's |Sigma_h| penalty);
+     long has a wide ``S`` and scores lower everywhere (TU Ilmenau's |Sigma_h| penalty);
    * *appearance*: the descriptor distance to the track's gallery through a Fermi
      function placed by the embedding model's calibrated thresholds (0.9 at ``t_lower``,
      0.1 at ``t_upper``). No descriptor, or a track without one yet, gives 0.5, so a
      track born while the embedder was down gains appearance later without an ID switch;
    * *confidence*: the detector's score as P(true person).
 
-   A detection may also be explained as **clutter or a new person** (seed 003's clutter
+   A detection may also be explained as **clutter or a new person** (Ban et al.'s clutter
    class), at log-odds 0: a pair is only accepted when its combined log-odds are positive.
-3. **Associate in stages** (ByteTrack's second stage, seed 002's confirmation):
+3. **Associate in stages** (ByteTrack's second stage, Basso/Munaro's confirmation):
    confident detections with the confirmed and coasting tracks (Hungarian on the
    log-odds), then low-score detections with the confirmed tracks still free (they may
    keep a track alive, never start one), then the remaining confident detections with
    the tentative tracks.
 4. **Update** the matched tracks with each detection's own covariance when it has one
-   (the localizer's, which grows with distance^2 as in seed 002), else ``sigma_r``.
+   (the localizer's, which grows with distance^2 as in Basso/Munaro's tracker), else ``sigma_r``.
 5. **Life cycle, in time.** A confident detection nobody explains starts a *tentative*
-   track: a birth candidate (seed 003: unexplained detections that move like one
+   track: a birth candidate (Ban et al.: unexplained detections that move like one
    person over several frames). It is confirmed after ``n_init`` confident hits if its
    IsPerson probability reaches ``confirm_is_person``, and dropped when it goes
    ``tentative_timeout_s`` without one. A confirmed track that misses is *coasting*: it
    keeps its prediction, is reported for ``report_coast_s`` (with its status, so a
    consumer can tell), and is deleted after ``max_coast_s`` without a detection or when
    its position variance passes ``max_position_var``.
-6. **IsPerson** (seed 001): each track's probability of being a person, a binary Bayes
+6. **IsPerson** (TU Ilmenau): each track's probability of being a person, a binary Bayes
    filter over its detections' confidences that fades back to 0.5 with ``is_person_tau_s``.
 7. **Identity memory** (Algorithm 2): a tentative track takes its ID when confirmed. If it
    has appearance and a remembered (deleted) person's gallery is nearer than the model's
@@ -130,7 +131,7 @@ class ScoreModel:
 class RobustParams:
     """The robust profile's settings (README of the tracker: what each one does)."""
 
-    #: "cv": constant-velocity Kalman filter; "ukf": unscented filter, coordinated turn (seed 002)
+    #: "cv": constant-velocity Kalman filter; "ukf": unscented filter, coordinated turn (Basso/Munaro)
     motion: Literal["cv", "ukf"] = "cv"
     q_accel: float = 3.0  # m^2/s^3, white acceleration on x and y
     q_turn: float = 0.01  # rad^2/s^3, random walk of the turn rate ("ukf")
@@ -167,9 +168,9 @@ class RobustParams:
     birth_separation_m: float = 0.3
     gallery_size: int = 100
     memory_size: int = 500
-    #: seed 002's online per-track appearance classifiers; None: off
+    #: Basso/Munaro's online per-track appearance classifiers; None: off
     classifier: ClassifierParams | None = field(default_factory=ClassifierParams)
-    #: seed 001's posture and orientation filters; None: off
+    #: TU Ilmenau's posture and orientation filters; None: off
     posture: PostureParams | None = field(default_factory=PostureParams)
 
     def __post_init__(self) -> None:
@@ -356,7 +357,7 @@ class RobustTracker:
         good = np.zeros(n, bool)
         if ok.any():
             good[ok] = np.all(np.linalg.eigvalsh(np.where(ok[:, None, None], sym, np.eye(3))[ok]) > 0, axis=1)
-        # seed 002's sigma^2 = sigma_v^2 + sigma_d^2: a fixed part (here the body's extent
+        # Basso/Munaro's sigma^2 = sigma_v^2 + sigma_d^2: a fixed part (here the body's extent
         # around the point the sensor saw) plus the sensor's own, which grows with distance^2
         out = np.where(good[:, None, None], sym + self._r, self._r)
         self.bad_covariances += int(n - good.sum())
@@ -500,7 +501,7 @@ class RobustTracker:
 
     def _update_pose(self, matches: list[tuple[int, int]], positions: np.ndarray, aspects: np.ndarray | None,
                      orientations: np.ndarray | None = None) -> None:
-        """Seed 001: posture from the body height and box shape, orientation from walking or,
+        """TU Ilmenau: posture from the body height and box shape, orientation from walking or,
         standing still, from the crop classifier."""
         pp = self.params.posture
         if pp is None:
@@ -653,7 +654,7 @@ class RobustTracker:
         return self.memory.new_id(), False
 
     def _recover_by_classifier(self, t: _Track, live: set[int]) -> int | None:
-        """Seed 002's recovery: the remembered people's classifiers score the new track's views;
+        """Basso/Munaro's recovery: the remembered people's classifiers score the new track's views;
         the best mean log-odds above ``recover_score`` gives its ID back."""
         cp = self.params.classifier
         assert t.gallery is not None

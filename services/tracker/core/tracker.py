@@ -1,4 +1,4 @@
-"""The multi-person tracker of seed 000 (III-C to III-E): Kalman filters, Algorithm 1,
+"""The multi-person tracker of Pinto's thesis (III-C to III-E): Kalman filters, Algorithm 1,
 the Tentative/Confirmed/Deleted life cycle and Algorithm 2 over an ID memory.
 
 One call of :meth:`Tracker.update` processes one frame: predict every track, associate,
@@ -56,7 +56,7 @@ class TrackStatus(str, Enum):
 
 @dataclass(frozen=True)
 class TrackerParams:
-    """Everything the core needs; defaults are seed 000's values (see the README table)."""
+    """Everything the core needs; defaults are the thesis's values (see the README table)."""
 
     sigma0: _F6 = (0.2, 0.2, 0.2, 1.0, 1.0, 1.0)
     sigma_q: _F6 = (0.2, 0.2, 0.2, 1.0, 1.0, 1.0)
@@ -166,7 +166,7 @@ class TrackerState:
 
 
 class Tracker:
-    """Seed 000's tracker. ``params.gate`` None means there are no appearance thresholds:
+    """The thesis's tracker. ``params.gate`` None means there are no appearance thresholds:
     every frame is then associated position-only."""
 
     def __init__(self, params: TrackerParams, memory: IdentityMemory | None = None) -> None:
@@ -429,7 +429,7 @@ class Tracker:
         return ended
 
     def reported(self, result: FrameResult) -> list[TrackView]:
-        """The tracker's output for ``result``: the Confirmed tracks (seed 000)."""
+        """The tracker's output for ``result``: the Confirmed tracks (as in the thesis)."""
         return result.confirmed
 
     def live_galleries(self) -> list[tuple[int, np.ndarray]]:

@@ -1,9 +1,9 @@
 """An unscented Kalman filter with a coordinated-turn motion model, as pure functions.
 
 The option "a UKF beside the constant-velocity Kalman filter, on ground-plane (x, y) with
-z as a random walk" (seed 002-b). A UKF around a linear model is just a Kalman filter, so
-the motion here is genuinely nonlinear: a person walks at constant speed along an arc of
-constant turn rate.
+z as a random walk" (after Basso/Munaro, section 5.1). A UKF around a linear model is just
+a Kalman filter, so the motion here is genuinely nonlinear: a person walks at constant speed
+along an arc of constant turn rate.
 
 State ``(x, y, z, vx, vy, vz, omega)`` (7), in metres, m/s and rad/s. Over a step ``dt``:
 

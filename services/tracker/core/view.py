@@ -10,7 +10,7 @@ Such a track is kept (their ID is still theirs when they come back), but not rep
 
 :class:`FieldOfView` is a pinhole camera's view in the tracking frame: its pose, its
 intrinsics and image size, and the range its depth reaches. :class:`Views` is what several
-cameras see together (seed 001's two cameras): a person is in view when any of them could
+cameras see together (TU Ilmenau's two cameras): a person is in view when any of them could
 see them, so a person behind the robot, seen by the back camera a moment ago, stays
 reported while the head camera's frames come in. Pure numpy.
 """

@@ -1,5 +1,5 @@
-"""The seven scenarios of the thesis dataset (seed 000, §IV-B), plus ``handover`` for a
-second camera on the base (seed 001); each deterministic per seed."""
+"""The seven scenarios of the dataset of Pinto's thesis (§IV-B), plus ``handover`` for a
+second camera on the base (as in the TU Ilmenau framework); each deterministic per seed."""
 
 from __future__ import annotations
 

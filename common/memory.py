@@ -9,12 +9,13 @@ transport closes. Services can so be tested without a router.
 from __future__ import annotations
 
 import threading
+from collections import deque
 from typing import Any, Callable
 
 from common.codec import DecodeError, decode_any, encode
 from common.keys import Delivery
 from common.schemas import Message
-from common.transport import Closer, Inbox, Publisher, QueryHandler, Token, Transport, parse_parameters
+from common.transport import Closer, Inbox, Publisher, QueryHandler, RawPublisher, Token, Transport, parse_parameters
 
 __all__ = ["MemoryBus", "MemoryTransport", "key_matches"]
 
@@ -49,6 +50,8 @@ class MemoryBus:
         self.tokens: list[str] = []
         self.watchers: list[tuple[str, Callable[[str, bool], None]]] = []
         self.queryables: list[tuple[str, QueryHandler]] = []
+        #: Foreign-payload publishers that keep their last samples for late subscribers.
+        self.caches: list[tuple[str, deque[tuple[bytes, bytes | None]]]] = []
 
     def transport(self) -> MemoryTransport:
         return MemoryTransport(self)
@@ -94,6 +97,41 @@ class MemoryTransport(Transport):
         with self.bus.lock:
             self.bus.subscribers.append(entry)
         return self._remove(self.bus.subscribers, entry)
+
+    def raw_publisher(self, key: str, delivery: Delivery, *, cache: int = 0) -> RawPublisher:
+        kept: deque[tuple[bytes, bytes | None]] = deque(maxlen=max(cache, 1))
+        if cache > 0:
+            with self.bus.lock:
+                self.bus.caches.append((key, kept))
+
+        def send(payload: bytes, attachment: bytes | None) -> None:
+            with self.bus.lock:
+                targets = [inbox for pattern, inbox in self.bus.subscribers if keys_intersect(pattern, key)]
+                if cache > 0:
+                    kept.append((payload, attachment))
+            for inbox in targets:
+                inbox.push(key, (payload, attachment))
+
+        def matching() -> bool:
+            with self.bus.lock:
+                return any(keys_intersect(p, key) for p, _ in self.bus.subscribers)
+
+        def undeclare() -> None:
+            with self.bus.lock:
+                self.bus.caches[:] = [c for c in self.bus.caches if c[1] is not kept]
+
+        pub = RawPublisher(key, send, matching, undeclare)
+        self._closeables.append(pub)
+        return pub
+
+    def _subscribe_raw(self, key: str, inbox: Inbox, history: int) -> Callable[[], None]:
+        with self.bus.lock:
+            if history > 0:
+                for pub_key, kept in self.bus.caches:
+                    if keys_intersect(key, pub_key):
+                        for payload in list(kept)[-history:]:
+                            inbox.push(pub_key, payload)
+            return self._subscribe(key, inbox)
 
     def declare_token(self, key: str) -> Token:
         with self.bus.lock:

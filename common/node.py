@@ -45,7 +45,7 @@ from common.config import ConfigError, load_config
 from common.keys import Delivery, Keys
 from common.runtime import Counters, ServiceRuntime, Shutdown
 from common.schemas import Message
-from common.transport import Publisher, QueryHandler, Subscription, Transport, wait_any
+from common.transport import Publisher, QueryHandler, RawPublisher, RawSubscription, Subscription, Transport, wait_any
 from common.zenoh_config import add_zenoh_arguments
 from common.zenoh_transport import open_transport_from_args
 
@@ -76,6 +76,17 @@ class NodeIO:
 
     def publisher(self, key: str, model: type[M], delivery: Delivery) -> Publisher[M]:
         pub = self.transport.publisher(key, model, delivery)
+        self.publishers.append(pub)
+        return pub
+
+    def subscribe_raw(self, key: str, delivery: Delivery, *, history: int = 0) -> RawSubscription:
+        """Foreign payloads (another middleware's, such as ROS 2's CDR), counted like the others."""
+        sub = self.transport.subscribe_raw(key, delivery, history=history)
+        self.subscriptions.append(sub)
+        return sub
+
+    def raw_publisher(self, key: str, delivery: Delivery, *, cache: int = 0) -> RawPublisher:
+        pub = self.transport.raw_publisher(key, delivery, cache=cache)
         self.publishers.append(pub)
         return pub
 

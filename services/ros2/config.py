@@ -1,0 +1,122 @@
+"""Ros2Config: the ROS 2 node's settings. The default topic names are the RealSense ROS 2
+driver's (``realsense2_camera``, namespace and name ``camera``); any other driver's are settings."""
+
+from __future__ import annotations
+
+import os
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from services.ros2.core.types import DISTROS
+
+__all__ = ["Ros2Config"]
+
+
+def _domain_from_env() -> int:
+    text = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    if not text:
+        return 0
+    if not text.isdigit() or int(text) > 232:
+        raise ValueError(f"ROS_DOMAIN_ID={text!r} is not a ROS 2 domain (0-232)")
+    return int(text)
+
+
+def _topic(v: str) -> str:
+    if not v:
+        return v
+    if not v.startswith("/") or "//" in v or v.endswith("/") or any(c in v for c in " *$?#%"):
+        raise ValueError(f"{v!r} is not an absolute ROS 2 topic name like /camera/color/image_raw")
+    if any(t[:1].isdigit() for t in v.strip("/").split("/")):
+        raise ValueError(f"{v!r}: a ROS 2 name token cannot start with a digit")
+    return v
+
+
+class Ros2Config(BaseModel):
+    """Everything ``perception ros2`` can be told."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    # --- the ROS 2 side
+    domain_id: int = Field(default_factory=_domain_from_env, ge=0, le=232,
+                           description="ROS_DOMAIN_ID of the robot (default: the environment's, else 0)")
+    distro: Literal["jazzy", "kilted", "rolling"] = Field(
+        default="jazzy", description="the robot's ROS 2 distribution: the message definitions and their hashes "
+                                     "(Humble's rmw_zenoh writes no hash and is not supported)")
+    node_name: str = Field(default="people_perception", pattern=r"^[A-Za-z_][A-Za-z0-9_]*$",
+                           description="the node's name in the ROS 2 graph (ros2 node list)")
+    namespace: str = Field(default="/", description="the node's namespace in the ROS 2 graph")
+
+    # --- in: a ROS 2 camera becomes frames/{camera}
+    camera_in: bool = Field(default=True, description="read the ROS 2 camera topics and publish frames/{camera}")
+    camera: str = Field(default="head", min_length=1, description="this project's camera name (frames/{camera})")
+    colour_topic: str = Field(default="/camera/camera/color/image_raw",
+                              description="colour images: sensor_msgs/Image (rgb8, bgr8, mono8), or CompressedImage")
+    colour_compressed: bool = Field(default=False, description="the colour topic carries sensor_msgs/CompressedImage "
+                                                               "(jpeg or png), e.g. .../image_raw/compressed")
+    depth_topic: str = Field(default="/camera/camera/aligned_depth_to_color/image_raw",
+                             description="depth registered to the colour image: 16UC1 (mm) or 32FC1 (m); '' for an "
+                                         "RGB-only camera")
+    depth_compressed: bool = Field(default=False,
+                                   description="the depth topic carries CompressedImage (16-bit png, compressedDepth)")
+    camera_info_topic: str = Field(default="/camera/camera/color/camera_info",
+                                   description="the colour camera's sensor_msgs/CameraInfo")
+    slop_s: float = Field(default=0.05, gt=0.0, le=1.0,
+                          description="colour and depth pair when their stamps are this close (approximate time)")
+    pair_wait_s: float = Field(default=0.5, gt=0.0, le=10.0,
+                               description="a colour image waits this long for its depth image")
+    require_depth: bool = Field(default=True,
+                                description="drop a colour image with no depth image near it (else publish it alone)")
+    image_queue: int = Field(default=4, ge=1, le=64, description="ROS images kept per topic while the node is busy")
+
+    # --- in: /tf and /tf_static become tf and tf_static
+    tf_in: bool = Field(default=True, description="read /tf and /tf_static (transient local: a late joiner gets "
+                                                  "the static transforms from rmw_zenoh's publisher cache)")
+    tf_topic: str = Field(default="/tf")
+    tf_static_topic: str = Field(default="/tf_static")
+
+    # --- out: the people as ROS 2 topics
+    people_out: bool = Field(default=True, description="publish the tracker's people as ROS4HRI topics, /tf frames "
+                                                       "and RViz markers")
+    humans_namespace: str = Field(default="/humans", description="ROS4HRI's root (REP 155)")
+    markers_topic: str = Field(default="/humans/markers")
+    body_prefix: str = Field(default="p", pattern=r"^[A-Za-z][A-Za-z0-9_]*$",
+                             description="a body's ID is this plus the track ID (ROS names cannot start with a digit)")
+    body_frames: bool = Field(default=True, description="a body_<id> frame per person on /tf")
+    static_period_s: float = Field(default=1.0, gt=0.0, le=60.0,
+                                   description="the static transforms received are re-sent on tf_static this often, for "
+                                               "this project's late joiners")
+    include_coasting: bool = Field(default=False,
+                                   description="also publish tracks coasting through a short occlusion (else confirmed only)")
+    marker_lifetime_s: float = Field(default=2.0, ge=0.0, le=60.0,
+                                     description="markers vanish after this if the node stops (0: never)")
+    queue: int = Field(default=256, ge=1, description="tracks kept while the node is busy")
+    log_every_s: float = Field(default=1.0, gt=0.0, description="a recurring input problem is logged at most this often")
+
+    @field_validator("colour_topic", "depth_topic", "camera_info_topic", "tf_topic", "tf_static_topic", "markers_topic",
+                     "humans_namespace")
+    @classmethod
+    def _topics(cls, v: str) -> str:
+        return _topic(v)
+
+    @field_validator("namespace")
+    @classmethod
+    def _namespace(cls, v: str) -> str:
+        return "/" if v in ("", "/") else _topic(v)
+
+    @field_validator("distro")
+    @classmethod
+    def _distro(cls, v: str) -> str:
+        if v not in DISTROS:
+            raise ValueError(f"distro {v!r} is not one of {', '.join(DISTROS)}")
+        return v
+
+    @model_validator(mode="after")
+    def _something_to_do(self) -> Ros2Config:
+        if not (self.camera_in or self.tf_in or self.people_out):
+            raise ValueError("nothing to do: camera_in, tf_in and people_out are all off")
+        if self.camera_in and not (self.colour_topic and self.camera_info_topic):
+            raise ValueError("camera_in needs colour_topic and camera_info_topic (or turn camera_in off)")
+        if self.camera_in and self.require_depth and not self.depth_topic:
+            raise ValueError("require_depth needs depth_topic; for an RGB-only camera set require_depth: false")
+        return self

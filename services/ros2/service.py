@@ -1,0 +1,375 @@
+"""The ROS 2 node: a ROS 2 robot's camera and transforms in, its people out, over rmw_zenoh.
+
+ROS 2 topics are Zenoh keys with CDR payloads (``services.ros2.core.wire``), so this node is a
+ROS 2 participant on the robot's own router: no bridge process, no ROS install. It appears in
+the ROS 2 graph (``ros2 node list``, ``ros2 topic list``) through rmw_zenoh's liveliness tokens.
+
+In (each switchable): colour + depth + camera info -> ``frames/{camera}`` (approximate-time
+pairing); ``/tf`` and ``/tf_static`` -> ``tf`` and ``tf_static``. Out: the tracker's ``tracks``
+-> ``/humans/bodies/...``, ``body_<id>`` frames on ``/tf`` and ``/humans/markers``.
+
+Each ROS topic is read on ``<domain>/<topic>/*/*``, every type and hash: a sample of another
+type or hash (another distribution, a compressed topic read as raw) is counted and named in the
+log instead of never arriving. Every bad sample is counted under its reason, logged at most once
+a second, and skipped.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from common.geometry_messages import transform_from_ros
+from common.keys import FRAMES, RELIABLE, Delivery, Keys
+from common.node import Node
+from common.ratelog import RateLimitedLog
+from common.runtime import Counters
+from common.schemas import CameraInfo, Header, Image, RGBDFrame, TrackState, TransformBatch, Tracks
+from common.transport import RawPublisher, RawSample, RawSubscription, Transport
+from services.ros2.config import Ros2Config
+from services.ros2.core.images import ImageError, Intrinsics, Pixels, compressed_pixels, intrinsics, raw_pixels
+from services.ros2.core.pairing import Pairer
+from services.ros2.core.people import PeopleWriter, Person
+from services.ros2.core.types import CdrError, RosTypes, known_hashes, types_of
+from services.ros2.core.wire import GraphEntity, Qos, attachment, dds_to_ros, entity_gid, parse_attachment, ros_to_dds
+
+__all__ = ["Ros2Service"]
+
+log = logging.getLogger(__name__)
+
+#: QoS shown in the graph: images as sensor data (best effort, keep last 5); everything else
+#: reliable; /tf keep last 100 and /tf_static transient local, keep last 1, as tf2 does.
+QOS_SENSOR = Qos(reliable=False, depth=5)
+QOS_DEFAULT = Qos(depth=10)
+QOS_TF = Qos(depth=100)
+QOS_TF_STATIC = Qos(transient_local=True, depth=1)
+#: ROS samples read per topic (a FIFO: the pairing needs every image, tf needs every message).
+_ROS_IN = Delivery(latest=False, queue=16, congestion="drop")
+_ROS_OUT = Delivery(latest=False, queue=16, congestion="drop")
+#: A body's publishers are kept this long after it was last tracked, then undeclared.
+BODY_LINGER_S = 10.0
+
+
+@dataclass
+class _Topic:
+    """One ROS topic this node reads: its expected type and what to do with a sample."""
+
+    topic: str
+    type_name: str
+    handle: Callable[[Any, RawSample], None]
+    sub: RawSubscription
+
+
+class _RosPublisher:
+    """A ROS 2 publisher: the data key, its graph token and the attachment's sequence and GID."""
+
+    def __init__(self, pub: RawPublisher, token: Any, entity: GraphEntity, types: RosTypes, type_name: str) -> None:
+        self.pub = pub
+        self.token = token
+        self.types = types
+        self.type_name = type_name
+        self.gid = entity_gid(entity.token())
+        self.seq = 0
+
+    def put(self, msg: Any) -> None:
+        self.seq += 1
+        self.pub.put(self.types.serialize(msg, self.type_name), attachment(self.seq, time.time_ns(), self.gid))
+
+    def close(self) -> None:
+        self.pub.close()
+        self.token.close()
+
+
+class Ros2Service(Node):
+    """ROS 2 camera and tf in, people out; see the module's doc."""
+
+    name = "ros2"
+
+    def __init__(self, transport: Transport, keys: Keys, config: Ros2Config, counters: Counters | None = None) -> None:
+        super().__init__(transport, keys, counters)
+        self.config = config
+        self.types = types_of(config.distro)
+        self._log = RateLimitedLog(log, period_s=config.log_every_s)
+        self._zid = transport.session_id()
+        self._next_entity = 1
+        self._tokens: list[Any] = [transport.declare_token(self._entity("NN").token())]
+        self._own_gids: set[bytes] = set()
+        self._topics: list[_Topic] = []
+        self._ros_pubs: dict[str, _RosPublisher] = {}
+        self._body_seen: dict[int, float] = {}
+        self._seq = 0
+        self._camera_info: Intrinsics | None = None
+        self._static: dict[str, Any] = {}
+        self._static_sent = -1e9
+        # an RGB-only camera: each colour image goes out at once
+        self.pairer: Pairer[Pixels, Pixels] = Pairer(slop_s=config.slop_s,
+                                                     wait_s=config.pair_wait_s if config.depth_topic else 0.0,
+                                                     queue=config.image_queue, require_depth=config.require_depth)
+        self._colour_header: dict[int, str] = {}
+        if config.camera_in:
+            self.frames_pub = self.io.publisher(keys.frames(config.camera), RGBDFrame, FRAMES)
+            colour_type = "sensor_msgs/msg/CompressedImage" if config.colour_compressed else "sensor_msgs/msg/Image"
+            self._read(config.camera_info_topic, "sensor_msgs/msg/CameraInfo", self._on_camera_info, QOS_SENSOR)
+            self._read(config.colour_topic, colour_type, self._on_colour, QOS_SENSOR)
+            if config.depth_topic:
+                depth_type = "sensor_msgs/msg/CompressedImage" if config.depth_compressed else "sensor_msgs/msg/Image"
+                self._read(config.depth_topic, depth_type, self._on_depth, QOS_SENSOR)
+        if config.tf_in:
+            self.tf_pub = self.io.publisher(keys.tf(), TransformBatch, RELIABLE)
+            self.tf_static_pub = self.io.publisher(keys.tf_static(), TransformBatch, RELIABLE)
+            self._read(config.tf_topic, "tf2_msgs/msg/TFMessage", self._on_tf, QOS_TF)
+            self._read(config.tf_static_topic, "tf2_msgs/msg/TFMessage", self._on_tf_static, QOS_TF_STATIC, history=16)
+        if config.people_out:
+            self.tracks_sub = self.io.subscribe(keys.tracks(), Tracks, Delivery(latest=False, queue=config.queue,
+                                                                                 congestion="block"))
+            self.writer = PeopleWriter(self.types, prefix=config.body_prefix, namespace=config.humans_namespace,
+                                       markers_topic=config.markers_topic, marker_lifetime_s=config.marker_lifetime_s)
+
+    # ------------------------------------------------------------------ the ROS 2 graph
+    def _entity(self, kind: str, topic: str = "", type_name: str = "", qos: Qos = QOS_DEFAULT) -> GraphEntity:
+        entity_id = 0
+        if kind != "NN":
+            entity_id = self._next_entity
+            self._next_entity += 1
+        return GraphEntity(domain_id=self.config.domain_id, zid=self._zid, node_id=0, entity_id=entity_id,
+                           kind=kind, node_name=self.config.node_name, namespace=self.config.namespace,  # type: ignore[arg-type]
+                           topic=topic, dds_type=ros_to_dds(type_name) if type_name else "",
+                           type_hash=self.types.hash(type_name) if type_name else "", qos=qos)
+
+    def _read(self, topic: str, type_name: str, handle: Callable[[Any, RawSample], None], qos: Qos,
+              history: int = 0) -> None:
+        entity = self._entity("MS", topic, type_name, qos)
+        key = f"{self.config.domain_id}/{topic.strip('/')}/*/*"
+        sub = self.io.subscribe_raw(key, _ROS_IN, history=history)
+        self._tokens.append(self.transport.declare_token(entity.token()))
+        self._topics.append(_Topic(topic, type_name, handle, sub))
+
+    def _publisher(self, topic: str, type_name: str, qos: Qos = QOS_DEFAULT) -> _RosPublisher:
+        if topic not in self._ros_pubs:
+            entity = self._entity("MP", topic, type_name, qos)
+            pub = self.transport.raw_publisher(self.types.key(self.config.domain_id, topic, type_name), _ROS_OUT)
+            token = self.transport.declare_token(entity.token())
+            self._ros_pubs[topic] = p = _RosPublisher(pub, token, entity, self.types, type_name)
+            self._own_gids.add(p.gid)
+        return self._ros_pubs[topic]
+
+    # ------------------------------------------------------------------ input
+    def _bad(self, reason: str, text: str) -> None:
+        self.counters.count(f"invalid_{reason}")
+        self.counters.invalid += 1
+        self._log.warning(reason, "%s", text)
+
+    def _take(self, t: _Topic, sample: RawSample) -> None:
+        parts = sample.key.split("/")
+        dds_type, type_hash = parts[-2], parts[-1]
+        try:
+            got_type = dds_to_ros(dds_type)
+        except ValueError:
+            self._bad("not_ros", f"{sample.key}: not an rmw_zenoh topic key (no type in it)")
+            return
+        if got_type != t.type_name:
+            self._bad("wrong_type", f"{t.topic} carries {got_type}, this node reads {t.type_name} there: "
+                                    + _type_fix(t.topic, got_type))
+            return
+        if type_hash != self.types.hash(t.type_name):
+            distros = known_hashes(t.type_name).get(type_hash)
+            origin = f"the hash of {distros}" if distros else ("Humble's rmw_zenoh, which writes no hash"
+                                                               if "TypeHashNotSupported" in type_hash else "an unknown hash")
+            self._bad("type_hash", f"{t.topic}: {t.type_name} with {type_hash[:18]}... ({origin}); this node reads "
+                                   f"{self.config.distro}'s {self.types.hash(t.type_name)[:18]}...: set distro to the "
+                                   "robot's ROS 2 distribution")
+            return
+        try:
+            att = parse_attachment(sample.attachment)
+        except ValueError as exc:
+            self._bad("attachment", f"{t.topic}: {exc}")
+            return
+        if att.gid in self._own_gids:
+            return  # this node's own /tf
+        try:
+            msg = self.types.deserialize(sample.payload, t.type_name)
+        except CdrError as exc:
+            self._bad("cdr", f"{t.topic}: {exc}")
+            return
+        try:
+            t.handle(msg, sample)
+        except ImageError as exc:
+            self._bad(exc.reason, f"{t.topic}: {exc}")
+        except (ValueError, TypeError, AttributeError) as exc:
+            self._bad("message", f"{t.topic}: {type(exc).__name__}: {exc}")
+
+    def _on_camera_info(self, msg: Any, sample: RawSample) -> None:
+        self._camera_info = intrinsics(msg)
+
+    def _pixels(self, msg: Any, compressed: bool, depth: bool) -> Pixels:
+        return compressed_pixels(msg, depth=depth) if compressed else raw_pixels(msg, depth=depth)
+
+    def _on_colour(self, msg: Any, sample: RawSample) -> None:
+        pixels = self._pixels(msg, self.config.colour_compressed, depth=False)
+        stamp = _stamp_ns(msg.header.stamp)
+        self._colour_header[stamp] = str(msg.header.frame_id)
+        self.pairer.add_colour(stamp, pixels, time.monotonic())
+
+    def _on_depth(self, msg: Any, sample: RawSample) -> None:
+        self.pairer.add_depth(_stamp_ns(msg.header.stamp), self._pixels(msg, self.config.depth_compressed, depth=True))
+
+    def _on_tf(self, msg: Any, sample: RawSample) -> None:
+        transforms = [transform_from_ros(t) for t in msg.transforms]
+        if transforms:
+            self.tf_pub.put(TransformBatch(header=Header(stamp_ns=max(t.stamp_ns for t in transforms), source="ros2"),
+                                           transforms=transforms))
+
+    def _on_tf_static(self, msg: Any, sample: RawSample) -> None:
+        for t in msg.transforms:
+            tr = transform_from_ros(t, static=True)
+            self._static[tr.child_frame] = tr
+        self._send_static(force=True)
+
+    def _send_static(self, force: bool = False) -> None:
+        now = time.monotonic()
+        if not self._static or (not force and now - self._static_sent < self.config.static_period_s):
+            return
+        self._static_sent = now
+        transforms = list(self._static.values())
+        self.tf_static_pub.put(TransformBatch(header=Header(stamp_ns=max(t.stamp_ns for t in transforms), source="ros2"),
+                                              transforms=transforms))
+
+    def _frames(self, now: float) -> list[RGBDFrame]:
+        out = []
+        for pair in self.pairer.ready(now):
+            frame_id = self._colour_header.pop(pair.stamp_ns, "")
+            if pair.depth is None and (self.config.require_depth and self.config.depth_topic):
+                self.counters.drop(f"colour_{pair.why}")
+                self._log.warning(pair.why, "a colour image at %.3f s has no depth image within %.0f ms on %s (%s): "
+                                  "dropped; is the depth topic published, and aligned to colour?", pair.stamp_ns / 1e9,
+                                  self.config.slop_s * 1e3, self.config.depth_topic, pair.why)
+                continue
+            if self._camera_info is None:
+                self.counters.drop("no_camera_info")
+                self._log.warning("no_camera_info", "no camera info yet on %s: images dropped until it comes",
+                                  self.config.camera_info_topic)
+                continue
+            try:
+                out.append(self._frame(pair.stamp_ns, frame_id, pair.colour, pair.depth))
+            except ValueError as exc:
+                self._bad("frame", f"{self.config.colour_topic}: {exc}")
+        for stamp in [s for s in self._colour_header if s < (out[-1].header.stamp_ns if out else 0)]:
+            del self._colour_header[stamp]
+        return out
+
+    def _frame(self, stamp_ns: int, frame_id: str, colour: Pixels, depth: Pixels | None) -> RGBDFrame:
+        info = self._camera_info
+        assert info is not None
+        h, w = colour.shape[:2]
+        if (info.height, info.width) != (h, w):
+            raise ImageError("size", f"camera info is {info.width}x{info.height}, the colour image {w}x{h}: is the "
+                                     "camera info the colour camera's?")
+        if depth is not None and depth.shape[:2] != (h, w):
+            raise ImageError("size", f"depth is {depth.shape[1]}x{depth.shape[0]}, colour {w}x{h}: read the depth "
+                                     "aligned to colour (aligned_depth_to_color)")
+        self._seq += 1
+        header = Header(stamp_ns=stamp_ns, frame_id=frame_id, seq=self._seq, source=self.config.camera)
+        K = info.K
+        return RGBDFrame(
+            header=header,
+            rgb=Image(header=header, encoding=colour.encoding, dtype=colour.dtype, shape=colour.shape,  # type: ignore[arg-type]
+                      data=bytes(colour.data)),
+            depth=None if depth is None else Image(header=header, encoding=depth.encoding, dtype=depth.dtype,  # type: ignore[arg-type]
+                                                   shape=depth.shape, data=bytes(depth.data)),
+            camera_info=CameraInfo(header=header, width=info.width, height=info.height, K=K, D=info.D,
+                                   distortion_model=info.distortion_model))  # type: ignore[arg-type]
+
+    # ------------------------------------------------------------------ output
+    def _people(self, msg: Tracks) -> list[Person]:
+        wanted = ("confirmed", "coasting") if self.config.include_coasting else ("confirmed",)
+        return [_person(t) for t in msg.tracks if t.status in wanted]
+
+    def _publish_people(self, msg: Tracks, now: float) -> int:
+        self.writer.frame = msg.header.frame_id or "map"
+        people = self._people(msg)
+        count = 0
+        for topic, type_name, ros_msg in self.writer.messages(msg.header.stamp_ns, people):
+            if topic == "/tf" and not self.config.body_frames:
+                continue
+            qos = QOS_TF if topic == "/tf" else QOS_DEFAULT
+            self._publisher(topic, type_name, qos).put(ros_msg)
+            count += 1
+        for p in people:
+            self._body_seen[p.track_id] = now
+        for tid, seen in list(self._body_seen.items()):
+            if now - seen > BODY_LINGER_S:
+                del self._body_seen[tid]
+                for leaf in ("position", "velocity", "posture"):
+                    pub = self._ros_pubs.pop(self.writer.topic(tid, leaf), None)
+                    if pub is not None:
+                        self.counters.count("ros_published", pub.seq)
+                        pub.close()
+        return count
+
+    # ------------------------------------------------------------------ the loop
+    def poll(self, now: float) -> list[Any]:
+        out: list[Any] = []
+        for t in self._topics:
+            while (sample := t.sub.try_recv()) is not None:
+                self._take(t, sample)
+        if self.config.camera_in:
+            for frame in self._frames(now):
+                self.frames_pub.put(frame)
+                out.append(frame)
+            self.counters.gauge("depth_unpaired", self.pairer.stale_depth)
+        if self.config.tf_in:
+            self._send_static()
+        if self.config.people_out:
+            while (got := self.tracks_sub.try_recv()) is not None:
+                self._publish_people(got.msg, now)
+                out.append(got.msg)
+        self.counters.gauge("ros_publishers", len(self._ros_pubs))
+        return out
+
+    def deadline(self, now: float) -> float | None:
+        if self.config.camera_in and len(self.pairer):
+            return self.config.pair_wait_s / 4
+        if self.config.tf_in and self._static:
+            return self.config.static_period_s
+        return None
+
+    def describe(self) -> str:
+        parts = []
+        if self.config.camera_in:
+            parts.append(f"{self.config.colour_topic} + {self.config.depth_topic or '(no depth)'} + "
+                         f"{self.config.camera_info_topic} -> {self.keys.frames(self.config.camera)}")
+        if self.config.tf_in:
+            parts.append(f"{self.config.tf_topic}, {self.config.tf_static_topic} -> tf, tf_static")
+        if self.config.people_out:
+            parts.append(f"tracks -> {self.config.humans_namespace}/bodies/..., /tf, {self.config.markers_topic}")
+        return f"ROS 2 domain {self.config.domain_id} ({self.config.distro}), node {self.config.node_name}: " + "; ".join(parts)
+
+    def close(self) -> None:
+        for pub in self._ros_pubs.values():
+            pub.close()
+        self._ros_pubs.clear()
+        for token in self._tokens:
+            token.close()
+        self._tokens.clear()
+        super().close()
+
+
+def _stamp_ns(stamp: Any) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def _person(t: TrackState) -> Person:
+    return Person(track_id=t.id, position=tuple(float(v) for v in t.position),  # type: ignore[arg-type]
+                  velocity=tuple(float(v) for v in t.velocity), posture=tuple(t.posture),  # type: ignore[arg-type]
+                  orientation=tuple(t.orientation))
+
+
+def _type_fix(topic: str, got: str) -> str:
+    if got == "sensor_msgs/msg/CompressedImage":
+        return "set colour_compressed (or depth_compressed) for this topic"
+    if got == "sensor_msgs/msg/Image":
+        return "this topic is raw: turn colour_compressed (or depth_compressed) off"
+    return f"point the setting at a topic of the right type (ros2 topic list -t shows types; {topic} is {got})"
+

@@ -17,7 +17,6 @@ a second, and skipped.
 from __future__ import annotations
 
 import logging
-import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -27,27 +26,19 @@ from common.node import Node
 from common.ratelog import RateLimitedLog
 from common.runtime import Counters
 from common.schemas import CameraInfo, Header, Image, RGBDFrame, TrackState, TransformBatch, Tracks
-from common.transport import RawPublisher, RawSample, RawSubscription, Transport
+from common.transport import RawSample, RawSubscription, Transport
 from services.ros2.config import Ros2Config
 from services.ros2.core.images import ImageError, Intrinsics, Pixels, compressed_pixels, intrinsics, raw_pixels
 from services.ros2.core.pairing import Pairer
 from services.ros2.core.people import PeopleWriter, Person
-from services.ros2.core.types import CdrError, RosTypes, known_hashes, types_of
-from services.ros2.core.wire import GraphEntity, Qos, attachment, dds_to_ros, entity_gid, parse_attachment, ros_to_dds
+from services.ros2.core.types import CdrError, known_hashes, types_of
+from services.ros2.core.wire import Qos, dds_to_ros, parse_attachment
+from services.ros2.participant import QOS_DEFAULT, QOS_SENSOR, QOS_TF, QOS_TF_STATIC, RosParticipant
 
 __all__ = ["Ros2Service"]
 
 log = logging.getLogger(__name__)
 
-#: QoS shown in the graph: images as sensor data (best effort, keep last 5); everything else
-#: reliable; /tf keep last 100 and /tf_static transient local, keep last 1, as tf2 does.
-QOS_SENSOR = Qos(reliable=False, depth=5)
-QOS_DEFAULT = Qos(depth=10)
-QOS_TF = Qos(depth=100)
-QOS_TF_STATIC = Qos(transient_local=True, depth=1)
-#: ROS samples read per topic (a FIFO: the pairing needs every image, tf needs every message).
-_ROS_IN = Delivery(latest=False, queue=16, congestion="drop")
-_ROS_OUT = Delivery(latest=False, queue=16, congestion="drop")
 #: A body's publishers are kept this long after it was last tracked, then undeclared.
 BODY_LINGER_S = 10.0
 
@@ -62,26 +53,6 @@ class _Topic:
     sub: RawSubscription
 
 
-class _RosPublisher:
-    """A ROS 2 publisher: the data key, its graph token and the attachment's sequence and GID."""
-
-    def __init__(self, pub: RawPublisher, token: Any, entity: GraphEntity, types: RosTypes, type_name: str) -> None:
-        self.pub = pub
-        self.token = token
-        self.types = types
-        self.type_name = type_name
-        self.gid = entity_gid(entity.token())
-        self.seq = 0
-
-    def put(self, msg: Any) -> None:
-        self.seq += 1
-        self.pub.put(self.types.serialize(msg, self.type_name), attachment(self.seq, time.time_ns(), self.gid))
-
-    def close(self) -> None:
-        self.pub.close()
-        self.token.close()
-
-
 class Ros2Service(Node):
     """ROS 2 camera and tf in, people out; see the module's doc."""
 
@@ -92,14 +63,12 @@ class Ros2Service(Node):
         self.config = config
         self.types = types_of(config.distro)
         self._log = RateLimitedLog(log, period_s=config.log_every_s)
-        self._zid = transport.session_id()
-        self._next_entity = 1
-        self._tokens: list[Any] = [transport.declare_token(self._entity("NN").token())]
-        self._own_gids: set[bytes] = set()
+        self.ros = RosParticipant(transport, self.types, domain_id=config.domain_id, node_name=config.node_name,
+                                  namespace=config.namespace, io=self.io)
         self._topics: list[_Topic] = []
-        self._ros_pubs: dict[str, _RosPublisher] = {}
         self._body_seen: dict[int, float] = {}
         self._seq = 0
+        self._now = 0.0
         self._camera_info: Intrinsics | None = None
         self._static: dict[str, Any] = {}
         self._static_sent = -1e9
@@ -127,33 +96,10 @@ class Ros2Service(Node):
             self.writer = PeopleWriter(self.types, prefix=config.body_prefix, namespace=config.humans_namespace,
                                        markers_topic=config.markers_topic, marker_lifetime_s=config.marker_lifetime_s)
 
-    # ------------------------------------------------------------------ the ROS 2 graph
-    def _entity(self, kind: str, topic: str = "", type_name: str = "", qos: Qos = QOS_DEFAULT) -> GraphEntity:
-        entity_id = 0
-        if kind != "NN":
-            entity_id = self._next_entity
-            self._next_entity += 1
-        return GraphEntity(domain_id=self.config.domain_id, zid=self._zid, node_id=0, entity_id=entity_id,
-                           kind=kind, node_name=self.config.node_name, namespace=self.config.namespace,  # type: ignore[arg-type]
-                           topic=topic, dds_type=ros_to_dds(type_name) if type_name else "",
-                           type_hash=self.types.hash(type_name) if type_name else "", qos=qos)
-
     def _read(self, topic: str, type_name: str, handle: Callable[[Any, RawSample], None], qos: Qos,
               history: int = 0) -> None:
-        entity = self._entity("MS", topic, type_name, qos)
-        key = f"{self.config.domain_id}/{topic.strip('/')}/*/*"
-        sub = self.io.subscribe_raw(key, _ROS_IN, history=history)
-        self._tokens.append(self.transport.declare_token(entity.token()))
+        sub = self.ros.subscription(topic, type_name, qos, history=history)
         self._topics.append(_Topic(topic, type_name, handle, sub))
-
-    def _publisher(self, topic: str, type_name: str, qos: Qos = QOS_DEFAULT) -> _RosPublisher:
-        if topic not in self._ros_pubs:
-            entity = self._entity("MP", topic, type_name, qos)
-            pub = self.transport.raw_publisher(self.types.key(self.config.domain_id, topic, type_name), _ROS_OUT)
-            token = self.transport.declare_token(entity.token())
-            self._ros_pubs[topic] = p = _RosPublisher(pub, token, entity, self.types, type_name)
-            self._own_gids.add(p.gid)
-        return self._ros_pubs[topic]
 
     # ------------------------------------------------------------------ input
     def _bad(self, reason: str, text: str) -> None:
@@ -186,7 +132,7 @@ class Ros2Service(Node):
         except ValueError as exc:
             self._bad("attachment", f"{t.topic}: {exc}")
             return
-        if att.gid in self._own_gids:
+        if att.gid in self.ros.gids:
             return  # this node's own /tf
         try:
             msg = self.types.deserialize(sample.payload, t.type_name)
@@ -210,7 +156,7 @@ class Ros2Service(Node):
         pixels = self._pixels(msg, self.config.colour_compressed, depth=False)
         stamp = _stamp_ns(msg.header.stamp)
         self._colour_header[stamp] = str(msg.header.frame_id)
-        self.pairer.add_colour(stamp, pixels, time.monotonic())
+        self.pairer.add_colour(stamp, pixels, self._now)
 
     def _on_depth(self, msg: Any, sample: RawSample) -> None:
         self.pairer.add_depth(_stamp_ns(msg.header.stamp), self._pixels(msg, self.config.depth_compressed, depth=True))
@@ -228,7 +174,7 @@ class Ros2Service(Node):
         self._send_static(force=True)
 
     def _send_static(self, force: bool = False) -> None:
-        now = time.monotonic()
+        now = self._now
         if not self._static or (not force and now - self._static_sent < self.config.static_period_s):
             return
         self._static_sent = now
@@ -253,6 +199,8 @@ class Ros2Service(Node):
                 continue
             try:
                 out.append(self._frame(pair.stamp_ns, frame_id, pair.colour, pair.depth))
+            except ImageError as exc:
+                self._bad(exc.reason, f"{self.config.colour_topic}: {exc}")
             except ValueError as exc:
                 self._bad("frame", f"{self.config.colour_topic}: {exc}")
         for stamp in [s for s in self._colour_header if s < (out[-1].header.stamp_ns if out else 0)]:
@@ -294,7 +242,7 @@ class Ros2Service(Node):
             if topic == "/tf" and not self.config.body_frames:
                 continue
             qos = QOS_TF if topic == "/tf" else QOS_DEFAULT
-            self._publisher(topic, type_name, qos).put(ros_msg)
+            self.ros.publisher(topic, type_name, qos).put(ros_msg, msg.header.stamp_ns)
             count += 1
         for p in people:
             self._body_seen[p.track_id] = now
@@ -302,15 +250,13 @@ class Ros2Service(Node):
             if now - seen > BODY_LINGER_S:
                 del self._body_seen[tid]
                 for leaf in ("position", "velocity", "posture"):
-                    pub = self._ros_pubs.pop(self.writer.topic(tid, leaf), None)
-                    if pub is not None:
-                        self.counters.count("ros_published", pub.seq)
-                        pub.close()
+                    self.counters.count("ros_published_retired", self.ros.drop(self.writer.topic(tid, leaf)))
         return count
 
     # ------------------------------------------------------------------ the loop
     def poll(self, now: float) -> list[Any]:
         out: list[Any] = []
+        self._now = now
         for t in self._topics:
             while (sample := t.sub.try_recv()) is not None:
                 self._take(t, sample)
@@ -325,7 +271,8 @@ class Ros2Service(Node):
             while (got := self.tracks_sub.try_recv()) is not None:
                 self._publish_people(got.msg, now)
                 out.append(got.msg)
-        self.counters.gauge("ros_publishers", len(self._ros_pubs))
+        self.counters.gauge("ros_publishers", len(self.ros.publishers))
+        self.counters.gauge("ros_published", sum(p.seq for p in self.ros.publishers.values()))
         return out
 
     def deadline(self, now: float) -> float | None:
@@ -347,12 +294,7 @@ class Ros2Service(Node):
         return f"ROS 2 domain {self.config.domain_id} ({self.config.distro}), node {self.config.node_name}: " + "; ".join(parts)
 
     def close(self) -> None:
-        for pub in self._ros_pubs.values():
-            pub.close()
-        self._ros_pubs.clear()
-        for token in self._tokens:
-            token.close()
-        self._tokens.clear()
+        self.ros.close()
         super().close()
 
 

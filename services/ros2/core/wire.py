@@ -106,7 +106,9 @@ class GraphEntity:
     def token(self) -> str:
         """``@ros2_lv/<domain>/<zid>/<node id>/<entity id>/<kind>/<enclave>/<namespace>/<node>``,
         then for an endpoint ``/<topic>/<type>/<hash>/<qos>``, every name with ``/`` as ``%``."""
-        parts = [ADMIN_SPACE, str(self.domain_id), self.zid, str(self.node_id), str(self.entity_id), self.kind,
+        # a node's own token repeats its node id where an endpoint's has its entity id
+        entity_id = self.node_id if self.kind == "NN" else self.entity_id
+        parts = [ADMIN_SPACE, str(self.domain_id), self.zid, str(self.node_id), str(entity_id), self.kind,
                  mangle(self.enclave), mangle(self.namespace), mangle(self.node_name)]
         if self.kind != "NN":
             parts += [mangle(self.topic), self.dds_type, self.type_hash, self.qos.text()]

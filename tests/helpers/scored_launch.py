@@ -16,7 +16,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from common.keys import RELIABLE, Keys
 from common.router_process import wait_for_port
@@ -42,6 +42,9 @@ class Scenario:
     fps: float = 10.0
     width: int = 320
     height: int = 240
+    #: each frame as soon as the detector has answered the previous one (``perception simulate
+    #: --max``): the same frames reach the tracker whatever else the machine is doing
+    max_speed: bool = False
 
 
 @dataclass(frozen=True)
@@ -100,7 +103,9 @@ def _stop(proc: subprocess.Popen[bytes], timeout: float = 60.0) -> int:
 
 
 def scored_run(launch_file: Path, port: int, client: ZenohClient, workdir: Path, robot: str,
-               scenario: Scenario | None = None, env: dict[str, str] | None = None) -> Run:
+               scenario: Scenario | None = None, env: dict[str, str] | None = None,
+               feeder: Callable[[Scenario, Keys], list[str]] | None = None,
+               services: tuple[str, ...] = SERVICES) -> Run:
     """Launch ``launch_file`` on ``port``, play ``scenario`` into it, score the tracks.
 
     The monitor (``monitor`` role: reads everything) collects the ground truth and every
@@ -124,14 +129,17 @@ def scored_run(launch_file: Path, port: int, client: ZenohClient, workdir: Path,
             monitor, gt = Monitor(mon, keys), GroundTruthLog(mon, keys)
             tracks = nav.subscribe(keys.tracks(), Tracks, RELIABLE)
             deadline, alive = time.monotonic() + 90, set()
-            while time.monotonic() < deadline and not set(SERVICES) <= alive and launch.poll() is None:
+            while time.monotonic() < deadline and not set(services) <= alive and launch.poll() is None:
                 alive = {keys.parse_alive(k).service for k in mon.alive(keys.alive(), timeout=0.5)}
-            if not set(SERVICES) <= alive:
+            if not set(services) <= alive:
                 raise AssertionError(f"alive: {sorted(alive)}\n{log_path.read_text()[-3000:]}")
+            command = feeder(sc, keys) if feeder is not None else [
+                PY, "-m", "perception", "simulate", "--scenario", sc.name, "--seed", str(sc.seed),
+                "--duration", str(sc.duration_s), "--fps", str(sc.fps), "--width", str(sc.width),
+                "--height", str(sc.height), *(("--max",) if sc.max_speed else ()), "--robot", robot,
+                *client.flags("sensors")]
             sim = subprocess.Popen(
-                [PY, "-m", "perception", "simulate", "--scenario", sc.name, "--seed", str(sc.seed),
-                 "--duration", str(sc.duration_s), "--fps", str(sc.fps), "--width", str(sc.width),
-                 "--height", str(sc.height), "--robot", robot, *client.flags("sensors")],
+                command,
                 stdout=(workdir / "simulate.log").open("wb"), stderr=subprocess.STDOUT,
                 env={**os.environ, "RUST_LOG": "off"})
             deadline = time.monotonic() + sc.duration_s + 120

@@ -32,6 +32,7 @@ from common.zenoh_transport import TransportError, open_transport
 from services.tracker.config import SEVERAL_CAMERAS
 from tools.demo.attention import AttentionLog
 from tools.demo.monitor import Monitor
+from tools.demo.ros2_echo import TrackedEcho
 from tools.demo.scoring import GroundTruthLog, score
 from tools.launcher.supervisor import ProcessSpec, Supervisor
 from tools.simulator.core.cameras import BACK_CAMERA_OFFSET
@@ -83,6 +84,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--attention", action="store_true",
                         help="also run the attention node (target lock: the nearest person, then their ID) and let it steer the simulated "
                              "head; the JSON gains attention: centring error and visible share of person 1")
+    parser.add_argument("--ros2", action="store_true",
+                        help="through ROS 2: the simulated robot publishes its camera and /tf as ROS 2 topics "
+                             "(rmw_zenoh), the ros2 node reads them in and publishes the people on /humans/...; the "
+                             "end report adds what /humans/bodies/tracked carried")
     parser.add_argument("--json", action="store_true", help="print the final metrics as JSON")
     parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
                         help="where the top-down plot of the run goes (default: tracks.png in the log dir)")
@@ -136,6 +141,9 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
     if args.attention:
         specs.append(ProcessSpec("attention", _perception("attention", *common, "--target", "lock"), env,
                                  restart="on-failure", backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
+    if args.ros2:
+        specs.append(ProcessSpec("ros2", _perception("ros2", *common, "--domain-id", "0"), env,
+                                 restart="on-failure", backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
     if args.view:
         specs.append(ProcessSpec("viewer", _perception("view", *common, "--port", str(args.view_port)), env,
                                  restart="on-failure", backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
@@ -171,6 +179,8 @@ def main(args: argparse.Namespace) -> int:
         logging.getLogger(name).setLevel(logging.WARNING)
     if args.duration <= 0 or args.fps <= 0 or args.width < 64 or args.height < 48:
         raise CliError("--duration and --fps must be positive and the image at least 64x48")
+    if args.ros2 and args.back_camera:
+        raise CliError("--ros2 carries one camera (the head's, as the RealSense ROS 2 driver publishes it): drop --back-camera")
     log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="perception-demo-"))
     log_dir.mkdir(parents=True, exist_ok=True)
     port = free_port()
@@ -186,6 +196,7 @@ def main(args: argparse.Namespace) -> int:
     sup_thread = threading.Thread(target=lambda: codes.append(supervisor.run()), name="supervisor", daemon=True)
     sim: subprocess.Popen[bytes] | None = None
     looked: AttentionLog | None = None
+    echo: TrackedEcho | None = None
     print(f"starting the router and the four services (log: {log_dir / 'processes.log'}) ...", flush=True)
     with Shutdown() as shutdown:
         sup_thread.start()
@@ -198,7 +209,8 @@ def main(args: argparse.Namespace) -> int:
         try:
             monitor = Monitor(transport, keys)
             gt = GroundTruthLog(transport, keys)
-            wanted = (*SERVICES, "attention") if args.attention else SERVICES
+            wanted = (*SERVICES, *(("attention",) if args.attention else ()), *(("ros2",) if args.ros2 else ()))
+            echo = TrackedEcho(transport) if args.ros2 else None
             looked = AttentionLog(transport, keys, default_camera(args.width, args.height)) if args.attention else None
             alive = _wait_alive(transport, keys, sup_thread, shutdown, 60.0, wanted)
             if not all(s in alive for s in wanted):
@@ -209,7 +221,8 @@ def main(args: argparse.Namespace) -> int:
                 _perception("simulate", "--scenario", args.scenario, "--duration", str(args.duration), "--seed", str(args.seed),
                             "--width", str(args.width), "--height", str(args.height), "--fps", str(args.fps),
                             "--connect", endpoint, "--robot", robot, *(("--head-control",) if args.attention else ()),
-                            *(("--back-camera", args.back_camera) if args.back_camera else ())),
+                            *(("--back-camera", args.back_camera) if args.back_camera else ()),
+                            *(("--ros2",) if args.ros2 else ())),
                 stdout=log_file, stderr=subprocess.STDOUT, start_new_session=True,
                 env={**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "error")},
             )
@@ -227,6 +240,8 @@ def main(args: argparse.Namespace) -> int:
                 gt.poll()
                 if looked is not None:
                     looked.poll()
+                if echo is not None:
+                    echo.poll()
                 elapsed = time.monotonic() - started
                 if sim.poll() is not None and gt.idle_for(1.5):
                     break  # the scenario is over and the pipeline has drained
@@ -242,6 +257,8 @@ def main(args: argparse.Namespace) -> int:
                 shutdown.wait(0.5)
             monitor.poll()
             gt.poll()
+            if echo is not None:
+                echo.poll()
             wall = time.monotonic() - started
             cpu = {}
             for name, (pid, t0) in cpu_start.items():
@@ -265,6 +282,8 @@ def main(args: argparse.Namespace) -> int:
     report, table = score(gt, monitor, args.scenario, plot=plot, source="head" if args.second_detector or args.back_camera else None)
     if looked is not None:
         report["attention"] = looked.report()
+    if echo is not None:
+        report["ros2"] = echo.report()
     plotted = str(plot) if plot.is_file() else None
     if args.json:
         print(json.dumps({"scenario": args.scenario, "log": str(log_dir / "processes.log"), "plot": plotted,
@@ -277,6 +296,8 @@ def main(args: argparse.Namespace) -> int:
             a = report["attention"]
             print(f"attention (person {a['person_id']}): centring error p50 {a['center_error_px_p50']} px, "
                   f"p95 {a['center_error_px_p95']} px; visible {a['target_visible_fraction']} of {a['frames']} frames")
+        if echo is not None:
+            print(echo.line())
         if plotted:
             print(f"plot of the run (tracks against the ground truth): {plotted}")
     return 0

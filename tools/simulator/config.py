@@ -41,6 +41,9 @@ class SimulatorConfig(BaseModel):
     static_period_s: float = Field(default=1.0, gt=0.0, description="how often tf_static is re-sent for late joiners")
     head_control: bool = Field(default=False, description="the head obeys HeadCommand on head/command (the attention "
                                                           "node's) instead of the scenario's head motion")
+    ros2: bool = Field(default=False, description="publish the head camera and the transforms as a ROS 2 robot does "
+                                                  "(rmw_zenoh, the RealSense driver's topics), for perception ros2")
+    ros2_domain_id: int = Field(default=0, ge=0, le=232, description="the ROS 2 domain of --ros2")
     faults: list[str] = Field(default_factory=list, description="setup mistakes to make on purpose (tools/simulator/faults.py)")
 
     @field_validator("faults")
@@ -68,6 +71,8 @@ class SimulatorConfig(BaseModel):
     def _two_names(self) -> SimulatorConfig:
         if self.back_camera == self.camera:
             raise ValueError(f"back_camera must differ from camera ({self.camera!r}): each camera has its own frames key")
+        if self.ros2 and self.back_camera is not None:
+            raise ValueError("ros2 publishes one camera (the head's, on the RealSense driver's topics): drop back_camera")
         return self
 
     @field_validator("scenario")

@@ -95,6 +95,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="YAML/JSON file with a 'simulator' section (--config is the Zenoh config)",
     )
+    parser.add_argument("--ros2", action="store_true", default=None,
+                        help="be a ROS 2 robot: the head camera (rgb8, 16UC1 aligned depth, camera info on the "
+                             "RealSense driver's topics) and /tf, /tf_static as ROS 2 topics over rmw_zenoh, for "
+                             "perception ros2 to read; the ground truth stays on this project's key")
     out = parser.add_argument_group("files instead of (or besides) publishing")
     out.add_argument("--output", type=Path, default=None, help="write an MCAP recording instead of publishing")
     out.add_argument("--gt-csv", type=Path, default=None, help="write the ground truth as frame,id,x,y,z")
@@ -123,6 +127,7 @@ def _config(args: argparse.Namespace) -> SimulatorConfig:
             "start_ns",
             "head_control",
             "faults",
+            "ros2",
         )
     }
     overrides["duration_s"] = args.duration

@@ -38,6 +38,13 @@ class SimulatorService:
         self.keys = keys
         self.config = config
         self.counters = counters if counters is not None else Counters()
+        self.ros = None
+        if config.ros2:
+            # a ROS 2 robot: built first (its type store takes a moment), so that frame 0's stamp,
+            # taken by the stream, is not older than the first publish
+            from tools.simulator.ros2_out import RosRobot
+
+            self.ros = RosRobot(transport, config.ros2_domain_id)
         self.stream = SimulatedStream(config, keys)
         self.gt_csv = gt_csv
         self.seq = 0
@@ -51,6 +58,13 @@ class SimulatorService:
             keys.tf_static(): transport.publisher(keys.tf_static(), TransformBatch, RELIABLE),
             keys.groundtruth(): transport.publisher(keys.groundtruth(), PeopleGroundTruth, RELIABLE),
         }
+        if self.ros is not None:
+            # the head camera and the transforms go out as ROS 2 topics instead
+            for key in (keys.frames(config.camera), keys.tf(), keys.tf_static()):
+                self.publishers[key].close()
+            self.publishers[keys.frames(config.camera)] = self.ros.camera()  # type: ignore[assignment]
+            self.publishers[keys.tf()] = self.ros.transforms(static=False)  # type: ignore[assignment]
+            self.publishers[keys.tf_static()] = self.ros.transforms(static=True)  # type: ignore[assignment]
         # --max: each camera's detector (the head's, and the back camera's if there is one)
         self._detections: dict[str, Subscription[Detections]] = {
             camera: transport.subscribe(keys.detections(camera), Detections, RELIABLE)
@@ -135,6 +149,8 @@ class SimulatorService:
     def close(self) -> None:
         for pub in self.publishers.values():
             pub.close()
+        if self.ros is not None:
+            self.ros.close()
         for sub in (*self._detections.values(), self._head):
             if sub is not None:
                 sub.close()

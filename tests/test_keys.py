@@ -44,7 +44,7 @@ def test_parse_alive_rejects_other_keys(key: str) -> None:
 
 def test_status_lists_each_live_token_as_service_and_instance() -> None:
     from common.memory import MemoryBus, MemoryTransport
-    from common.status_cli import collect
+    from tools.system.status_cli import collect
 
     bus = MemoryBus()
     service, client = MemoryTransport(bus), MemoryTransport(bus)

@@ -8,8 +8,8 @@ import importlib.util
 import sys
 from types import ModuleType
 
-from common.cli_util import CliError, fail, setup_logging
-from common.registry import NODES
+from common.runtime.cli_util import CliError, fail, setup_logging
+from common.messages.registry import NODES
 
 #: name -> (module, one-line help). Each module has add_arguments(parser) and main(args) -> int,
 #: and may have a DESCRIPTION string for its --help.

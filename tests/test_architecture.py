@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from common.registry import NODES as REGISTRY
+from common.messages.registry import NODES as REGISTRY
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("common", "services", "tools", "perception")

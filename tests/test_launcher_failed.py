@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from common.router_process import free_port
-from common.schemas import Header, ServiceStatus
+from common.transport.router_process import free_port
+from common.messages.schemas import Header, ServiceStatus
 from tools.system.status_cli import render
 from tests.helpers.launcher import PY, ROOT, TIMEOUT, Launch
 

@@ -12,10 +12,10 @@ from typing import Any
 
 import pytest
 
-from common.cli_util import CliError
-from common.keys import Delivery, Keys
-from common.router_process import RouterProcess
-from common.zenoh_transport import ZenohTransport
+from common.runtime.cli_util import CliError
+from common.messages.keys import Delivery, Keys
+from common.transport.router_process import RouterProcess
+from common.transport.zenoh import ZenohTransport
 from tests.fixtures.viewer_scene import scene_messages
 from tests.helpers.recording import stop_recording, wait_recorded
 

@@ -10,8 +10,8 @@ import urllib.request
 import numpy as np
 import pytest
 
-from common.keys import Keys
-from common.memory import MemoryBus
+from common.messages.keys import Keys
+from common.transport.memory import MemoryBus
 from tests.fixtures.viewer_scene import IDS, ScenePublisher, camera_to_map
 from tools.viewer.config import ViewerConfig
 from tools.viewer.core.health import NodeSeen, health

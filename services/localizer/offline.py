@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from common.cli_util import CliError
-from common.detections_file import read_detection_lines
-from common.geometry import PinholeCamera, TransformBuffer, TransformError
+from common.runtime.cli_util import CliError
+from common.runtime.detections_file import read_detection_lines
+from common.geometry.transforms import PinholeCamera, TransformBuffer, TransformError
 from services.localizer.core import (
     DepthNoiseModel,
     Localization,

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from common.cli_util import CliError
+from common.runtime.cli_util import CliError
 from tools.evaluation.evaluate import (FORMATS, default_threshold, evaluate_sequences, evaluate_tables, find_sequences,
                                       format_table)
 from tools.evaluation.readers import EvaluationInputError, read_table

@@ -9,11 +9,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from common.cli_util import CliError, add_key_arguments, keys_from_args
-from common.keys import Delivery
-from common.runtime import Counters, ServiceRuntime, Shutdown, package_version
-from common.transport import Received, Subscription, Transport, wait_any
-from common.zenoh_config import add_zenoh_arguments
+from common.runtime.cli_util import CliError, add_key_arguments, keys_from_args
+from common.messages.keys import Delivery
+from common.runtime.service import Counters, ServiceRuntime, Shutdown, package_version
+from common.transport.base import Received, Subscription, Transport, wait_any
+from common.transport.zenoh_config import add_zenoh_arguments
 from tools.replay.recorder import McapRecorder
 
 if TYPE_CHECKING:
@@ -130,7 +130,7 @@ def _open_files(args: argparse.Namespace, exprs: list[str]) -> tuple[McapRecorde
 
 
 def main(args: argparse.Namespace) -> int:
-    from common.zenoh_transport import open_transport_from_args
+    from common.transport.zenoh import open_transport_from_args
 
     keys = keys_from_args(args)
     exprs = args.keys or [keys.all()]

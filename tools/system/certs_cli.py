@@ -6,9 +6,9 @@ import argparse
 import json
 from pathlib import Path
 
-from common.acl import access_control
-from common.certs import DEFAULT_HOSTS, ROLES, CertsError, make_certs
-from common.cli_util import CliError
+from common.transport.acl import access_control
+from common.transport.certs import DEFAULT_HOSTS, ROLES, CertsError, make_certs
+from common.runtime.cli_util import CliError
 
 HELP = "make the TLS certificates and the per-service credentials of deploy/secure/"
 DESCRIPTION = f"""\

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from common.cli_util import add_key_arguments, keys_from_args
-from common.keys import STREAMS
+from common.runtime.cli_util import add_key_arguments, keys_from_args
+from common.messages.keys import STREAMS
 
 DESCRIPTION = "Print every key expression of the robot, its message type, publishers, subscribers and delivery policy."
 

@@ -8,10 +8,10 @@ import sys
 
 from pydantic import ValidationError
 
-from common.cli_util import CliError
-from common.runtime import Shutdown
-from common.zenoh_config import ZenohOptions, add_zenoh_arguments, options_from_args
-from common.zenoh_transport import TransportError, open_session
+from common.runtime.cli_util import CliError
+from common.runtime.service import Shutdown
+from common.transport.zenoh_config import ZenohOptions, add_zenoh_arguments, options_from_args
+from common.transport.zenoh import TransportError, open_session
 
 log = logging.getLogger(__name__)
 

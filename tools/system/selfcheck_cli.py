@@ -7,15 +7,15 @@ import time
 
 from pydantic import ValidationError
 
-from common.cli_util import CliError, add_key_arguments, keys_from_args
-from common.codec import encode
-from common.keys import RELIABLE, Keys
-from common.router_process import RouterProcess
-from common.runtime import ServiceRuntime
-from common.samples import example_messages
-from common.transport import Transport
-from common.zenoh_config import ZenohOptions, add_zenoh_arguments, options_from_args
-from common.zenoh_transport import TransportError, open_transport
+from common.runtime.cli_util import CliError, add_key_arguments, keys_from_args
+from common.messages.codec import encode
+from common.messages.keys import RELIABLE, Keys
+from common.transport.router_process import RouterProcess
+from common.runtime.service import ServiceRuntime
+from common.messages.samples import example_messages
+from common.transport.base import Transport
+from common.transport.zenoh_config import ZenohOptions, add_zenoh_arguments, options_from_args
+from common.transport.zenoh import TransportError, open_transport
 
 DESCRIPTION = """\
 Check the messaging layer end to end. Unless --connect is given, start a local

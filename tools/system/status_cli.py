@@ -7,12 +7,12 @@ import json
 import time
 
 
-from common.cli_util import add_key_arguments, keys_from_args
-from common.keys import Keys
-from common.schemas import ServiceStatus
-from common.transport import Transport
-from common.zenoh_config import add_zenoh_arguments
-from common.zenoh_transport import open_transport_from_args
+from common.runtime.cli_util import add_key_arguments, keys_from_args
+from common.messages.keys import Keys
+from common.messages.schemas import ServiceStatus
+from common.transport.base import Transport
+from common.transport.zenoh_config import add_zenoh_arguments
+from common.transport.zenoh import open_transport_from_args
 
 HELP = "list the live services with their host and counters"
 DESCRIPTION = """\

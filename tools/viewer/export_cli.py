@@ -6,9 +6,9 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from common.cli_util import CliError
-from common.codec import DecodeError, decode
-from common.progress import progress
+from common.runtime.cli_util import CliError
+from common.messages.codec import DecodeError, decode
+from common.runtime.progress import progress
 
 if TYPE_CHECKING:
     from tools.viewer.foxglove_bridge import FoxgloveMcap

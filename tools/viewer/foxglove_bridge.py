@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from common.schemas import (Detections, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
+from common.messages.schemas import (Detections, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
                             TransformBatch)
 from tools.viewer.core.drawing import colour_rgb, label_boxes, project_to_image
 

@@ -16,15 +16,15 @@ from typing import Any, Callable, Protocol
 
 import numpy as np
 
-from common.geometry import TransformBuffer, TransformError
-from common.geometry_messages import add_batch
-from common.keys import RELIABLE, STATUS, Delivery, Keys
-from common.node import Node
-from common.registry import stages
-from common.runtime import Counters, Shutdown
-from common.schemas import (Detections, Embeddings, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
+from common.geometry.transforms import TransformBuffer, TransformError
+from common.geometry.messages import add_batch
+from common.messages.keys import RELIABLE, STATUS, Delivery, Keys
+from common.runtime.node import Node
+from common.messages.registry import stages
+from common.runtime.service import Counters, Shutdown
+from common.messages.schemas import (Detections, Embeddings, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
                             TransformBatch)
-from common.transport import Subscription, Transport
+from common.transport.base import Subscription, Transport
 from tools.viewer.config import ViewerConfig
 from tools.viewer.core.health import NodeSeen, health
 from tools.viewer.core.drawing import StageMeter, Trails, colour_hex, label_boxes, project_to_image, yaw_of

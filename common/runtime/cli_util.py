@@ -7,7 +7,7 @@ import logging
 import os
 import sys
 
-from common.keys import DEFAULT_PREFIX, DEFAULT_ROBOT, Keys
+from common.messages.keys import DEFAULT_PREFIX, DEFAULT_ROBOT, Keys
 
 __all__ = ["CliError", "add_key_arguments", "fail", "keys_from_args", "setup_logging"]
 

@@ -1,9 +1,9 @@
 """Poses as plain 4x4 homogeneous matrices built from elementary rotations.
 
-Convention (ROS TF, as in :mod:`common.geometry`): ``T_a_b`` maps points expressed in
+Convention (ROS TF, as in :mod:`common.geometry.transforms`): ``T_a_b`` maps points expressed in
 frame ``b`` into frame ``a`` (``p_a = T_a_b @ p_b``), so ``T_a_c = T_a_b @ T_b_c``.
 
-These complement :class:`common.geometry.RigidTransform` where results must be
+These complement :class:`common.geometry.transforms.RigidTransform` where results must be
 reproducible bit for bit: that class holds a scipy ``Rotation`` (a quaternion), and a
 pose that goes through it comes back different in the last bits for most poses (its
 inverse and its quaternion too). The simulator builds its robot, head and camera poses

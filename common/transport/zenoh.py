@@ -1,4 +1,4 @@
-"""The Zenoh implementation of :class:`common.transport.Transport`."""
+"""The Zenoh implementation of :class:`common.transport.base.Transport`."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ from typing import Any, Callable
 
 import zenoh
 
-from common.codec import DecodeError, decode_any, encode
-from common.keys import Delivery
-from common.schemas import Message
-from common.transport import Closer, Inbox, Publisher, QueryHandler, Token, Transport, parse_parameters
-from common.zenoh_config import ZenohOptions, build_zenoh_config
-from common.zenoh_security import SecurityError
+from common.messages.codec import DecodeError, decode_any, encode
+from common.messages.keys import Delivery
+from common.messages.schemas import Message
+from common.transport.base import Closer, Inbox, Publisher, QueryHandler, Token, Transport, parse_parameters
+from common.transport.zenoh_config import ZenohOptions, build_zenoh_config
+from common.transport.zenoh_security import SecurityError
 
 __all__ = ["TransportError", "ZenohTransport", "open_transport", "open_transport_from_args"]
 
@@ -182,8 +182,8 @@ def open_transport(opts: ZenohOptions) -> ZenohTransport:
 
 def open_transport_from_args(args: argparse.Namespace) -> ZenohTransport:
     """The transport of a command's Zenoh flags; a bad flag or no router is a :class:`CliError`."""
-    from common.cli_util import CliError
-    from common.zenoh_config import options_from_args
+    from common.runtime.cli_util import CliError
+    from common.transport.zenoh_config import options_from_args
 
     try:
         return open_transport(options_from_args(args))

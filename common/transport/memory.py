@@ -11,10 +11,10 @@ from __future__ import annotations
 import threading
 from typing import Any, Callable
 
-from common.codec import DecodeError, decode_any, encode
-from common.keys import Delivery
-from common.schemas import Message
-from common.transport import Closer, Inbox, Publisher, QueryHandler, Token, Transport, parse_parameters
+from common.messages.codec import DecodeError, decode_any, encode
+from common.messages.keys import Delivery
+from common.messages.schemas import Message
+from common.transport.base import Closer, Inbox, Publisher, QueryHandler, Token, Transport, parse_parameters
 
 __all__ = ["MemoryBus", "MemoryTransport", "key_matches"]
 

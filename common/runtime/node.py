@@ -20,7 +20,7 @@ A node is an object with ``poll(now)`` and ``close()`` (and, if it waits on a cl
                 ...  # publish, and append what was published to out
             return out
 
-The status counters and liveliness (:class:`common.runtime.ServiceRuntime`) read the
+The status counters and liveliness (:class:`common.runtime.service.ServiceRuntime`) read the
 declared subscriptions and publishers; nothing is listed by hand. :func:`run_node` does
 the rest, the same way for every node: flags -> layered config (defaults, the file's
 section for this node, ``PERCEPTION_<NODE>__FIELD``, flags) -> start-up checks -> the
@@ -40,14 +40,14 @@ from typing import Any, Callable, ClassVar, Mapping, TypeVar
 
 from pydantic import BaseModel
 
-from common.cli_util import CliError, add_key_arguments, keys_from_args
-from common.config import ConfigError, load_config
-from common.keys import Delivery, Keys
-from common.runtime import Counters, ServiceRuntime, Shutdown
-from common.schemas import Message
-from common.transport import Publisher, QueryHandler, Subscription, Transport, wait_any
-from common.zenoh_config import add_zenoh_arguments
-from common.zenoh_transport import open_transport_from_args
+from common.runtime.cli_util import CliError, add_key_arguments, keys_from_args
+from common.runtime.config import ConfigError, load_config
+from common.messages.keys import Delivery, Keys
+from common.runtime.service import Counters, ServiceRuntime, Shutdown
+from common.messages.schemas import Message
+from common.transport.base import Publisher, QueryHandler, Subscription, Transport, wait_any
+from common.transport.zenoh_config import add_zenoh_arguments
+from common.transport.zenoh import open_transport_from_args
 
 __all__ = ["Node", "NodeIO", "add_node_arguments", "load_node_config", "run_node", "settings_summary"]
 

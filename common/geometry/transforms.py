@@ -9,8 +9,8 @@ Conventions follow ROS:
   returns the transform that maps ``source`` points into ``target``.
 * Time is integer nanoseconds (``stamp_ns``); durations are seconds (``*_s``).
 
-Nothing here knows about messages; :mod:`common.geometry_messages` builds these objects
-from :class:`~common.schemas.CameraInfo` and :class:`~common.schemas.Transform`.
+Nothing here knows about messages; :mod:`common.geometry.messages` builds these objects
+from :class:`~common.messages.schemas.CameraInfo` and :class:`~common.messages.schemas.Transform`.
 """
 
 from __future__ import annotations

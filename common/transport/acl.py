@@ -1,7 +1,7 @@
-"""Least-privilege Zenoh access control for the secure deployment, derived from :mod:`common.keys`.
+"""Least-privilege Zenoh access control for the secure deployment, derived from :mod:`common.messages.keys`.
 
 Each role (a user name of Zenoh's user/password authentication, see
-:data:`common.certs.ROLES`: one per node of :data:`common.registry.NODES`, and the parties that
+:data:`common.transport.certs.ROLES`: one per node of :data:`common.messages.registry.NODES`, and the parties that
 are not nodes) may publish, subscribe, serve, ask and declare liveliness on
 its own keys only; the routers deny everything else (``default_permission: deny``). The
 routers' ``access_control`` sections in ``deploy/secure/`` are this module's output
@@ -22,12 +22,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from common.keys import DEFAULT_PREFIX, Keys
-from common.registry import NODES, NodeEntry, node
+from common.messages.keys import DEFAULT_PREFIX, Keys
+from common.messages.registry import NODES, NodeEntry, node
 
 __all__ = ["Grant", "access_control", "grants"]
 
-#: The common name of the routers' certificate (:func:`common.certs.make_certs`).
+#: The common name of the routers' certificate (:func:`common.transport.certs.make_certs`).
 ROUTER_COMMON_NAME = "router"
 _ROBOT = "robot-name"  # stands for any robot, replaced by '*' in the rules
 #: The roles that are not one node's own: the routers, the sensors, the tools and the people.
@@ -52,7 +52,7 @@ class Grant:
 
 
 def _node_grant(k: Keys, entry: NodeEntry) -> Grant:
-    """A node run by :func:`common.node.run_node`: its streams as :data:`common.registry.NODES`
+    """A node run by :func:`common.runtime.node.run_node`: its streams as :data:`common.messages.registry.NODES`
     declares them, plus its own status and liveliness."""
     status = k.status(entry.name, "*")
 
@@ -67,7 +67,7 @@ def _node_grant(k: Keys, entry: NodeEntry) -> Grant:
 def grants(prefix: str = DEFAULT_PREFIX) -> dict[str, Grant]:
     """Role -> grant, with keys of any robot under ``prefix``.
 
-    Every node of :data:`common.registry.NODES` logs in under its own name and is granted
+    Every node of :data:`common.messages.registry.NODES` logs in under its own name and is granted
     exactly the streams its entry declares.
     """
     k = Keys(robot=_ROBOT, prefix=prefix)

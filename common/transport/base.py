@@ -1,7 +1,7 @@
 """Typed publish/subscribe over Zenoh, and the interface every transport implements.
 
 Services are handed a :class:`Transport` and never open a session themselves; tests hand
-them a :class:`common.memory.MemoryTransport` instead, with the same behaviour.
+them a :class:`common.transport.memory.MemoryTransport` instead, with the same behaviour.
 
 Subscriptions deliver into an :class:`Inbox` from the transport's receive thread:
 
@@ -25,10 +25,10 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable, Generic, Iterable, TypeVar
 
-from common.codec import DecodeError, decode, decode_any, encode
-from common.keys import Delivery
-from common.ratelog import RateLimitedLog
-from common.schemas import Message
+from common.messages.codec import DecodeError, decode, decode_any, encode
+from common.messages.keys import Delivery
+from common.runtime.ratelog import RateLimitedLog
+from common.messages.schemas import Message
 
 __all__ = ["Closer", "Inbox", "Publisher", "QueryHandler", "Received", "Subscription", "SubscriptionStats", "Transport", "wait_any"]
 

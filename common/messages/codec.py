@@ -20,7 +20,7 @@ import msgpack
 import numpy as np
 from pydantic import ValidationError
 
-from common.schemas import MESSAGE_TYPES, Message
+from common.messages.schemas import MESSAGE_TYPES, Message
 
 __all__ = ["DEFAULT_MAX_BYTES", "DecodeError", "decode", "decode_any", "encode", "peek_schema", "unpack_unchecked"]
 

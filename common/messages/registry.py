@@ -2,8 +2,8 @@
 
 Everything that names the nodes is derived from :data:`NODES` or checked against it:
 ``perception``'s command table (each node's ``commands`` module), the key table and
-``perception keys`` (:mod:`common.keys`), the certificate roles (:mod:`common.certs`) and the
-access-control rules (:mod:`common.acl`), the demo's processes and the viewer's and doctor's
+``perception keys`` (:mod:`common.messages.keys`), the certificate roles (:mod:`common.transport.certs`) and the
+access-control rules (:mod:`common.transport.acl`), the demo's processes and the viewer's and doctor's
 stages (the entries with ``stage=True``, in data-flow order), and the import rules
 (``.importlinter``, ``tests/test_architecture.py``). A test builds every node on the in-memory
 transport and fails when what it really subscribes, publishes and serves differs from its entry
@@ -24,7 +24,7 @@ __all__ = ["NODES", "NodeEntry", "node", "pipeline", "stages"]
 
 @dataclass(frozen=True)
 class NodeEntry:
-    """One node: its name and where it lives, and the streams of :data:`common.keys.STREAMS` it uses.
+    """One node: its name and where it lives, and the streams of :data:`common.messages.keys.STREAMS` it uses.
 
     ``subscribes``/``publishes``/``serves`` are stream names (``frames``, ``tracks``,
     ``track_query``...), the union over the node's settings (the detector reads ``tf`` only with a
@@ -36,7 +36,7 @@ class NodeEntry:
     name: str
     #: The package; its ``commands`` module adds to the ``perception`` command table.
     package: str
-    #: ``module:Class`` of the node and of its settings model (the node shape, ``common.node``).
+    #: ``module:Class`` of the node and of its settings model (the node shape, ``common.runtime.node``).
     node: str
     config: str
     summary: str

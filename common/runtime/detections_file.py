@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any, Iterator, TextIO
 
-from common.cli_util import CliError
+from common.runtime.cli_util import CliError
 
 __all__ = ["read_detection_lines"]
 

@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from common.schemas import (
+from common.messages.schemas import (
     AppearanceThresholds,
     CameraInfo,
     CameraView,

@@ -1,6 +1,6 @@
-"""Build :mod:`common.geometry` objects from messages, and messages from them.
+"""Build :mod:`common.geometry.transforms` objects from messages, and messages from them.
 
-Kept apart from :mod:`common.geometry` so that the geometry stays free of pydantic.
+Kept apart from :mod:`common.geometry.transforms` so that the geometry stays free of pydantic.
 """
 
 from __future__ import annotations
@@ -9,13 +9,13 @@ from typing import TYPE_CHECKING, Any, Iterable
 
 import numpy as np
 
-from common.geometry import FrameTreeError, PinholeCamera, RigidTransform, TransformBuffer
-from common.schemas import CameraInfo, Header, Transform, TransformBatch
+from common.geometry.transforms import FrameTreeError, PinholeCamera, RigidTransform, TransformBuffer
+from common.messages.schemas import CameraInfo, Header, Transform, TransformBatch
 
 if TYPE_CHECKING:
-    from common.ratelog import RateLimitedLog
-    from common.runtime import Counters
-    from common.transport import Subscription
+    from common.runtime.ratelog import RateLimitedLog
+    from common.runtime.service import Counters
+    from common.transport.base import Subscription
 
 __all__ = [
     "add_batch",
@@ -67,7 +67,7 @@ def add_transform(buffer: TransformBuffer, msg: Transform, static: bool = False)
 def add_batch(buffer: TransformBuffer, batch: TransformBatch, static: bool = False) -> int:
     """Put every transform of ``batch`` in ``buffer``; returns how many were added.
 
-    Raises :class:`common.geometry.FrameTreeError` at the first transform that breaks
+    Raises :class:`common.geometry.transforms.FrameTreeError` at the first transform that breaks
     the tree (the ones before it are kept).
     """
     for msg in batch.transforms:

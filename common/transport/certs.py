@@ -26,8 +26,8 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
-from common.acl import ROLES_NOT_NODES, ROUTER_COMMON_NAME
-from common.registry import NODES
+from common.transport.acl import ROLES_NOT_NODES, ROUTER_COMMON_NAME
+from common.messages.registry import NODES
 
 __all__ = ["CertsError", "DEFAULT_HOSTS", "ROLES", "make_certs", "issue_certificate", "make_ca"]
 

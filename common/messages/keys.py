@@ -5,7 +5,7 @@ version segment changes only with an incompatible schema change, so old and new
 services never read each other's payloads by mistake.
 
 :data:`STREAMS` describes each stream: message type, publisher, subscribers and delivery
-policy; who among the nodes publishes and subscribes comes from :data:`common.registry.NODES`. The README's key table is generated from it (``perception keys --markdown``).
+policy; who among the nodes publishes and subscribes comes from :data:`common.messages.registry.NODES`. The README's key table is generated from it (``perception keys --markdown``).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
-from common.registry import NODES
+from common.messages.registry import NODES
 
 __all__ = ["COMMANDS", "DEFAULT_PREFIX", "DEFAULT_ROBOT", "STREAMS", "AliveKey", "Delivery", "Keys", "Stream", "stream", "validate_chunk"]
 
@@ -40,7 +40,7 @@ class Delivery:
     ``congestion``: what the publisher does when the network cannot keep up.
     ``wake``: False for a subscriber that reads on its own schedule (a page refreshed ten
     times a second): samples wait inside the transport, the newest ``queue`` of them, and no
-    thread is woken per sample; :meth:`~common.transport.Subscription.recv` does not wait on
+    thread is woken per sample; :meth:`~common.transport.base.Subscription.recv` does not wait on
     them and what overflows is not counted.
     """
 
@@ -69,7 +69,7 @@ class Stream:
     """One kind of key: its template under the base key and who uses it.
 
     Who publishes and who subscribes among the project's nodes comes from
-    :data:`common.registry.NODES`; ``others_publish`` and ``others_subscribe`` name the parties
+    :data:`common.messages.registry.NODES`; ``others_publish`` and ``others_subscribe`` name the parties
     that are not nodes (a camera driver, the simulator, navigation).
     """
 

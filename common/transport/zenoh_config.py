@@ -6,7 +6,7 @@ plus ``--connect-timeout`` and ``--credentials``. The environment variable
 flags, ``PERCEPTION_ZENOH_CONFIG`` names a config file when ``--config`` is not given and
 ``PERCEPTION_ZENOH_CREDENTIALS`` a credentials file when ``--credentials`` is not given.
 TLS files in the config file are resolved against its folder and checked
-(:mod:`common.zenoh_security`).
+(:mod:`common.transport.zenoh_security`).
 
 Defaults are the robot's: a client of the local router at ``tcp/127.0.0.1:7447``, with
 fast reconnect retries (a restarted router is rejoined in about 0.1 s rather than 4 s).
@@ -47,7 +47,7 @@ class ZenohOptions(BaseModel):
     multicast_scouting: bool = False
     connect_timeout_s: float = Field(default=10.0, description="how long open() waits for the router; <0 waits forever")
     shared_memory: bool = True
-    access_control: bool = Field(default=False, description="routers: enforce common.acl's least-privilege rules")
+    access_control: bool = Field(default=False, description="routers: enforce common.transport.acl's least-privilege rules")
     credentials: Path | None = Field(default=None, description="USER:PASSWORD file (mode 0600) for Zenoh's "
                                      "user/password authentication")
 
@@ -137,12 +137,12 @@ def options_from_args(args: argparse.Namespace) -> ZenohOptions:
 def build_zenoh_config(opts: ZenohOptions) -> "zenoh.Config":  # type: ignore[name-defined]  # noqa: F821
     """The ``zenoh.Config`` for ``opts``: file first, then the explicit settings on top.
 
-    Raises :class:`common.zenoh_security.SecurityError` naming a missing, unreadable or
+    Raises :class:`common.transport.zenoh_security.SecurityError` naming a missing, unreadable or
     expired certificate, or a key or credentials file that others can read.
     """
     import zenoh
 
-    from common.zenoh_security import secure_config
+    from common.transport.zenoh_security import secure_config
 
     conf = zenoh.Config.from_file(str(opts.config_file)) if opts.config_file else zenoh.Config()
     secure_config(conf, opts.config_file, opts.credentials)
@@ -163,7 +163,7 @@ def build_zenoh_config(opts: ZenohOptions) -> "zenoh.Config":  # type: ignore[na
     if not opts.shared_memory:
         conf.insert_json5("transport/shared_memory/enabled", "false")
     if opts.access_control:
-        from common.acl import access_control
+        from common.transport.acl import access_control
 
         conf.insert_json5("access_control", json.dumps(access_control()))
     return conf

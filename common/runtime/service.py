@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 from types import FrameType
 from typing import Any
 
-from common.keys import STATUS, Keys
-from common.schemas import Header, ServiceStatus
-from common.transport import Publisher, Subscription, Transport
+from common.messages.keys import STATUS, Keys
+from common.messages.schemas import Header, ServiceStatus
+from common.transport.base import Publisher, Subscription, Transport
 
 __all__ = ["Counters", "ServiceRuntime", "Shutdown", "instance_id", "package_version"]
 
@@ -115,7 +115,7 @@ class ServiceRuntime:
     Received/dropped/invalid sum the subscriptions' stats and the service's
     :class:`Counters`; published sums the publishers. The status also lists the keys
     subscribed and published, and the ``settings`` it was given. A node passes its ``io``
-    (:class:`common.node.NodeIO`), whose declared subscriptions and publishers are read
+    (:class:`common.runtime.node.NodeIO`), whose declared subscriptions and publishers are read
     live; tools without a node add theirs with :meth:`watch`.
     """
 
@@ -123,7 +123,7 @@ class ServiceRuntime:
                  instance: str | None = None, counters: Counters | None = None, io: Any = None,
                  settings: dict[str, str] | None = None) -> None:
         self.name = name
-        #: The service's settings as text, reported in every status (:func:`common.node.settings_summary`).
+        #: The service's settings as text, reported in every status (:func:`common.runtime.node.settings_summary`).
         self.settings = dict(settings or {})
         self.instance = instance or instance_id()
         self.transport = transport

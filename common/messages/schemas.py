@@ -23,7 +23,7 @@ from typing import Any, Callable, ClassVar, Literal, TypeVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from common.arrays import NDArray, arrays_equal
+from common.messages.arrays import NDArray, arrays_equal
 
 __all__ = [
     "MESSAGE_TYPES",
@@ -88,7 +88,7 @@ class Header(_Model):
     def join_key(self) -> tuple[int, str, int]:
         """``(stamp_ns, source, seq)``: what every message derived from one source frame shares.
 
-        Streams are joined on it (:class:`common.join.Joiner`), and it sorts in sensor time.
+        Streams are joined on it (:class:`common.runtime.join.Joiner`), and it sorts in sensor time.
         """
         return (self.stamp_ns, self.source, self.seq)
 

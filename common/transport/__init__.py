@@ -1,0 +1,1 @@
+"""Typed publish/subscribe: the interface (``base``), its in-memory and Zenoh implementations, Zenoh's configuration and security, and a router child process."""

@@ -60,7 +60,7 @@ def _prepare(config: ViewerConfig) -> Mapping[str, Any]:
     if config.port is not None:
         servers["web"] = WebServer(config.host, config.port, LatestState())
     if config.foxglove_port is not None:
-        from tools.viewer.foxglove_bridge import FoxgloveUnavailable, start_live_server
+        from tools.foxglove.bridge import FoxgloveUnavailable, start_live_server
 
         try:
             servers["foxglove"] = start_live_server(config.host, config.foxglove_port, config.jpeg_quality)

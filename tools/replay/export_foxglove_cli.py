@@ -11,7 +11,7 @@ from common.messages.codec import DecodeError, decode
 from common.runtime.progress import progress
 
 if TYPE_CHECKING:
-    from tools.viewer.foxglove_bridge import FoxgloveMcap
+    from tools.foxglove.bridge import FoxgloveMcap
 
 DESCRIPTION = """\
 Convert a recording (MCAP of perception record or simulate --output, or a ROS bag that
@@ -40,7 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def check_output(path: Path, force: bool) -> None:
     """CliError unless a Foxglove file can be created at ``path`` (an existing one only with ``force``)
     and foxglove-sdk is installed."""
-    from tools.viewer.foxglove_bridge import FoxgloveUnavailable, require_sdk
+    from tools.foxglove.bridge import FoxgloveUnavailable, require_sdk
 
     if path.is_dir():
         raise CliError(f"{path} is a folder")
@@ -56,7 +56,7 @@ def check_output(path: Path, force: bool) -> None:
 
 def open_foxglove_mcap(path: Path) -> FoxgloveMcap:
     """A :class:`FoxgloveMcap` at ``path``; CliError without foxglove-sdk or when it cannot be written."""
-    from tools.viewer.foxglove_bridge import FoxgloveMcap, FoxgloveUnavailable
+    from tools.foxglove.bridge import FoxgloveMcap, FoxgloveUnavailable
 
     try:
         return FoxgloveMcap(path)

@@ -25,7 +25,7 @@ import numpy as np
 
 from common.messages.schemas import (Detections, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
                             TransformBatch)
-from tools.viewer.core.drawing import colour_rgb, label_boxes, project_to_image
+from tools.drawing.tracks import colour_rgb, label_boxes, project_to_image
 
 __all__ = ["FoxgloveBridge", "FoxgloveMcap", "FoxgloveUnavailable", "TOPICS", "require_sdk", "start_live_server"]
 
@@ -100,7 +100,7 @@ class FoxgloveBridge:
     def on_message(self, stream: str, msg: Message) -> None:
         t = msg.header.stamp_ns
         if isinstance(msg, RGBDFrame):
-            from tools.viewer.node import jpeg_of
+            from tools.drawing.images import jpeg_of
 
             self.image.log(self.fg.messages.CompressedImage(
                 timestamp=self._stamp(t), frame_id=msg.camera_info.header.frame_id or msg.header.frame_id or "camera",

@@ -1,1 +1,2 @@
-"""What the views share: the colour of a track, which image box it is (``tracks``, pure), and a frame as JPEG (``images``)."""
+"""What the views share: a track's colour and which image box it is (``tracks``, pure), and a
+frame as JPEG (``images``)."""

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from common.messages.schemas import (Detections, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
-                            TransformBatch)
+                                     TransformBatch)
 from tools.drawing.tracks import colour_rgb, label_boxes, project_to_image
 
 __all__ = ["FoxgloveBridge", "FoxgloveMcap", "FoxgloveUnavailable", "TOPICS", "require_sdk", "start_live_server"]

@@ -23,7 +23,7 @@ from common.runtime.node import Node
 from common.messages.registry import stages
 from common.runtime.service import Counters, Shutdown
 from common.messages.schemas import (Detections, Embeddings, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
-                            TransformBatch)
+                                     TransformBatch)
 from common.transport.base import Subscription, Transport
 from tools.drawing.images import jpeg_of
 from tools.drawing.tracks import label_boxes, project_to_image

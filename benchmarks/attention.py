@@ -29,12 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
-from common.keys import RELIABLE, Keys
-from common.memory import MemoryBus
-from common.progress import progress
-from common.poses import OPTICAL_FROM_BODY, make_pose, rot_y
-from common.samples import rgbd_frame
-from common.schemas import HeadCommand, Header, RGBDFrame, TrackState, Tracks, TransformBatch
+from common.messages.keys import RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.runtime.progress import progress
+from common.geometry.poses import OPTICAL_FROM_BODY, make_pose, rot_y
+from common.messages.samples import rgbd_frame
+from common.messages.schemas import HeadCommand, Header, RGBDFrame, TrackState, Tracks, TransformBatch
 from services.attention.config import AttentionConfig
 from services.attention.service import AttentionService
 from tools.simulator.messages import transform

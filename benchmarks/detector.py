@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 
 import cv2  # noqa: E402
 
-from common.progress import Bar, progress, progress_bar  # noqa: E402
+from common.runtime.progress import Bar, progress, progress_bar  # noqa: E402
 from services.detector.core.darknet import DarknetDetector, DarknetParams  # noqa: E402
 from services.detector.core.depth import DepthClusterDetector, DepthParams  # noqa: E402
 from services.detector.core.hog import HogDetector, HogParams  # noqa: E402

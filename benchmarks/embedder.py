@@ -32,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root, for tests.fixtures
 
-from common.progress import Bar, progress_bar  # noqa: E402
+from common.runtime.progress import Bar, progress_bar  # noqa: E402
 from services.embedder.core.backend import Backend  # noqa: E402
 from services.embedder.core.colour import ColourDescriptor  # noqa: E402
 from services.embedder.core.depth_mask import DepthMaskParams, depth_masks  # noqa: E402

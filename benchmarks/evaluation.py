@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common.progress import Bar, progress_bar
+from common.runtime.progress import Bar, progress_bar
 from perception.cli import main as perception
 from tools.evaluation.distances import euclidean_distances
 from tools.evaluation.evaluate import evaluate_tables

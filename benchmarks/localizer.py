@@ -24,12 +24,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from common.geometry import PinholeCamera, TransformBuffer  # noqa: E402
-from common.geometry_messages import add_batch  # noqa: E402
-from common.keys import RELIABLE, Keys  # noqa: E402
-from common.memory import MemoryBus  # noqa: E402
-from common.progress import Bar, progress_bar  # noqa: E402
-from common.schemas import (  # noqa: E402
+from common.geometry.transforms import PinholeCamera, TransformBuffer  # noqa: E402
+from common.geometry.messages import add_batch  # noqa: E402
+from common.messages.keys import RELIABLE, Keys  # noqa: E402
+from common.transport.memory import MemoryBus  # noqa: E402
+from common.runtime.progress import Bar, progress_bar  # noqa: E402
+from common.messages.schemas import (  # noqa: E402
     Detection,
     Detections,
     LocalizedDetections,

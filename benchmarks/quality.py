@@ -94,7 +94,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from benchmarks import quality_sim  # noqa: E402
-from common.progress import Bar, progress_bar  # noqa: E402
+from common.runtime.progress import Bar, progress_bar  # noqa: E402
 from services.tracker.config import TrackerConfig  # noqa: E402
 from services.tracker.offline import Detections, Row, frame_stamps, read_detections, track_config  # noqa: E402
 from tools.evaluation.evaluate import evaluate_tables  # noqa: E402

@@ -38,8 +38,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from common.progress import progress_bar
-from common.schemas import Embeddings, LocalizedDetections, Message, PeopleGroundTruth, Tracks
+from common.runtime.progress import progress_bar
+from common.messages.schemas import Embeddings, LocalizedDetections, Message, PeopleGroundTruth, Tracks
 from services.tracker.config import TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of
 from services.tracker.core.view import FieldOfView

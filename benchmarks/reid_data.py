@@ -21,7 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from common.progress import progress
+from common.runtime.progress import progress
 
 __all__ = ["Crops", "ReidScores", "bhattacharyya_matrix", "euclidean_matrix", "hsv_stripes_anchor", "pets_crops",
            "reid_scores", "sim_crops"]

@@ -27,13 +27,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from common.keys import Delivery, Keys  # noqa: E402
-from common.progress import Bar, progress_bar  # noqa: E402
-from common.router_process import RouterProcess, free_port  # noqa: E402
-from common.samples import rgbd_frame  # noqa: E402
-from common.transport import Subscription  # noqa: E402
-from common.zenoh_config import ZenohOptions  # noqa: E402
-from common.zenoh_transport import open_transport  # noqa: E402
+from common.messages.keys import Delivery, Keys  # noqa: E402
+from common.runtime.progress import Bar, progress_bar  # noqa: E402
+from common.transport.router_process import RouterProcess, free_port  # noqa: E402
+from common.messages.samples import rgbd_frame  # noqa: E402
+from common.transport.base import Subscription  # noqa: E402
+from common.transport.zenoh_config import ZenohOptions  # noqa: E402
+from common.transport.zenoh import open_transport  # noqa: E402
 from tools.replay.recorder import McapRecorder  # noqa: E402
 
 KEYS = Keys()

@@ -5,7 +5,7 @@ ROS 2 messages, and the node's CPU at a camera rate.
 
 1. **In**: a 640x480 rgb8 image, its 16UC1 aligned depth and the camera info as rmw_zenoh
    delivers them (CDR and attachment) -> the node's ``RGBDFrame`` on ``frames/head``, encoded
-   (``common.codec``): deserialize, check, pair, build, encode. Median and p95 in ms.
+   (``common.messages.codec``): deserialize, check, pair, build, encode. Median and p95 in ms.
 2. **Out**: one ``Tracks`` with N confirmed people -> ``/humans/bodies/tracked``, each body's
    position and velocity, the ``body_<id>`` frames on ``/tf`` and ``/humans/markers``, in CDR
    with their attachments. Median and p95 in ms.
@@ -26,11 +26,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from common.codec import encode  # noqa: E402
-from common.keys import RELIABLE, Delivery, Keys  # noqa: E402
-from common.memory import MemoryBus  # noqa: E402
-from common.runtime import Counters  # noqa: E402
-from common.schemas import CameraInfo, Header, Image, RGBDFrame, Tracks, TrackState  # noqa: E402
+from common.messages.codec import encode  # noqa: E402
+from common.messages.keys import RELIABLE, Delivery, Keys  # noqa: E402
+from common.transport.memory import MemoryBus  # noqa: E402
+from common.runtime.service import Counters  # noqa: E402
+from common.messages.schemas import CameraInfo, Header, Image, RGBDFrame, Tracks, TrackState  # noqa: E402
 from services.ros2.config import Ros2Config  # noqa: E402
 from services.ros2.convert import camera_info_message, image_message  # noqa: E402
 from services.ros2.core.types import types_of  # noqa: E402

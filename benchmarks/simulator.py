@@ -22,13 +22,13 @@ import time
 import cv2
 import numpy as np
 
-from common.codec import encode
-from common.keys import Keys
-from common.progress import Bar, progress, progress_bar
+from common.messages.codec import encode
+from common.messages.keys import Keys
+from common.runtime.progress import Bar, progress, progress_bar
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.apartment import default_apartment
 from tools.simulator.core.body import PersonPose, body_ellipsoids
-from common.poses import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
+from common.geometry.poses import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
 from tools.simulator.core.render import Renderer, default_camera
 from tools.simulator.core.scenarios import SCENARIOS, build_world
 from tools.simulator.core.simulation import Simulation

@@ -40,11 +40,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from common.keys import RELIABLE, Keys
-from common.router_process import free_port
-from common.schemas import ServiceStatus, Tracks
-from common.zenoh_config import ZenohOptions
-from common.zenoh_transport import open_transport
+from common.messages.keys import RELIABLE, Keys
+from common.transport.router_process import free_port
+from common.messages.schemas import ServiceStatus, Tracks
+from common.transport.zenoh_config import ZenohOptions
+from common.transport.zenoh import open_transport
 from services.tracker.config import TrackerConfig
 from tools.demo.main import SERVICES, _cpu_seconds, _perception, _specs
 from tools.demo.main import add_arguments as add_demo_arguments

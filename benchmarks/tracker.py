@@ -27,7 +27,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from common.progress import Bar, progress_bar  # noqa: E402
+from common.runtime.progress import Bar, progress_bar  # noqa: E402
 from services.tracker.config import PROFILES, TrackerConfig  # noqa: E402
 from services.tracker.core import Gallery  # noqa: E402
 from services.tracker.offline import read_detections, track, write_tracks  # noqa: E402

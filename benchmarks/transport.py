@@ -28,14 +28,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from common.codec import _pack_default, _packer, decode, encode  # noqa: E402
-from common.keys import FRAMES, RELIABLE, Delivery, Keys  # noqa: E402
-from common.progress import progress_bar  # noqa: E402
-from common.router_process import RouterProcess, free_port, wait_for_port  # noqa: E402
-from common.samples import example_messages, rgbd_frame  # noqa: E402
-from common.schemas import Header, Message, RGBDFrame, ServiceStatus  # noqa: E402
-from common.zenoh_config import ZenohOptions  # noqa: E402
-from common.zenoh_transport import open_transport  # noqa: E402
+from common.messages.codec import _pack_default, _packer, decode, encode  # noqa: E402
+from common.messages.keys import FRAMES, RELIABLE, Delivery, Keys  # noqa: E402
+from common.runtime.progress import progress_bar  # noqa: E402
+from common.transport.router_process import RouterProcess, free_port, wait_for_port  # noqa: E402
+from common.messages.samples import example_messages, rgbd_frame  # noqa: E402
+from common.messages.schemas import Header, Message, RGBDFrame, ServiceStatus  # noqa: E402
+from common.transport.zenoh_config import ZenohOptions  # noqa: E402
+from common.transport.zenoh import open_transport  # noqa: E402
 
 KEYS = Keys(robot="bench")
 PING, PONG, DONE = f"{KEYS.base}/bench/ping", f"{KEYS.base}/bench/pong", f"{KEYS.base}/bench/done"
@@ -234,7 +234,7 @@ def secure_router(folder: Path) -> tuple[subprocess.Popen[bytes], ZenohOptions]:
     """
     import shutil
 
-    from common.certs import make_certs
+    from common.transport.certs import make_certs
 
     secure = Path(__file__).resolve().parent.parent / "deploy" / "secure"
     for name in ("router-single-pc.json5", "client.json5"):

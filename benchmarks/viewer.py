@@ -25,10 +25,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from common.keys import Keys  # noqa: E402
-from common.router_process import RouterProcess, free_port  # noqa: E402
-from common.zenoh_config import ZenohOptions  # noqa: E402
-from common.zenoh_transport import open_transport  # noqa: E402
+from common.messages.keys import Keys  # noqa: E402
+from common.transport.router_process import RouterProcess, free_port  # noqa: E402
+from common.transport.zenoh_config import ZenohOptions  # noqa: E402
+from common.transport.zenoh import open_transport  # noqa: E402
 from tests.fixtures.viewer_scene import ScenePublisher  # noqa: E402
 from tests.helpers.chromium import Browser  # noqa: E402
 

@@ -8,22 +8,18 @@ import importlib.util
 import sys
 from types import ModuleType
 
-from common.cli_util import CliError, fail, setup_logging
-from common.registry import NODES
+from common.runtime.cli_util import CliError, fail, setup_logging
+from common.messages.registry import NODES
 
 #: name -> (module, one-line help). Each module has add_arguments(parser) and main(args) -> int,
 #: and may have a DESCRIPTION string for its --help.
-COMMANDS: dict[str, tuple[str, str]] = {
-    "router": ("common.router", "run a Zenoh router in this process"),
-    "status": ("common.status_cli", "list the live services with their host and counters"),
-    "selfcheck": ("common.selfcheck", "start a router and exchange one message of every type through it"),
-    "keys": ("common.keys_cli", "print the key expressions of a robot and their delivery policy"),
-}
+COMMANDS: dict[str, tuple[str, str]] = {}
 
 #: Packages whose ``commands`` module adds to COMMANDS (a ``COMMANDS`` dict of the same
-#: shape): every node of the registry, then the tools that are not nodes. Those modules only
-#: name modules, so ``perception --help`` stays fast.
+#: shape): the system's small commands, every node of the registry, then the tools that are
+#: not nodes. Those modules only name modules, so ``perception --help`` stays fast.
 COMMAND_PACKAGES = (
+    "tools.system",
     *dict.fromkeys(n.package for n in NODES),
     "tools.evaluation",
     "tools.replay",

@@ -27,7 +27,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from common.router_process import free_port  # noqa: E402
+from common.transport.router_process import free_port  # noqa: E402
 from tests.helpers.chromium import Browser  # noqa: E402
 from tools.demo.inprocess import run_chain  # noqa: E402
 

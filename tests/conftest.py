@@ -8,10 +8,10 @@ from typing import Callable, Iterator
 
 import pytest
 
-from common.memory import MemoryBus
-from common.router_process import RouterProcess
-from common.zenoh_config import ZenohOptions
-from common.zenoh_transport import ZenohTransport, open_transport
+from common.transport.memory import MemoryBus
+from common.transport.router_process import RouterProcess
+from common.transport.zenoh_config import ZenohOptions
+from common.transport.zenoh import ZenohTransport, open_transport
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("PERCEPTION_SHARED_DATA", ROOT.parent / "shared" / "data"))

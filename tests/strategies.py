@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from common.schemas import (
+from common.messages.schemas import (
     AppearanceThresholds,
     CameraInfo,
     CameraView,

@@ -5,6 +5,7 @@
   models and serialisation. Run with import-linter, the tool the contracts are written for.
 * No import cycle between the project's modules, module level or inside functions.
 * Every node's ``main.py`` stays a thin entry: description, flags, one ``run_node`` call.
+* A command's module is named after it: ``main.py`` or ``<command>_cli.py``.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from common.registry import NODES as REGISTRY
+from common.messages.registry import NODES as REGISTRY
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("common", "services", "tools", "perception")
@@ -90,3 +91,17 @@ def test_node_main_is_a_thin_entry(node: str) -> None:
     # the DESCRIPTION string is documentation; the code is imports, flags and one call
     assert len(code_lines) <= 15, f"{path} has {len(code_lines)} statements; move logic into the node or its flags"
     assert len(path.read_text().splitlines()) <= 40
+
+
+def test_command_modules_are_named_after_their_commands() -> None:
+    from perception.cli import COMMANDS
+
+    modules = set()
+    for command, (module, _) in COMMANDS.items():
+        package, leaf = module.rsplit(".", 1)
+        name = command.replace("-", "_").removesuffix("_" + package.rsplit(".", 1)[-1])
+        assert leaf in ("main", f"{name}_cli"), f"perception {command} is {module}: name it {package}.{name}_cli"
+        modules.add(module)
+    named = {".".join(p.relative_to(ROOT).with_suffix("").parts) for package in ("common", "services", "tools")
+             for p in (ROOT / package).rglob("*.py") if p.stem == "main" or p.stem.endswith("_cli")}
+    assert named <= modules, f"named as a command's module, but no command runs it: {sorted(named - modules)}"

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from common.poses import OPTICAL_FROM_BODY, make_pose, pose_inverse, rot_y, rot_z
+from common.geometry.poses import OPTICAL_FROM_BODY, make_pose, pose_inverse, rot_y, rot_z
 from services.attention.core import Chooser, HeadGeometry, Person, ServoParams, head_angles, rest_rates, servo
 from services.attention.core.servo import joint_jacobian, project
 

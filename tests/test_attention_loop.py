@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from common.keys import RELIABLE, Keys
-from common.memory import MemoryBus
-from common.schemas import Header, PeopleGroundTruth, PersonGroundTruth, Tracks
+from common.messages.keys import RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.messages.schemas import Header, PeopleGroundTruth, PersonGroundTruth, Tracks
 from services.attention.config import AttentionConfig
 from tools.demo.attention import TruthTracks
 from tools.demo.inprocess import run_chain

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from common.keys import RELIABLE, Keys
-from common.memory import MemoryBus
-from common.poses import OPTICAL_FROM_BODY, make_pose, rot_y, rot_z
-from common.samples import rgbd_frame
-from common.schemas import AttentionReply, HeadCommand, Header, TrackState, Tracks, TransformBatch
+from common.messages.keys import RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.geometry.poses import OPTICAL_FROM_BODY, make_pose, rot_y, rot_z
+from common.messages.samples import rgbd_frame
+from common.messages.schemas import AttentionReply, HeadCommand, Header, TrackState, Tracks, TransformBatch
 from services.attention.config import AttentionConfig
 from services.attention.service import AttentionService
 from tools.simulator.messages import transform

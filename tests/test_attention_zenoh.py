@@ -12,10 +12,10 @@ import time
 
 import numpy as np
 
-from common.keys import FRAMES, RELIABLE, Keys
-from common.poses import OPTICAL_FROM_BODY, make_pose, rot_y
-from common.samples import rgbd_frame
-from common.schemas import HeadCommand, Header, RGBDFrame, TrackState, Tracks, TransformBatch
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.geometry.poses import OPTICAL_FROM_BODY, make_pose, rot_y
+from common.messages.samples import rgbd_frame
+from common.messages.schemas import HeadCommand, Header, RGBDFrame, TrackState, Tracks, TransformBatch
 from tools.simulator.messages import transform
 
 KEYS = Keys(robot="attz")

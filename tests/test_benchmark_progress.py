@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from common.progress import progress_bar
+from common.runtime.progress import progress_bar
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The tracker benchmark cut to 3 cases (about a second): 1 person x 1 gallery, and two `track` files.

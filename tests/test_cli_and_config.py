@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 from pydantic import BaseModel, ConfigDict, Field
 
-from common.config import ConfigError, load_config
-from common.keys import Keys
+from common.runtime.config import ConfigError, load_config
+from common.messages.keys import Keys
 from perception.cli import COMMANDS, main
 
 PY = sys.executable

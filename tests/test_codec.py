@@ -8,9 +8,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from common.codec import DecodeError, decode, decode_any, encode, peek_schema
-from common.samples import example_messages
-from common.schemas import MESSAGE_TYPES, Detections, Embeddings, Image, Message, Tracks
+from common.messages.codec import DecodeError, decode, decode_any, encode, peek_schema
+from common.messages.samples import example_messages
+from common.messages.schemas import MESSAGE_TYPES, Detections, Embeddings, Image, Message, Tracks
 from tests.strategies import MESSAGE_STRATEGIES
 
 EXAMPLES = example_messages()

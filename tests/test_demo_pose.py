@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from common.schemas import Header, PeopleGroundTruth, PersonGroundTruth, Tracks, TrackState
+from common.messages.schemas import Header, PeopleGroundTruth, PersonGroundTruth, Tracks, TrackState
 from tools.demo.scoring import pose_line, pose_scores
 
 

@@ -8,7 +8,7 @@ import pytest
 import yaml
 from pydantic import BaseModel
 
-from common.config import load_config
+from common.runtime.config import load_config
 from services.detector.config import DetectorConfig
 from services.embedder.config import EmbedderConfig
 from services.localizer.config import LocalizerConfig

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from common.keys import FRAMES, RELIABLE, Keys
-from common.memory import MemoryBus
-from common.runtime import Counters, ServiceRuntime
-from common.samples import camera_info, rgbd_frame
-from common.poses import OPTICAL_FROM_BODY, make_pose, rot_y
-from common.schemas import Detections, Header, Image, RGBDFrame, TransformBatch
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.runtime.service import Counters, ServiceRuntime
+from common.messages.samples import camera_info, rgbd_frame
+from common.geometry.poses import OPTICAL_FROM_BODY, make_pose, rot_y
+from common.messages.schemas import Detections, Header, Image, RGBDFrame, TransformBatch
 from services.detector.config import DetectorConfig, build_detector
 from services.detector.core.boxes import DetectorError
 from services.detector.core.ground import initial_plane

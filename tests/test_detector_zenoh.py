@@ -12,11 +12,11 @@ from typing import Callable
 
 import pytest
 
-from common.keys import FRAMES, RELIABLE, Keys
-from common.router_process import RouterProcess
-from common.samples import rgbd_frame
-from common.schemas import Detections, RGBDFrame, ServiceStatus
-from common.zenoh_transport import ZenohTransport
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.transport.router_process import RouterProcess
+from common.messages.samples import rgbd_frame
+from common.messages.schemas import Detections, RGBDFrame, ServiceStatus
+from common.transport.zenoh import ZenohTransport
 
 pytestmark = pytest.mark.zenoh
 ROOT = Path(__file__).resolve().parents[1]

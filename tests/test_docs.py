@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from common.keys import Keys
+from common.messages.keys import Keys
 from perception.cli import COMMANDS
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from common.codec import encode
-from common.keys import Keys
-from common.schemas import Header, ServiceStatus
+from common.messages.codec import encode
+from common.messages.keys import Keys
+from common.messages.schemas import Header, ServiceStatus
 from perception.cli import main as cli_main
 from tools.doctor.collect import Observer
 from tools.doctor.core.checks import exit_code, render, run_checks, to_dicts

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from common.router_process import RouterProcess
+from common.transport.router_process import RouterProcess
 
 pytestmark = [pytest.mark.zenoh]
 PY = sys.executable

@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from common.schemas import Image, RGBDFrame
+from common.messages.schemas import Image, RGBDFrame
 from services.embedder.config import EmbedderConfig
 from services.embedder.core import ColourDescriptor
 from services.embedder.core.colour import ColourParams

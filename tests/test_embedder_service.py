@@ -7,11 +7,11 @@ import time
 import numpy as np
 import pytest
 
-from common.keys import FRAMES, RELIABLE, Keys
-from common.memory import MemoryBus
-from common.runtime import Counters
-from common.samples import camera_info
-from common.schemas import Detection, Detections, Embeddings, Header, Image, RGBDFrame
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.runtime.service import Counters
+from common.messages.samples import camera_info
+from common.messages.schemas import Detection, Detections, Embeddings, Header, Image, RGBDFrame
 from services.embedder.config import EmbedderConfig
 from services.embedder.core import ColourDescriptor
 from services.embedder.service import EmbedderService
@@ -182,7 +182,7 @@ def test_onnx_backend_needs_a_path() -> None:
 def test_run_loop_serves_until_shutdown() -> None:
     import threading
 
-    from common.runtime import Shutdown
+    from common.runtime.service import Shutdown
 
     rig = Rig()
     shutdown = Shutdown()

@@ -11,10 +11,10 @@ from typing import Callable
 
 import pytest
 
-from common.keys import FRAMES, RELIABLE, Keys
-from common.router_process import RouterProcess
-from common.schemas import Detections, Embeddings, RGBDFrame
-from common.zenoh_transport import ZenohTransport
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.transport.router_process import RouterProcess
+from common.messages.schemas import Detections, Embeddings, RGBDFrame
+from common.transport.zenoh import ZenohTransport
 from services.embedder.core.colour import DIM as COLOUR_DIM
 from tests.test_embedder_service import BOX_GREEN, BOX_RED, detections, frame
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from common.keys import AliveKey, Keys
+from common.messages.keys import AliveKey, Keys
 
 KEYS = Keys(robot="mbot")
 
@@ -43,8 +43,8 @@ def test_parse_alive_rejects_other_keys(key: str) -> None:
 
 
 def test_status_lists_each_live_token_as_service_and_instance() -> None:
-    from common.memory import MemoryBus, MemoryTransport
-    from common.status_cli import collect
+    from common.transport.memory import MemoryBus, MemoryTransport
+    from tools.system.status_cli import collect
 
     bus = MemoryBus()
     service, client = MemoryTransport(bus), MemoryTransport(bus)

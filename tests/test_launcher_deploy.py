@@ -9,12 +9,12 @@ from pathlib import Path
 
 import pytest
 
-from common.keys import RELIABLE, Keys
-from common.router_process import free_port
-from common.samples import example_messages
-from common.schemas import Tracks
-from common.zenoh_config import ZenohOptions
-from common.zenoh_transport import open_transport
+from common.messages.keys import RELIABLE, Keys
+from common.transport.router_process import free_port
+from common.messages.samples import example_messages
+from common.messages.schemas import Tracks
+from common.transport.zenoh_config import ZenohOptions
+from common.transport.zenoh import open_transport
 from tests.helpers.launcher import TIMEOUT, Launch
 
 DEPLOY = Path(__file__).resolve().parents[1] / "deploy"

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from common.router_process import free_port
-from common.schemas import Header, ServiceStatus
-from common.status_cli import render
+from common.transport.router_process import free_port
+from common.messages.schemas import Header, ServiceStatus
+from tools.system.status_cli import render
 from tests.helpers.launcher import PY, ROOT, TIMEOUT, Launch
 
 MISSING = "/nonexistent/people-perception/reid.onnx"

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from common.router_process import RouterProcess, free_port
+from common.transport.router_process import RouterProcess, free_port
 from tests.helpers.launcher import CHILD, PY, ROOT, TIMEOUT, Launch
 from tools.launcher.supervisor import FailedChild, ProcessSpec, Supervisor
 

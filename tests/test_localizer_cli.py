@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from common.geometry import PinholeCamera, RigidTransform
+from common.geometry.transforms import PinholeCamera, RigidTransform
 from perception.cli import main
 from tests.fixtures.localizer_synthetic import Person, person_box, render_depth
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from common.geometry import PinholeCamera, RigidTransform
+from common.geometry.transforms import PinholeCamera, RigidTransform
 from services.localizer.core import (
     REJECT_EMPTY_BOX,
     REJECT_INVALID_BOX,

@@ -1,4 +1,4 @@
-"""Camera model, rigid transforms and the transform buffer (common/geometry.py)."""
+"""Camera model, rigid transforms and the transform buffer (common/geometry/transforms.py)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from common.geometry import (
+from common.geometry.transforms import (
     ExtrapolationError,
     FrameTreeError,
     MissingTransformError,
@@ -15,15 +15,15 @@ from common.geometry import (
     TransformBuffer,
     interpolate,
 )
-from common.geometry_messages import (
+from common.geometry.messages import (
     add_batch,
     batch_from_ros,
     camera_from_info,
     rigid_from_msg,
     transform_msg,
 )
-from common.samples import camera_info, example_messages
-from common.schemas import TransformBatch
+from common.messages.samples import camera_info, example_messages
+from common.messages.schemas import TransformBatch
 
 K = np.array([[525.0, 0.0, 319.5], [0.0, 525.0, 239.5], [0.0, 0.0, 1.0]])
 PLUMB_BOB = np.array([-0.28, 0.09, 0.001, -0.0005, -0.01])

@@ -12,16 +12,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from common.keys import FRAMES, RELIABLE, Keys
-from common.router_process import RouterProcess
-from common.schemas import (
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.transport.router_process import RouterProcess
+from common.messages.schemas import (
     Detections,
     LocalizedDetections,
     RGBDFrame,
     ServiceStatus,
     TransformBatch,
 )
-from common.zenoh_transport import ZenohTransport
+from common.transport.zenoh import ZenohTransport
 from tests.fixtures import localizer_scene as scene
 from tests.fixtures.localizer_synthetic import Person
 

@@ -9,10 +9,10 @@ import time
 import numpy as np
 import pytest
 
-from common.keys import RELIABLE, Keys
-from common.memory import MemoryBus
-from common.runtime import Counters, Shutdown
-from common.schemas import (
+from common.messages.keys import RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.runtime.service import Counters, Shutdown
+from common.messages.schemas import (
     Detections,
     Header,
     LocalizedDetections,
@@ -20,7 +20,7 @@ from common.schemas import (
     Transform,
     TransformBatch,
 )
-from common.transport import Transport
+from common.transport.base import Transport
 from services.localizer.config import LocalizerConfig, StaticTransformConfig
 from services.localizer.service import LocalizerService
 from tests.fixtures import localizer_scene as scene

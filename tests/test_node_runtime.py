@@ -9,14 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from common.config import load_config
-from common.join import Joiner
-from common.keys import RELIABLE, Keys
-from common.memory import MemoryBus
-from common.node import Node, load_node_config
-from common.ratelog import RateLimitedLog
-from common.runtime import Counters, ServiceRuntime, Shutdown
-from common.schemas import Detections, Header
+from common.runtime.config import load_config
+from common.runtime.join import Joiner
+from common.messages.keys import RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.runtime.node import Node, load_node_config
+from common.runtime.ratelog import RateLimitedLog
+from common.runtime.service import Counters, ServiceRuntime, Shutdown
+from common.messages.schemas import Detections, Header
 
 KEYS = Keys(robot="noderig")
 
@@ -225,7 +225,7 @@ def test_config_section_when_present_else_whole_file(tmp_path: Path) -> None:
     assert load_config(Cfg, flat, section="tracker").camera == "right"
     assert load_node_config(Cfg, "tracker", flat, {"camera": None}).camera == "right"  # unset flags override nothing
     assert load_node_config(Cfg, "tracker", flat, {"camera": "cli"}).camera == "cli"
-    from common.cli_util import CliError
+    from common.runtime.cli_util import CliError
 
     with pytest.raises(CliError, match=r"(?s)camera.*PERCEPTION_TRACKER__"):
         load_node_config(Cfg, "tracker", flat, {"camera": 5})

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from common.schemas import CameraView, Embeddings, Header, LocalizedDetection, LocalizedDetections, ModelCard
+from common.messages.schemas import CameraView, Embeddings, Header, LocalizedDetection, LocalizedDetections, ModelCard
 from services.embedder.config import EmbedderConfig
 from services.embedder.core.backend import EmbedderError
 from services.embedder.core.orientation import OrientationClassifier, OrientationParams

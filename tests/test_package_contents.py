@@ -76,7 +76,7 @@ def test_every_module_imports_without_test_only_packages() -> None:
         if "__pycache__" not in p.parts and p.stem != "__main__"
     }
     assert on_disk <= imported, f"not reached by pkgutil: {sorted(on_disk - imported)}"
-    for name in ("services.detector.service", "tools.simulator.core.render", "perception.cli", "common.node"):
+    for name in ("services.detector.service", "tools.simulator.core.render", "perception.cli", "common.runtime.node"):
         assert name in imported
 
 

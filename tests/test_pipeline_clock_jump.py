@@ -6,9 +6,9 @@ does; a second simulator with the same start stamp plays the loop."""
 
 from __future__ import annotations
 
-from common.keys import RELIABLE, Keys
-from common.memory import MemoryBus
-from common.schemas import Tracks
+from common.messages.keys import RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.messages.schemas import Tracks
 from services.detector.config import DetectorConfig
 from services.detector.service import DetectorService
 from services.embedder.config import EmbedderConfig

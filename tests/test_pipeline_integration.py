@@ -14,11 +14,11 @@ from typing import Iterator
 
 import pytest
 
-from common.keys import RELIABLE, Keys
-from common.router_process import free_port, wait_for_port
-from common.schemas import ServiceStatus, Tracks
-from common.zenoh_config import ZenohOptions
-from common.zenoh_transport import ZenohTransport, open_transport
+from common.messages.keys import RELIABLE, Keys
+from common.transport.router_process import free_port, wait_for_port
+from common.messages.schemas import ServiceStatus, Tracks
+from common.transport.zenoh_config import ZenohOptions
+from common.transport.zenoh import ZenohTransport, open_transport
 
 pytestmark = [pytest.mark.zenoh, pytest.mark.slow]
 PY = sys.executable

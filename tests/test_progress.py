@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from common.progress import progress
+from common.runtime.progress import progress
 
 KITTI = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti_ped_dev" / "dets_0000.csv"
 

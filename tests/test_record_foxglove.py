@@ -12,10 +12,10 @@ from typing import Any
 
 import pytest
 
-from common.cli_util import CliError
-from common.keys import Delivery, Keys
-from common.router_process import RouterProcess
-from common.zenoh_transport import ZenohTransport
+from common.runtime.cli_util import CliError
+from common.messages.keys import Delivery, Keys
+from common.transport.router_process import RouterProcess
+from common.transport.zenoh import ZenohTransport
 from tests.fixtures.viewer_scene import scene_messages
 from tests.helpers.recording import stop_recording, wait_recorded
 
@@ -105,7 +105,7 @@ def test_bad_foxglove_paths_fail_before_recording(tmp_path: Path) -> None:
 
 
 def test_a_foxglove_file_that_cannot_be_written_is_a_clear_error(tmp_path: Path) -> None:
-    from tools.viewer.export_cli import open_foxglove_mcap
+    from tools.replay.export_foxglove_cli import open_foxglove_mcap
 
     with pytest.raises(CliError, match="cannot be written"):
         open_foxglove_mcap(tmp_path)  # a folder in the file's place

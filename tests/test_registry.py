@@ -1,4 +1,4 @@
-"""The node registry (common/registry.py) against what the nodes really do, and every list
+"""The node registry (common/messages/registry.py) against what the nodes really do, and every list
 derived from it or checked against it.
 
 Each node is built on the in-memory transport, as ``run_node`` builds it, and what it
@@ -17,12 +17,12 @@ from typing import Any
 
 import pytest
 
-from common.acl import grants
-from common.certs import ROLES
-from common.keys import STREAMS, Keys
-from common.memory import MemoryBus, key_matches, keys_intersect
-from common.registry import NODES, NodeEntry, node, stages
-from common.runtime import Counters
+from common.transport.acl import grants
+from common.transport.certs import ROLES
+from common.messages.keys import STREAMS, Keys
+from common.transport.memory import MemoryBus, key_matches, keys_intersect
+from common.messages.registry import NODES, NodeEntry, node, stages
+from common.runtime.service import Counters
 
 ROOT = Path(__file__).resolve().parent.parent
 KEYS = Keys(robot="robot-name")
@@ -85,7 +85,7 @@ def test_a_node_does_what_its_entry_declares(entry: NodeEntry, observed: dict[st
     for field in ("subscribes", "publishes", "serves", "watches"):
         seen = set().union(*(r[field] for r in runs))
         assert seen == set(getattr(entry, field)), (
-            f"{entry.name} {field} {sorted(seen)} but common/registry.py says {sorted(getattr(entry, field))}")
+            f"{entry.name} {field} {sorted(seen)} but common/messages/registry.py says {sorted(getattr(entry, field))}")
 
 
 @pytest.mark.parametrize("entry", NODES, ids=lambda e: e.name)

@@ -14,11 +14,11 @@ import cv2
 import numpy as np
 import pytest
 
-from common.codec import decode_any
-from common.keys import RELIABLE, Keys
-from common.memory import MemoryBus
-from common.samples import example_messages, rgbd_frame
-from common.schemas import RGBDFrame, TransformBatch
+from common.messages.codec import decode_any
+from common.messages.keys import RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.messages.samples import example_messages, rgbd_frame
+from common.messages.schemas import RGBDFrame, TransformBatch
 from tests.fixtures.replay_bags import MAP_ODOM_XYZ, STATIC_XYZ, SyntheticRun, write_bag
 from tools.replay import rosconv
 from tools.replay.bag_source import BagOptions
@@ -278,7 +278,7 @@ def test_truncated_mcap_is_reported_after_the_readable_part(tmp_path: Path) -> N
         w.start()
         sid = w.register_schema("perception.RGBDFrame", "jsonschema", b"{}")
         ch = w.register_channel(FRAMES, "msgpack", sid)
-        from common.codec import encode
+        from common.messages.codec import encode
 
         for _, m, t in msgs:
             w.add_message(ch, t, encode(m), m.header.stamp_ns)
@@ -297,7 +297,7 @@ def test_truncated_mcap_is_reported_after_the_readable_part(tmp_path: Path) -> N
 
 
 def test_topic_map_file_and_flags(tmp_path: Path) -> None:
-    from common.config import ConfigError
+    from common.runtime.config import ConfigError
     from tools.replay.config import load_topic_map
 
     path = tmp_path / "topics.yaml"

@@ -11,12 +11,12 @@ from typing import Any, Callable
 import numpy as np
 import pytest
 
-from common.keys import Delivery, Keys
-from common.router_process import RouterProcess
-from common.samples import rgbd_frame
-from common.schemas import Detection, Detections, Header, Message, RGBDFrame, Transform, TransformBatch
-from common.transport import Received, Subscription
-from common.zenoh_transport import ZenohTransport
+from common.messages.keys import Delivery, Keys
+from common.transport.router_process import RouterProcess
+from common.messages.samples import rgbd_frame
+from common.messages.schemas import Detection, Detections, Header, Message, RGBDFrame, Transform, TransformBatch
+from common.transport.base import Received, Subscription
+from common.transport.zenoh import ZenohTransport
 from tests.fixtures.replay_bags import SyntheticRun, write_bag
 from tests.helpers.recording import stop_recording, wait_recorded
 from tools.replay.recorder import McapRecorder

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from common.keys import Keys
-from common.router_process import free_port
+from common.messages.keys import Keys
+from common.transport.router_process import free_port
 from tests.helpers.scored_launch import SERVICES, Scenario, ZenohClient, scored_run
 
 pytest.importorskip("zenoh_ros2_sdk", reason="zenoh-ros2-sdk (the test extra) is not installed")

@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from common.keys import RELIABLE, Delivery, Keys
-from common.memory import MemoryBus
-from common.runtime import Counters
-from common.schemas import CameraInfo, Header, Image, RGBDFrame, Tracks, TrackState, Transform, TransformBatch
+from common.messages.keys import RELIABLE, Delivery, Keys
+from common.transport.memory import MemoryBus
+from common.runtime.service import Counters
+from common.messages.schemas import CameraInfo, Header, Image, RGBDFrame, Tracks, TrackState, Transform, TransformBatch
 from services.ros2.config import Ros2Config
 from services.ros2.convert import camera_info_message, image_message, tf_message
 from services.ros2.core.types import types_of

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from common.keys import FRAMES, RELIABLE, Keys
-from common.schemas import Header, RGBDFrame, Tracks, TrackState, Transform, TransformBatch
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.messages.schemas import Header, RGBDFrame, Tracks, TrackState, Transform, TransformBatch
 from services.ros2.convert import camera_info_message, image_message, tf_message
 from services.ros2.core.types import types_of
 from services.ros2.core.wire import attachment
@@ -74,7 +74,7 @@ def _stop(node: subprocess.Popen[str]) -> str:
 
 
 def _frame(k: int) -> RGBDFrame:
-    from common.samples import rgbd_frame
+    from common.messages.samples import rgbd_frame
 
     return rgbd_frame(64, 48, stamp_ns=1_700_000_000_000_000_000 + k * 50_000_000)
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from common.samples import camera_info, rgbd_frame
-from common.schemas import AppearanceThresholds, CameraInfo, Embeddings, Header, Image, ModelCard, RGBDFrame, Transform
+from common.messages.samples import camera_info, rgbd_frame
+from common.messages.schemas import AppearanceThresholds, CameraInfo, Embeddings, Header, Image, ModelCard, RGBDFrame, Transform
 
 H = Header(stamp_ns=1, frame_id="camera", seq=1, source="head")
 

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import pytest
 
-from common.acl import access_control, grants
-from common.certs import ROLES, issue_certificate, make_certs
-from common.keys import Keys
-from common.zenoh_config import ZenohOptions, build_zenoh_config
-from common.zenoh_security import SecurityError
+from common.transport.acl import access_control, grants
+from common.transport.certs import ROLES, issue_certificate, make_certs
+from common.messages.keys import Keys
+from common.transport.zenoh_config import ZenohOptions, build_zenoh_config
+from common.transport.zenoh_security import SecurityError
 
 PY = sys.executable
 SECURE = Path(__file__).resolve().parent.parent / "deploy" / "secure"

@@ -19,12 +19,12 @@ from pathlib import Path
 
 import pytest
 
-from common.certs import make_certs
-from common.keys import RELIABLE, Keys
-from common.router_process import free_port, wait_for_port
-from common.schemas import Header, Tracks
-from common.zenoh_config import ZenohOptions
-from common.zenoh_transport import TransportError, ZenohTransport, open_transport
+from common.transport.certs import make_certs
+from common.messages.keys import RELIABLE, Keys
+from common.transport.router_process import free_port, wait_for_port
+from common.messages.schemas import Header, Tracks
+from common.transport.zenoh_config import ZenohOptions
+from common.transport.zenoh import TransportError, ZenohTransport, open_transport
 from tests.helpers.scored_launch import ZenohClient, scored_run
 
 pytestmark = [pytest.mark.zenoh]

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from common.geometry_messages import rigid_from_msg
-from common.keys import FRAMES, RELIABLE, Keys
-from common.memory import MemoryBus
-from common.schemas import (
+from common.geometry.messages import rigid_from_msg
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.messages.schemas import (
     Detection,
     Detections,
     LocalizedDetections,

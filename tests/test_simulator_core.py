@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from common.geometry import PinholeCamera
+from common.geometry.transforms import PinholeCamera
 from tools.simulator.core.apartment import Apartment, default_apartment
 from tools.simulator.core.body import Ellipsoids, PersonPose, body_ellipsoids
-from common.poses import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
+from common.geometry.poses import OPTICAL_FROM_BODY, make_pose, planar_pose, rot_y
 from tools.simulator.core.motion import WALK_RADIUS, Action, Walker
 from tools.simulator.core.render import Renderer, default_camera, depth_sigma
 from tools.simulator.core.robot import HeadMotion, Odometry, Robot, whole_in_sight, follow_trajectory, static_trajectory

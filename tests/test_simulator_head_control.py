@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from common.keys import Keys
-from common.schemas import TransformBatch
+from common.messages.keys import Keys
+from common.messages.schemas import TransformBatch
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.head_servo import CommandedHead
 from tools.simulator.source import SimulatedStream

@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from common.codec import decode
-from common.geometry_messages import rigid_from_msg
-from common.keys import FRAMES, RELIABLE, Keys
-from common.memory import MemoryBus
-from common.runtime import Counters, Shutdown
-from common.schemas import (
+from common.messages.codec import decode
+from common.geometry.messages import rigid_from_msg
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.runtime.service import Counters, Shutdown
+from common.messages.schemas import (
     MESSAGE_TYPES,
     Detections,
     Header,

@@ -8,10 +8,10 @@ from typing import Callable
 
 import pytest
 
-from common.keys import FRAMES, RELIABLE, Keys
-from common.router_process import RouterProcess
-from common.schemas import PeopleGroundTruth, RGBDFrame
-from common.zenoh_transport import ZenohTransport
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.transport.router_process import RouterProcess
+from common.messages.schemas import PeopleGroundTruth, RGBDFrame
+from common.transport.zenoh import ZenohTransport
 
 pytestmark = pytest.mark.zenoh
 KEYS = Keys(robot="simproc")

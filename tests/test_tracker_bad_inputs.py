@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from common.join import Joiner
-from common.keys import RELIABLE, Keys
-from common.memory import MemoryBus
-from common.schemas import Embeddings, Header, LocalizedDetection, LocalizedDetections, ModelCard, Tracks
+from common.runtime.join import Joiner
+from common.messages.keys import RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.messages.schemas import Embeddings, Header, LocalizedDetection, LocalizedDetections, ModelCard, Tracks
 from services.tracker.config import PROFILES, TrackerConfig
 from services.tracker.reorder import ClockJumps, ReorderBuffer
 from services.tracker.service import TrackerService

@@ -107,8 +107,8 @@ def test_config_turns_the_classifiers_off_and_validates() -> None:
 
 
 def test_classifiers_are_kept_in_the_id_memory_file_and_read_back_by_the_service(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    from common.keys import Keys
-    from common.memory import MemoryBus
+    from common.messages.keys import Keys
+    from common.transport.memory import MemoryBus
     from services.tracker.core.identity import IdentityMemory
     from services.tracker.memory_file import read_classifiers, read_memory, save_memory
     from services.tracker.service import TrackerService

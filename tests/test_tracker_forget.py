@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from common.memory import MemoryBus
-from common.schemas import ForgetReply, Tracks
+from common.transport.memory import MemoryBus
+from common.messages.schemas import ForgetReply, Tracks
 from services.tracker.config import PROFILES
 from services.tracker.memory_file import read_classifiers, read_last_seen, read_memory
 from tests.test_tracker_bad_inputs import KEYS, PERIOD_NS, T0, Person, Rig, config, ids_by_x

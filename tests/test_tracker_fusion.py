@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from common.keys import RELIABLE, Keys
-from common.memory import MemoryBus
-from common.schemas import CameraView, Embeddings, Header, LocalizedDetection, LocalizedDetections, ModelCard, Tracks
+from common.messages.keys import RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.messages.schemas import CameraView, Embeddings, Header, LocalizedDetection, LocalizedDetections, ModelCard, Tracks
 from services.tracker.config import ScoreConfig, TrackerConfig
 from services.tracker.core.robust import RobustParams, RobustTracker, ScoreModel
 from services.tracker.core.view import FieldOfView, Views

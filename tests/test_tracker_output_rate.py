@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from common.schemas import Tracks
+from common.messages.schemas import Tracks
 from tests.test_tracker_bad_inputs import T0, Rig, config
 
 S = 1_000_000_000

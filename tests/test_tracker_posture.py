@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from common.schemas import TrackState
+from common.messages.schemas import TrackState
 from services.tracker.convert import track_state
 from services.tracker.core import posture as pose
 from services.tracker.core.robust import RobustParams, RobustTracker

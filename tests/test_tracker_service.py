@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from common.keys import RELIABLE, Keys
-from common.memory import MemoryBus
-from common.schemas import (
+from common.messages.keys import RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.messages.schemas import (
     AppearanceThresholds,
     Embeddings,
     Header,

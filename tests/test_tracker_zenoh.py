@@ -14,10 +14,10 @@ from typing import Callable
 import numpy as np
 import pytest
 
-from common.keys import RELIABLE, Keys
-from common.router_process import RouterProcess
-from common.schemas import Embeddings, Header, LocalizedDetection, LocalizedDetections, ModelCard, Tracks
-from common.zenoh_transport import ZenohTransport
+from common.messages.keys import RELIABLE, Keys
+from common.transport.router_process import RouterProcess
+from common.messages.schemas import Embeddings, Header, LocalizedDetection, LocalizedDetections, ModelCard, Tracks
+from common.transport.zenoh import ZenohTransport
 
 pytestmark = pytest.mark.zenoh
 

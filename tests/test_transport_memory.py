@@ -7,12 +7,12 @@ import threading
 import msgpack
 import pytest
 
-from common.keys import FRAMES, RELIABLE, Delivery, Keys
-from common.memory import MemoryBus, key_matches
-from common.runtime import Counters, ServiceRuntime
-from common.samples import example_messages, rgbd_frame
-from common.schemas import Detections, RGBDFrame, ServiceStatus, Tracks
-from common.transport import wait_any
+from common.messages.keys import FRAMES, RELIABLE, Delivery, Keys
+from common.transport.memory import MemoryBus, key_matches
+from common.runtime.service import Counters, ServiceRuntime
+from common.messages.samples import example_messages, rgbd_frame
+from common.messages.schemas import Detections, RGBDFrame, ServiceStatus, Tracks
+from common.transport.base import wait_any
 
 KEYS = Keys(robot="r1")
 DETS = next(m for m in example_messages() if isinstance(m, Detections))

@@ -9,10 +9,10 @@ import logging
 import numpy as np
 import pytest
 
-from common.keys import FRAMES, RELIABLE, Keys
-from common.memory import MemoryBus
-from common.samples import rgbd_frame
-from common.schemas import Detections, RGBDFrame
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.messages.samples import rgbd_frame
+from common.messages.schemas import Detections, RGBDFrame
 from services.detector.config import DetectorConfig
 from services.detector.service import DetectorService
 from services.localizer.config import LocalizerConfig

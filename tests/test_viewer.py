@@ -10,12 +10,13 @@ import urllib.request
 import numpy as np
 import pytest
 
-from common.keys import Keys
-from common.memory import MemoryBus
+from common.messages.keys import Keys
+from common.transport.memory import MemoryBus
 from tests.fixtures.viewer_scene import IDS, ScenePublisher, camera_to_map
 from tools.viewer.config import ViewerConfig
 from tools.viewer.core.health import NodeSeen, health
-from tools.viewer.core.drawing import StageMeter, Trails, colour_hex, label_boxes, project_to_image, yaw_of
+from tools.drawing.tracks import label_boxes, project_to_image
+from tools.viewer.core.drawing import StageMeter, Trails, colour_hex, yaw_of
 from tools.viewer.node import ViewerNode
 from tools.viewer.web import LatestState, WebServer
 

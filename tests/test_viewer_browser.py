@@ -20,9 +20,9 @@ from typing import Callable, Iterator
 import numpy as np
 import pytest
 
-from common.keys import Keys
-from common.router_process import RouterProcess, free_port
-from common.zenoh_transport import ZenohTransport
+from common.messages.keys import Keys
+from common.transport.router_process import RouterProcess, free_port
+from common.transport.zenoh import ZenohTransport
 from tests.fixtures.viewer_scene import IDS, ScenePublisher
 from tests.helpers.chromium import Browser, chromium_path
 

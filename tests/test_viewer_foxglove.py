@@ -17,9 +17,9 @@ from typing import Any, Callable, Iterator
 
 import pytest
 
-from common.keys import Keys
-from common.router_process import RouterProcess, free_port
-from common.zenoh_transport import ZenohTransport
+from common.messages.keys import Keys
+from common.transport.router_process import RouterProcess, free_port
+from common.transport.zenoh import ZenohTransport
 from tests.fixtures.viewer_scene import IDS, ScenePublisher
 
 pytest.importorskip("foxglove", reason="Foxglove needs foxglove-sdk (the 'view' extra)")

@@ -13,12 +13,12 @@ from typing import Callable
 import msgpack
 import pytest
 
-from common.codec import decode_any
-from common.keys import RELIABLE, Keys
-from common.router_process import RouterProcess, free_port
-from common.samples import example_messages
-from common.schemas import Header, Tracks
-from common.zenoh_transport import ZenohTransport
+from common.messages.codec import decode_any
+from common.messages.keys import RELIABLE, Keys
+from common.transport.router_process import RouterProcess, free_port
+from common.messages.samples import example_messages
+from common.messages.schemas import Header, Tracks
+from common.transport.zenoh import ZenohTransport
 
 pytestmark = pytest.mark.zenoh
 KEYS = Keys(robot="xproc")

@@ -7,9 +7,9 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-from common.keys import RELIABLE, Delivery, Keys
-from common.schemas import Header, ServiceStatus
-from common.zenoh_transport import ZenohTransport
+from common.messages.keys import RELIABLE, Delivery, Keys
+from common.messages.schemas import Header, ServiceStatus
+from common.transport.zenoh import ZenohTransport
 
 KEYS = Keys(robot="polled")
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from common.zenoh_config import SHM_THRESHOLD_BYTES, ZenohOptions, build_zenoh_config
+from common.transport.zenoh_config import SHM_THRESHOLD_BYTES, ZenohOptions, build_zenoh_config
 
 PROBE = Path(__file__).resolve().parent / "helpers" / "shm_probe.py"
 KEY = "transport/shared_memory/transport_optimization/message_size_threshold"

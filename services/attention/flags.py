@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from common.node import add_node_arguments
+from common.runtime.node import add_node_arguments
 
 __all__ = ["add_arguments", "overrides"]
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from common.node import run_node
+from common.runtime.node import run_node
 from services.attention import flags
 from services.attention.config import AttentionConfig
 from services.attention.service import AttentionService

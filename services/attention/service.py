@@ -24,14 +24,14 @@ import time
 
 import numpy as np
 
-from common.geometry import PinholeCamera, RigidTransform, TransformBuffer, TransformError
-from common.geometry_messages import camera_from_info, take_transforms
-from common.keys import COMMANDS, FRAMES, RELIABLE, Keys
-from common.node import Node
-from common.ratelog import RateLimitedLog
-from common.runtime import Counters
-from common.schemas import AttentionReply, HeadCommand, Header, RGBDFrame, Tracks, TransformBatch
-from common.transport import Transport
+from common.geometry.transforms import PinholeCamera, RigidTransform, TransformBuffer, TransformError
+from common.geometry.messages import camera_from_info, take_transforms
+from common.messages.keys import COMMANDS, FRAMES, RELIABLE, Keys
+from common.runtime.node import Node
+from common.runtime.ratelog import RateLimitedLog
+from common.runtime.service import Counters
+from common.messages.schemas import AttentionReply, HeadCommand, Header, RGBDFrame, Tracks, TransformBatch
+from common.transport.base import Transport
 from services.attention.config import AttentionConfig, parse_target
 from services.attention.core import Chooser, Decision, HeadGeometry, Person, head_angles, rest_rates, servo
 

@@ -15,7 +15,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from common.keys import validate_chunk
+from common.messages.keys import validate_chunk
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
 from services.detector.core.darknet import DarknetDetector, DarknetParams

@@ -16,8 +16,8 @@ from typing import Any, TextIO
 import cv2
 import numpy as np
 
-from common.cli_util import CliError
-from common.progress import progress
+from common.runtime.cli_util import CliError
+from common.runtime.progress import progress
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
 from services.detector.flags import add_backend_arguments, detector_from_args, load_service_config

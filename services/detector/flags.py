@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from common.cli_util import CliError
-from common.node import add_node_arguments, load_node_config
+from common.runtime.cli_util import CliError
+from common.runtime.node import add_node_arguments, load_node_config
 from services.detector.config import BACKENDS, DetectorConfig, build_detector
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError

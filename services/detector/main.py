@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from common.node import run_node
+from common.runtime.node import run_node
 from services.detector import flags
 from services.detector.config import DetectorConfig
 from services.detector.service import DetectorService

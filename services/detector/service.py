@@ -19,14 +19,14 @@ from typing import Any
 import cv2
 import numpy as np
 
-from common.geometry import TransformBuffer, TransformError
-from common.geometry_messages import take_transforms
-from common.keys import FRAMES, RELIABLE, Keys
-from common.node import Node
-from common.ratelog import RateLimitedLog
-from common.runtime import Counters
-from common.schemas import Detection, Detections, RGBDFrame, TransformBatch
-from common.transport import Transport
+from common.geometry.transforms import TransformBuffer, TransformError
+from common.geometry.messages import take_transforms
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.runtime.node import Node
+from common.runtime.ratelog import RateLimitedLog
+from common.runtime.service import Counters
+from common.messages.schemas import Detection, Detections, RGBDFrame, TransformBatch
+from common.transport.base import Transport
 from services.detector.config import DetectorConfig, build_detector
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError

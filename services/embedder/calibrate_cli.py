@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common.cli_util import CliError
+from common.runtime.cli_util import CliError
 from services.embedder.core.calibration import PERCENTILES, calibrate
 from services.embedder.jsonl import crops_of_line, read_lines
 from services.embedder.flags import add_backend_arguments, backend_from_config, config_from_args

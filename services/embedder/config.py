@@ -1,6 +1,6 @@
 """Embedder configuration: which backend, how to feed an ONNX model, how much to buffer.
 
-Layered by :func:`common.config.load_config`: defaults -> file (section ``embedder``) ->
+Layered by :func:`common.runtime.config.load_config`: defaults -> file (section ``embedder``) ->
 environment ``PERCEPTION_EMBEDDER__FIELD`` (nested with ``__``, e.g.
 ``PERCEPTION_EMBEDDER__ONNX__PATH``) -> CLI flags.
 """
@@ -13,7 +13,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from common.config import ConfigError
+from common.runtime.config import ConfigError
 from services.embedder.core.backend import Backend, EmbedderError
 from services.embedder.core.depth_mask import DepthMaskParams
 from services.embedder.core.onnx_model import OnnxEmbedder, OnnxParams

@@ -9,7 +9,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any, TextIO
 
-from common.progress import progress
+from common.runtime.progress import progress
 from services.embedder.core.backend import Card
 from services.embedder.flags import add_backend_arguments, backend_from_config, config_from_args
 from services.embedder.jsonl import crops_of_line, read_lines

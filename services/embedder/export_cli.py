@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from common.cli_util import CliError
+from common.runtime.cli_util import CliError
 from services.embedder.config import sidecar_path
 
 log = logging.getLogger(__name__)

@@ -7,9 +7,9 @@ import argparse
 import logging
 from typing import Any
 
-from common.cli_util import CliError
-from common.config import ConfigError
-from common.node import add_node_arguments, load_node_config
+from common.runtime.cli_util import CliError
+from common.runtime.config import ConfigError
+from common.runtime.node import add_node_arguments, load_node_config
 from services.embedder.config import EmbedderConfig, build_backend
 from services.embedder.core.backend import Backend, EmbedderError
 from services.embedder.core.orientation import OrientationClassifier

@@ -13,8 +13,8 @@ from typing import Any, Iterator
 import cv2
 import numpy as np
 
-from common.cli_util import CliError
-from common.detections_file import read_detection_lines
+from common.runtime.cli_util import CliError
+from common.runtime.detections_file import read_detection_lines
 from services.embedder.core.backend import crop_boxes
 
 __all__ = ["crops_of_line", "read_lines"]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from common.node import run_node
+from common.runtime.node import run_node
 from services.embedder import flags
 from services.embedder.config import EmbedderConfig
 from services.embedder.service import EmbedderService

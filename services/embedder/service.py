@@ -1,7 +1,7 @@
 """The embedder service: pair frames with their detections, crop, describe, publish.
 
 Frames arrive latest-only, detections reliably and a little later (the detector works on
-the same frame first). A :class:`common.join.Joiner` keeps the last ``frame_buffer``
+the same frame first). A :class:`common.runtime.join.Joiner` keeps the last ``frame_buffer``
 frames and pairs each Detections message with its frame on ``Header.join_key``; every
 box is cropped (clamped to the image; empty boxes are skipped and counted) and the
 backend describes all crops of the frame in one call. Work whose frame is more than
@@ -25,12 +25,12 @@ import time
 
 import numpy as np
 
-from common.join import Dropped, Joiner
-from common.keys import FRAMES, RELIABLE, Keys
-from common.node import Node
-from common.runtime import Counters
-from common.schemas import AppearanceThresholds, Detections, Embeddings, ModelCard, RGBDFrame
-from common.transport import Transport
+from common.runtime.join import Dropped, Joiner
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.runtime.node import Node
+from common.runtime.service import Counters
+from common.messages.schemas import AppearanceThresholds, Detections, Embeddings, ModelCard, RGBDFrame
+from common.transport.base import Transport
 from services.embedder.config import EmbedderConfig, build_backend
 from services.embedder.core.backend import Backend, Card, EmbedderError, box_slices
 from services.embedder.core.depth_mask import apply_mask, depth_masks

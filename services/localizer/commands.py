@@ -6,7 +6,7 @@ COMMANDS = {
         "run the localizer service: boxes + depth + transforms -> people in the map",
     ),
     "localize": (
-        "services.localizer.offline",
+        "services.localizer.localize_cli",
         "localize the boxes of a detections JSONL file on a depth image, print JSON",
     ),
 }

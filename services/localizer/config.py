@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from common.keys import validate_chunk
+from common.messages.keys import validate_chunk
 from services.localizer.core import DepthNoiseModel, LocalizerParams
 
 __all__ = ["LocalizerConfig", "StaticTransformConfig"]

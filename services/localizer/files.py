@@ -1,7 +1,7 @@
 """Reading the offline tool's inputs: depth images, camera info and transform files.
 
-Every function raises :class:`common.cli_util.CliError` with a message naming the file
-and what is wrong with it. JSON/YAML files are read by :mod:`common.config`.
+Every function raises :class:`common.runtime.cli_util.CliError` with a message naming the file
+and what is wrong with it. JSON/YAML files are read by :mod:`common.runtime.config`.
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ import cv2
 import numpy as np
 import yaml
 
-from common.cli_util import CliError
-from common.config import ConfigError, read_config_file
-from common.geometry import PinholeCamera, RigidTransform
+from common.runtime.cli_util import CliError
+from common.runtime.config import ConfigError, read_config_file
+from common.geometry.transforms import PinholeCamera, RigidTransform
 
 __all__ = ["parse_transform", "read_camera_info", "read_depth", "read_transforms"]
 
@@ -126,7 +126,7 @@ def parse_transform(spec: str) -> tuple[str, str, RigidTransform]:
 def read_transforms(path: Path) -> list[tuple[str, str, RigidTransform]]:
     """Transforms of a JSON/YAML file: a list of ``{parent_frame, child_frame, translation, rotation_xyzw}``
     or an object with such a list under ``transforms`` (a TransformBatch as JSON)."""
-    # common.config.read_config_file reads mappings only, and the list is this file's
+    # common.runtime.config.read_config_file reads mappings only, and the list is this file's
     # documented form: only the mapping form ({"transforms": [...]}) could go through it.
     if not path.is_file():
         raise CliError(f"transforms file {path} does not exist")

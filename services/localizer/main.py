@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from common.node import run_node
+from common.runtime.node import run_node
 from services.localizer import flags
 from services.localizer.config import LocalizerConfig
 from services.localizer.service import LocalizerService

@@ -8,7 +8,7 @@ Inputs (``keys`` of one robot, one camera):
   almost never still hold the matching frame. Only the depth image and camera info are
   kept, the last ``frame_buffer`` of them.
 * ``detections/{camera}`` Detections, joined with their frame on ``Header.join_key`` by
-  a :class:`common.join.Joiner`.
+  a :class:`common.runtime.join.Joiner`.
 * ``tf`` and ``tf_static`` TransformBatch, into a :class:`TransformBuffer`.
 
 Detections wait (in stamp order) up to ``frame_wait_s`` for a frame not yet seen (a
@@ -28,20 +28,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from common.geometry import (
+from common.geometry.transforms import (
     ExtrapolationError,
     MissingTransformError,
     PinholeCamera,
     RigidTransform,
     TransformBuffer,
 )
-from common.geometry_messages import camera_from_info, take_transforms
-from common.join import Dropped, Joined, Joiner
-from common.keys import FRAMES, RELIABLE, Keys
-from common.node import Node
-from common.ratelog import RateLimitedLog
-from common.runtime import Counters
-from common.schemas import (
+from common.geometry.messages import camera_from_info, take_transforms
+from common.runtime.join import Dropped, Joined, Joiner
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.runtime.node import Node
+from common.runtime.ratelog import RateLimitedLog
+from common.runtime.service import Counters
+from common.messages.schemas import (
     CameraView,
     Detections,
     Header,
@@ -51,7 +51,7 @@ from common.schemas import (
     RGBDFrame,
     TransformBatch,
 )
-from common.transport import Transport
+from common.transport.base import Transport
 from services.localizer.config import LocalizerConfig
 from services.localizer.core import localize
 

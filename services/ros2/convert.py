@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from common.schemas import Header, RGBDFrame, TransformBatch
+from common.messages.schemas import Header, RGBDFrame, TransformBatch
 from services.ros2.core.types import RosTypes
 
 __all__ = ["camera_info_message", "header_message", "image_message", "tf_message"]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from common.node import run_node
+from common.runtime.node import run_node
 from services.ros2 import flags
 from services.ros2.config import Ros2Config
 from services.ros2.service import Ros2Service

@@ -7,9 +7,9 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from common.keys import Delivery
-from common.node import NodeIO
-from common.transport import RawPublisher, RawSubscription, Token, Transport
+from common.messages.keys import Delivery
+from common.runtime.node import NodeIO
+from common.transport.base import RawPublisher, RawSubscription, Token, Transport
 from services.ros2.core.types import RosTypes
 from services.ros2.core.wire import GraphEntity, Qos, attachment, entity_gid, ros_to_dds
 

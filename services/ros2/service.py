@@ -20,13 +20,13 @@ import logging
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from common.geometry_messages import transform_from_ros
-from common.keys import FRAMES, RELIABLE, Delivery, Keys
-from common.node import Node
-from common.ratelog import RateLimitedLog
-from common.runtime import Counters
-from common.schemas import CameraInfo, Header, Image, RGBDFrame, TrackState, TransformBatch, Tracks
-from common.transport import RawSample, RawSubscription, Transport
+from common.geometry.messages import transform_from_ros
+from common.messages.keys import FRAMES, RELIABLE, Delivery, Keys
+from common.runtime.node import Node
+from common.runtime.ratelog import RateLimitedLog
+from common.runtime.service import Counters
+from common.messages.schemas import CameraInfo, Header, Image, RGBDFrame, TrackState, TransformBatch, Tracks
+from common.transport.base import RawSample, RawSubscription, Transport
 from services.ros2.config import Ros2Config
 from services.ros2.core.images import ImageError, Intrinsics, Pixels, compressed_pixels, intrinsics, raw_pixels
 from services.ros2.core.pairing import Pairer

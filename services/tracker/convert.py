@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from common.schemas import Embeddings, Header, LocalizedDetections, TrackState, Tracks
+from common.messages.schemas import Embeddings, Header, LocalizedDetections, TrackState, Tracks
 from services.tracker.core.tracker import FrameResult, TrackView
 from services.tracker.core.view import FieldOfView
 

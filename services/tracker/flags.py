@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from common.node import add_node_arguments
+from common.runtime.node import add_node_arguments
 from services.tracker.config import TrackerConfig
 
 __all__ = ["add_arguments", "adjust", "overrides"]

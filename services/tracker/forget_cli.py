@@ -6,10 +6,10 @@ import argparse
 import json
 import sys
 
-from common.cli_util import add_key_arguments, keys_from_args
-from common.schemas import ForgetReply
-from common.zenoh_config import add_zenoh_arguments
-from common.zenoh_transport import open_transport_from_args
+from common.runtime.cli_util import add_key_arguments, keys_from_args
+from common.messages.schemas import ForgetReply
+from common.transport.zenoh_config import add_zenoh_arguments
+from common.transport.zenoh import open_transport_from_args
 
 HELP = "make the running tracker forget a person's appearance (privacy), or everyone's"
 DESCRIPTION = """\

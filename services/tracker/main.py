@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from common.node import run_node
+from common.runtime.node import run_node
 from services.tracker import flags
 from services.tracker.config import TrackerConfig
 from services.tracker.service import TrackerService

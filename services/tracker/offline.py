@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common.progress import progress
+from common.runtime.progress import progress
 from services.tracker.config import TrackerConfig
 from services.tracker.core import Tracker, TrackerParams
 from services.tracker.core.robust import RobustTracker
@@ -97,7 +97,7 @@ def track(dets: Detections, tracker: Tracker | RobustTracker | TrackerParams,
     reported track per frame (Confirmed, and for the robust profile recently coasting ones).
 
     ``TrackerParams`` builds the thesis's tracker. Each detection's score is passed on
-    (the robust profile uses it). ``show_progress``: a bar on a terminal (``common.progress``).
+    (the robust profile uses it). ``show_progress``: a bar on a terminal (``common.runtime.progress``).
     """
     if isinstance(tracker, TrackerParams):
         tracker = Tracker(tracker)

@@ -1,7 +1,7 @@
 """TrackerService: LocalizedDetections + Embeddings in, Tracks out, over any Transport.
 
 * Inputs of one source frame are joined on ``Header.join_key`` by a
-  :class:`common.join.Joiner`. Localized detections wait up to ``join_wait_s`` for their
+  :class:`common.runtime.join.Joiner`. Localized detections wait up to ``join_wait_s`` for their
   embeddings; then the frame runs position-only, and if its embeddings come later while it
   is within ``reorder_window_s`` it is applied again with them (a rewind:
   ``late_embeddings_applied``); later still they are dropped (``dropped_late_embeddings``). A frame without detections needs no
@@ -32,12 +32,12 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from common.join import Dropped, Joiner
-from common.keys import RELIABLE, Keys
-from common.node import Node
-from common.ratelog import RateLimitedLog
-from common.runtime import Counters
-from common.schemas import (
+from common.runtime.join import Dropped, Joiner
+from common.messages.keys import RELIABLE, Keys
+from common.runtime.node import Node
+from common.runtime.ratelog import RateLimitedLog
+from common.runtime.service import Counters
+from common.messages.schemas import (
     Embeddings,
     ForgetReply,
     Header,
@@ -46,7 +46,7 @@ from common.schemas import (
     Tracks,
     TrackState,
 )
-from common.transport import Transport
+from common.transport.base import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import (
     descriptors_for,

@@ -7,8 +7,8 @@ import logging
 import time
 from pathlib import Path
 
-from common.cli_util import CliError
-from common.node import load_node_config
+from common.runtime.cli_util import CliError
+from common.runtime.node import load_node_config
 from services.tracker.config import DEFAULT_EMBEDDING_MODEL, PROFILES, TrackerConfig
 from services.tracker.offline import FormatError, read_detections, track, write_tracks
 

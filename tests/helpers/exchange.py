@@ -11,13 +11,13 @@ import sys
 
 import msgpack
 
-from common.codec import encode
-from common.keys import RELIABLE, Keys
-from common.runtime import ServiceRuntime, Shutdown
-from common.samples import example_messages
-from common.schemas import Header, ServiceStatus
-from common.zenoh_config import ZenohOptions
-from common.zenoh_transport import open_transport
+from common.messages.codec import encode
+from common.messages.keys import RELIABLE, Keys
+from common.runtime.service import ServiceRuntime, Shutdown
+from common.messages.samples import example_messages
+from common.messages.schemas import Header, ServiceStatus
+from common.transport.zenoh_config import ZenohOptions
+from common.transport.zenoh import open_transport
 
 KEYS = Keys(robot="xproc")
 ACK = f"{KEYS.base}/exchange_ack"

@@ -6,8 +6,8 @@ import signal
 import subprocess
 import time
 
-from common.keys import Keys
-from common.transport import Transport
+from common.messages.keys import Keys
+from common.transport.base import Transport
 
 
 def wait_recorded(client: Transport, keys: Keys, n: int, timeout_s: float) -> float:

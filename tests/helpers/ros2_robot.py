@@ -40,10 +40,10 @@ def main(argv: list[str]) -> int:
 
     import zenoh_ros2_sdk as sdk
 
-    from common.keys import RELIABLE, Keys
-    from common.schemas import Detections, PeopleGroundTruth, RGBDFrame, TransformBatch
-    from common.zenoh_config import ZenohOptions
-    from common.zenoh_transport import open_transport
+    from common.messages.keys import RELIABLE, Keys
+    from common.messages.schemas import Detections, PeopleGroundTruth, RGBDFrame, TransformBatch
+    from common.transport.zenoh_config import ZenohOptions
+    from common.transport.zenoh import open_transport
     from services.ros2.config import Ros2Config
     from services.ros2.convert import camera_info_message, image_message, tf_message
     from services.ros2.core.types import types_of

@@ -18,11 +18,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from common.keys import RELIABLE, Keys
-from common.router_process import wait_for_port
-from common.schemas import Tracks
-from common.zenoh_config import ZenohOptions
-from common.zenoh_transport import open_transport
+from common.messages.keys import RELIABLE, Keys
+from common.transport.router_process import wait_for_port
+from common.messages.schemas import Tracks
+from common.transport.zenoh_config import ZenohOptions
+from common.transport.zenoh import open_transport
 from tools.demo.monitor import Monitor
 from tools.demo.scoring import GroundTruthLog, score
 

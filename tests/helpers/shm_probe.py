@@ -15,8 +15,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import zenoh  # noqa: E402
 
-from common.router_process import free_port  # noqa: E402
-from common.zenoh_config import ZenohOptions, build_zenoh_config  # noqa: E402
+from common.transport.router_process import free_port  # noqa: E402
+from common.transport.zenoh_config import ZenohOptions, build_zenoh_config  # noqa: E402
 
 
 def shmem_kib() -> int:

@@ -15,11 +15,11 @@ from typing import Any
 
 import numpy as np
 
-from common.geometry import PinholeCamera, TransformBuffer, TransformError
-from common.geometry_messages import add_transform
-from common.keys import RELIABLE, Delivery, Keys
-from common.schemas import Header, Message, PeopleGroundTruth, TrackState, Tracks, TransformBatch
-from common.transport import Transport
+from common.geometry.transforms import PinholeCamera, TransformBuffer, TransformError
+from common.geometry.messages import add_transform
+from common.messages.keys import RELIABLE, Delivery, Keys
+from common.messages.schemas import Header, Message, PeopleGroundTruth, TrackState, Tracks, TransformBatch
+from common.transport.base import Transport
 
 __all__ = ["AttentionLog", "AttentionScore", "TruthTracks"]
 

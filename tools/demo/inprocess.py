@@ -17,10 +17,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from common.keys import RELIABLE, Keys
-from common.memory import MemoryBus
-from common.schemas import Embeddings, LocalizedDetections, Message, PeopleGroundTruth, Tracks
-from common.transport import Subscription
+from common.messages.keys import RELIABLE, Keys
+from common.transport.memory import MemoryBus
+from common.messages.schemas import Embeddings, LocalizedDetections, Message, PeopleGroundTruth, Tracks
+from common.transport.base import Subscription
 from services.attention.config import AttentionConfig
 from services.attention.service import AttentionService
 from services.detector.config import DetectorConfig

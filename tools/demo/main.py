@@ -21,14 +21,14 @@ import threading
 import time
 from pathlib import Path
 
-from common.cli_util import CliError
-from common.keys import Keys
-from common.registry import stages
-from common.router_process import free_port
-from common.runtime import Shutdown
-from common.transport import Transport
-from common.zenoh_config import ZenohOptions
-from common.zenoh_transport import TransportError, open_transport
+from common.runtime.cli_util import CliError
+from common.messages.keys import Keys
+from common.messages.registry import stages
+from common.transport.router_process import free_port
+from common.runtime.service import Shutdown
+from common.transport.base import Transport
+from common.transport.zenoh_config import ZenohOptions
+from common.transport.zenoh import TransportError, open_transport
 from services.tracker.config import SEVERAL_CAMERAS
 from tools.demo.attention import AttentionLog
 from tools.demo.monitor import Monitor
@@ -175,7 +175,7 @@ def _wait_alive(transport: Transport, keys: Keys, supervisor_thread: threading.T
 def main(args: argparse.Namespace) -> int:
     # The live view owns the terminal: the supervisor's and the session's info lines would
     # scroll it away (the children's own output goes to the log file).
-    for name in ("tools.launcher", "common.zenoh_transport"):
+    for name in ("tools.launcher", "common.transport.zenoh"):
         logging.getLogger(name).setLevel(logging.WARNING)
     if args.duration <= 0 or args.fps <= 0 or args.width < 64 or args.height < 48:
         raise CliError("--duration and --fps must be positive and the image at least 64x48")

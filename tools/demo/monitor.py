@@ -16,16 +16,16 @@ from typing import Any
 
 import numpy as np
 
-from common import schemas
-from common.keys import STATUS, Delivery, Keys, stream
-from common.registry import pipeline
-from common.schemas import Message, ServiceStatus, Tracks
-from common.transport import Subscription, Transport
+from common.messages import schemas
+from common.messages.keys import STATUS, Delivery, Keys, stream
+from common.messages.registry import pipeline
+from common.messages.schemas import Message, ServiceStatus, Tracks
+from common.transport.base import Subscription, Transport
 
 __all__ = ["STAGES", "Monitor", "StageStats"]
 
 #: (stage name, key method, message type), in pipeline order: each stage of the registry and
-#: the stream it publishes (the :class:`~common.keys.Keys` method of the same name).
+#: the stream it publishes (the :class:`~common.messages.keys.Keys` method of the same name).
 STAGES: tuple[tuple[str, str, type[Message]], ...] = tuple(
     (n.name, n.publishes[0], getattr(schemas, stream(n.publishes[0]).message)) for n in pipeline())
 _WINDOW = 300

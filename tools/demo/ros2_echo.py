@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from common.keys import Delivery
-from common.transport import Transport
+from common.messages.keys import Delivery
+from common.transport.base import Transport
 from services.ros2.core.types import CdrError, types_of
 from services.ros2.core.wire import parse_attachment
 

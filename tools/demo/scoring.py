@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from common.keys import Delivery, Keys
-from common.schemas import PeopleGroundTruth, Tracks
-from common.transport import Transport
+from common.messages.keys import Delivery, Keys
+from common.messages.schemas import PeopleGroundTruth, Tracks
+from common.transport.base import Transport
 from tools.demo.monitor import Monitor
 from tools.evaluation.evaluate import evaluate_tables, format_table, make_report
 from tools.evaluation.plot import PlotUnavailable, SequencePlot, plot_sequences

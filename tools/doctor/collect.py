@@ -4,7 +4,7 @@
 from a recording (:mod:`tools.doctor.recording`): every payload with its key and receive
 time, every service status, every liveliness change. It decodes each payload itself, so
 it also sees what the nodes refuse: an invalid frame is read field by field
-(:func:`common.codec.unpack_unchecked`) to say what is wrong with it.
+(:func:`common.messages.codec.unpack_unchecked`) to say what is wrong with it.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from common.codec import DecodeError, decode_any, unpack_unchecked
-from common.schemas import (
+from common.messages.codec import DecodeError, decode_any, unpack_unchecked
+from common.messages.schemas import (
     Detections,
     Embeddings,
     Image,

@@ -6,9 +6,9 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from common.keys import RELIABLE, Delivery, Keys
-from common.schemas import ServiceStatus
-from common.transport import Subscription, Transport, wait_any
+from common.messages.keys import RELIABLE, Delivery, Keys
+from common.messages.schemas import ServiceStatus
+from common.transport.base import Subscription, Transport, wait_any
 from tools.doctor.collect import Observer
 
 __all__ = ["watch"]

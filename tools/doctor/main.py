@@ -9,8 +9,8 @@ import logging
 import sys
 from pathlib import Path
 
-from common.cli_util import CliError, add_key_arguments, keys_from_args
-from common.zenoh_config import add_zenoh_arguments
+from common.runtime.cli_util import CliError, add_key_arguments, keys_from_args
+from common.transport.zenoh_config import add_zenoh_arguments
 from tools.doctor.collect import Observer
 from tools.doctor.core.checks import exit_code, render, run_checks, to_dicts
 
@@ -52,7 +52,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _live(args: argparse.Namespace, observer: Observer) -> tuple[float, str]:
-    from common.zenoh_transport import open_transport_from_args
+    from common.transport.zenoh import open_transport_from_args
     from tools.doctor.live import watch
 
     if args.duration <= 0:

@@ -19,7 +19,7 @@ import numpy as np
 
 from tools.evaluation.metrics import ClearMot, FrameEvents
 from tools.evaluation.readers import TrackTable
-from tools.viewer.core.drawing import colour_rgb
+from tools.drawing.tracks import colour_rgb
 
 __all__ = ["PlotUnavailable", "SequencePlot", "plot_sequences"]
 

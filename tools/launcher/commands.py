@@ -2,6 +2,4 @@
 
 COMMANDS = {
     "launch": ("tools.launcher.main", "start a router and services from a launch file and supervise them"),
-    # The secure launch files (deploy/secure/) need these first; the module is in common/.
-    "certs": ("common.certs_cli", "make the TLS certificates and the per-service credentials of deploy/secure/"),
 }

@@ -23,8 +23,8 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from common.keys import validate_chunk
-from common.zenoh_config import ZenohOptions
+from common.messages.keys import validate_chunk
+from common.transport.zenoh_config import ZenohOptions
 
 __all__ = ["Backoff", "LaunchFile", "LaunchFileError", "RouterSpec", "ServiceSpec", "ZenohDefaults",
            "load_launch_file", "substitute"]

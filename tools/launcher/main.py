@@ -10,9 +10,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-from common.cli_util import CliError
-from common.keys import DEFAULT_PREFIX, DEFAULT_ROBOT, Keys
-from common.zenoh_config import ZenohOptions
+from common.runtime.cli_util import CliError
+from common.messages.keys import DEFAULT_PREFIX, DEFAULT_ROBOT, Keys
+from common.transport.zenoh_config import ZenohOptions
 from tools.launcher.launchfile import LaunchFile, LaunchFileError, load_launch_file
 from tools.launcher.plan import build_plan, render_plan, services_connect
 from tools.launcher.report import FailureReport
@@ -74,7 +74,7 @@ def _check_security(launch: LaunchFile, names: set[str]) -> list[str]:
     """Problems with the certificates, keys and credentials the started entries will read."""
     import zenoh
 
-    from common.zenoh_security import SecurityError, read_credentials, secure_config
+    from common.transport.zenoh_security import SecurityError, read_credentials, secure_config
 
     checks: list[tuple[Path | None, Path | None]] = [(launch.zenoh.config, launch.zenoh.credentials)]
     if launch.router is not None and "router" in names:

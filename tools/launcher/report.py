@@ -21,11 +21,11 @@ import threading
 import time
 from collections.abc import Mapping
 
-from common.keys import STATUS, Keys
-from common.runtime import instance_id, package_version
-from common.schemas import Header, ServiceStatus
-from common.zenoh_config import ZenohOptions
-from common.zenoh_transport import TransportError, ZenohTransport, open_transport
+from common.messages.keys import STATUS, Keys
+from common.runtime.service import instance_id, package_version
+from common.messages.schemas import Header, ServiceStatus
+from common.transport.zenoh_config import ZenohOptions
+from common.transport.zenoh import TransportError, ZenohTransport, open_transport
 from tools.launcher.supervisor import FailedChild
 
 __all__ = ["FailureReport", "failed_status"]

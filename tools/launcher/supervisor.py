@@ -39,7 +39,7 @@ _COLOURS = (36, 33, 35, 32, 34, 31, 96, 93, 95, 92, 94, 91)
 _MAX_LINE = 64 * 1024
 #: Output lines kept per child, to say why it stopped.
 _TAIL_LINES = 20
-#: Exit status of a configuration or start-up error (common/node.py): restarting cannot help.
+#: Exit status of a configuration or start-up error (common/runtime/node.py): restarting cannot help.
 CONFIG_ERROR_STATUS = 2
 _ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 _ERROR_MARK = "perception: error:"

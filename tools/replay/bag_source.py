@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
-from common.keys import Keys
-from common.schemas import CameraInfo, Image, Message, RGBDFrame, TransformBatch
+from common.messages.keys import Keys
+from common.messages.schemas import CameraInfo, Image, Message, RGBDFrame, TransformBatch
 from tools.replay import rosconv
 from tools.replay.core.mapping import TopicPlan, plan_topics
 from tools.replay.core.pairing import RgbdPairer

@@ -24,8 +24,8 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from common.config import load_config
-from common.keys import validate_chunk
+from common.runtime.config import load_config
+from common.messages.keys import validate_chunk
 
 __all__ = ["CameraTopics", "TopicMapConfig", "load_topic_map"]
 

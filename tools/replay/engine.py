@@ -1,6 +1,6 @@
 """Publish a :class:`~tools.replay.sources.Source` onto a transport, with its timing.
 
-Works on any :class:`~common.transport.Transport` (the in-memory one in tests). Items
+Works on any :class:`~common.transport.base.Transport` (the in-memory one in tests). Items
 are put into stamp order (:func:`~tools.replay.core.timeline.reorder`), paced by a
 :class:`~tools.replay.core.timeline.Pacer` and published on their key, remapped.
 Static transforms are always published, even before ``--start``, since the services
@@ -16,9 +16,9 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Iterator, Protocol, Sequence
 
-from common.keys import FRAMES, RELIABLE, STATUS, Delivery
-from common.schemas import RGBDFrame, ServiceStatus
-from common.transport import Publisher, Transport
+from common.messages.keys import FRAMES, RELIABLE, STATUS, Delivery
+from common.messages.schemas import RGBDFrame, ServiceStatus
+from common.transport.base import Publisher, Transport
 from tools.replay.core.mapping import remap_key
 from tools.replay.core.timeline import DEFAULT_REORDER_WINDOW_NS, Pacer, Reorderer, TimeWindow
 from tools.replay.progress import Progress

@@ -6,7 +6,7 @@ import argparse
 import datetime as dt
 from pathlib import Path
 
-from common.cli_util import CliError
+from common.runtime.cli_util import CliError
 from tools.replay.sources import SourceError, Summary, open_source
 
 DESCRIPTION = """Summarise an MCAP recording (from `perception record`), a ROS 1 .bag or a ROS 2 bag

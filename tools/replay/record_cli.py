@@ -9,15 +9,15 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from common.cli_util import CliError, add_key_arguments, keys_from_args
-from common.keys import Delivery
-from common.runtime import Counters, ServiceRuntime, Shutdown, package_version
-from common.transport import Received, Subscription, Transport, wait_any
-from common.zenoh_config import add_zenoh_arguments
+from common.runtime.cli_util import CliError, add_key_arguments, keys_from_args
+from common.messages.keys import Delivery
+from common.runtime.service import Counters, ServiceRuntime, Shutdown, package_version
+from common.transport.base import Received, Subscription, Transport, wait_any
+from common.transport.zenoh_config import add_zenoh_arguments
 from tools.replay.recorder import McapRecorder
 
 if TYPE_CHECKING:
-    from tools.viewer.foxglove_bridge import FoxgloveMcap
+    from tools.foxglove.bridge import FoxgloveMcap
 
 log = logging.getLogger(__name__)
 
@@ -102,7 +102,7 @@ def _check_paths(args: argparse.Namespace) -> None:
     if not args.output.parent.is_dir():
         raise CliError(f"{args.output}: folder {args.output.parent} does not exist")
     if args.foxglove is not None:
-        from tools.viewer.export_cli import check_output
+        from tools.replay.export_foxglove_cli import check_output
 
         if args.foxglove.resolve() == args.output.resolve():
             raise CliError("--foxglove and --output are the same file")
@@ -113,7 +113,7 @@ def _open_files(args: argparse.Namespace, exprs: list[str]) -> tuple[McapRecorde
     """The recorder and, with --foxglove, the Foxglove file; CliError (nothing left open) when one cannot be written."""
     foxglove = None
     if args.foxglove is not None:
-        from tools.viewer.export_cli import open_foxglove_mcap
+        from tools.replay.export_foxglove_cli import open_foxglove_mcap
 
         new = not args.foxglove.exists()
         foxglove = open_foxglove_mcap(args.foxglove)
@@ -130,7 +130,7 @@ def _open_files(args: argparse.Namespace, exprs: list[str]) -> tuple[McapRecorde
 
 
 def main(args: argparse.Namespace) -> int:
-    from common.zenoh_transport import open_transport_from_args
+    from common.transport.zenoh import open_transport_from_args
 
     keys = keys_from_args(args)
     exprs = args.keys or [keys.all()]

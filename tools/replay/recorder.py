@@ -1,7 +1,7 @@
 """Write perception messages into an MCAP file that describes itself.
 
 One channel per (Zenoh key, schema): topic = the key, message encoding ``msgpack`` (the
-wire payload, :mod:`common.codec`), schema = the message's schema name with encoding
+wire payload, :mod:`common.messages.codec`), schema = the message's schema name with encoding
 ``jsonschema`` and the pydantic model's JSON schema as data; the channel metadata holds
 the schema version. ``log_time`` is the receive time, ``publish_time`` the message's
 ``header.stamp_ns``. A ``perception`` metadata record names the versions of every
@@ -15,8 +15,8 @@ from collections import Counter
 from pathlib import Path
 from typing import Literal, Sequence
 
-from common.codec import encode
-from common.schemas import MESSAGE_TYPES, Message
+from common.messages.codec import encode
+from common.messages.schemas import MESSAGE_TYPES, Message
 from tools.replay.sources import MSGPACK
 
 __all__ = ["McapRecorder"]

@@ -7,10 +7,10 @@ import logging
 import sys
 from pathlib import Path
 
-from common.cli_util import CliError, add_key_arguments, keys_from_args
-from common.config import ConfigError
-from common.runtime import ServiceRuntime, Shutdown
-from common.zenoh_config import add_zenoh_arguments
+from common.runtime.cli_util import CliError, add_key_arguments, keys_from_args
+from common.runtime.config import ConfigError
+from common.runtime.service import ServiceRuntime, Shutdown
+from common.transport.zenoh_config import add_zenoh_arguments
 from tools.replay.bag_source import BagOptions
 from tools.replay.config import load_topic_map
 from tools.replay.core.mapping import parse_remap
@@ -101,7 +101,7 @@ def report(source: Source, stats: ReplayStats) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from common.zenoh_transport import open_transport_from_args
+    from common.transport.zenoh import open_transport_from_args
 
     remap = []
     for rule in args.remap:

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from common.schemas import CameraInfo, Header, Image, Transform, TransformBatch
+from common.messages.schemas import CameraInfo, Header, Image, Transform, TransformBatch
 
 __all__ = ["ConversionError", "camera_info", "compressed_image", "image", "odometry", "stamp_ns", "tf_message"]
 

@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
-from common.codec import encode
-from common.schemas import Message
+from common.messages.codec import encode
+from common.messages.schemas import Message
 
 __all__ = ["Item", "Source", "SourceError", "StreamSummary", "Summary"]
 

@@ -14,7 +14,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any, BinaryIO, Iterator
 
-from common.schemas import MESSAGE_TYPES, Message
+from common.messages.schemas import MESSAGE_TYPES, Message
 from tools.replay.bag_source import BagOptions, BagSource
 from tools.replay.source_base import Item, Source, SourceError, StreamSummary, Summary
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from common.keys import validate_chunk
+from common.messages.keys import validate_chunk
 from tools.simulator.core.cameras import back_camera
 from tools.simulator.core.scenarios import SCENARIOS
 from tools.simulator.core.simulation import MIN_VISIBLE

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from common.keys import Keys
-from common.schemas import CameraInfo, Image, Message, RGBDFrame, TransformBatch
+from common.messages.keys import Keys
+from common.messages.schemas import CameraInfo, Image, Message, RGBDFrame, TransformBatch
 
 __all__ = ["FAULTS", "OLD_STAMPS_S", "apply_faults"]
 

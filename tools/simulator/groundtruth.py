@@ -10,7 +10,7 @@ import csv
 from pathlib import Path
 from typing import Iterable, TextIO
 
-from common.schemas import PeopleGroundTruth
+from common.messages.schemas import PeopleGroundTruth
 
 __all__ = ["GT_COLUMNS", "GroundTruthCsv", "groundtruth_rows", "write_groundtruth_csv"]
 

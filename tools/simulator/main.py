@@ -6,12 +6,12 @@ import argparse
 import logging
 from pathlib import Path
 
-from common.cli_util import CliError, add_key_arguments, keys_from_args
-from common.config import ConfigError, load_config
-from common.progress import progress
-from common.runtime import Counters, ServiceRuntime, Shutdown, package_version
-from common.zenoh_config import add_zenoh_arguments, options_from_args
-from common.zenoh_transport import TransportError, open_transport
+from common.runtime.cli_util import CliError, add_key_arguments, keys_from_args
+from common.runtime.config import ConfigError, load_config
+from common.runtime.progress import progress
+from common.runtime.service import Counters, ServiceRuntime, Shutdown, package_version
+from common.transport.zenoh_config import add_zenoh_arguments, options_from_args
+from common.transport.zenoh import TransportError, open_transport
 from tools.replay.recorder import McapRecorder
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.scenarios import SCENARIOS

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from common.geometry import PinholeCamera
-from common.schemas import (
+from common.geometry.transforms import PinholeCamera
+from common.messages.schemas import (
     CameraInfo,
     Header,
     Image,
@@ -15,7 +15,7 @@ from common.schemas import (
     Transform,
     TransformBatch,
 )
-from common.poses import quaternion_from_matrix
+from common.geometry.poses import quaternion_from_matrix
 from tools.simulator.core.render import RenderResult
 from tools.simulator.core.simulation import FixedView, FrameData
 

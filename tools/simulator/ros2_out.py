@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from common.schemas import RGBDFrame, TransformBatch
-from common.transport import Transport
+from common.messages.schemas import RGBDFrame, TransformBatch
+from common.transport.base import Transport
 from services.ros2.config import Ros2Config
 from services.ros2.convert import camera_info_message, image_message, tf_message
 from services.ros2.core.types import types_of

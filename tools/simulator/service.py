@@ -6,10 +6,10 @@ import logging
 import time
 from typing import Any
 
-from common.keys import COMMANDS, FRAMES, RELIABLE, Keys
-from common.runtime import Counters, Shutdown
-from common.schemas import Detections, HeadCommand, Message, PeopleGroundTruth, RGBDFrame, TransformBatch
-from common.transport import Publisher, Subscription, Transport
+from common.messages.keys import COMMANDS, FRAMES, RELIABLE, Keys
+from common.runtime.service import Counters, Shutdown
+from common.messages.schemas import Detections, HeadCommand, Message, PeopleGroundTruth, RGBDFrame, TransformBatch
+from common.transport.base import Publisher, Subscription, Transport
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.groundtruth import GroundTruthCsv
 from tools.simulator.source import SimulatedStream

@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 import time
 
-from common.keys import Keys
-from common.schemas import Message, PeopleGroundTruth, RGBDFrame
+from common.messages.keys import Keys
+from common.messages.schemas import Message, PeopleGroundTruth, RGBDFrame
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.cameras import back_camera
 from tools.simulator.core.head_servo import CommandedHead

@@ -2,5 +2,4 @@
 
 COMMANDS = {
     "view": ("tools.viewer.main", "serve a live page of the tracks, the camera and the nodes' health to a browser"),
-    "export-foxglove": ("tools.viewer.export_cli", "convert a recording to MCAP in Foxglove's well-known schemas"),
 }

@@ -5,11 +5,11 @@ from __future__ import annotations
 import argparse
 from typing import Any, Mapping
 
-from common.cli_util import CliError
-from common.keys import Keys
-from common.node import add_node_arguments, run_node
-from common.runtime import Counters
-from common.transport import Transport
+from common.runtime.cli_util import CliError
+from common.messages.keys import Keys
+from common.runtime.node import add_node_arguments, run_node
+from common.runtime.service import Counters
+from common.transport.base import Transport
 from tools.viewer.config import ViewerConfig
 from tools.viewer.node import ViewerNode
 from tools.viewer.web import LatestState, WebServer
@@ -60,7 +60,7 @@ def _prepare(config: ViewerConfig) -> Mapping[str, Any]:
     if config.port is not None:
         servers["web"] = WebServer(config.host, config.port, LatestState())
     if config.foxglove_port is not None:
-        from tools.viewer.foxglove_bridge import FoxgloveUnavailable, start_live_server
+        from tools.foxglove.bridge import FoxgloveUnavailable, start_live_server
 
         try:
             servers["foxglove"] = start_live_server(config.host, config.foxglove_port, config.jpeg_quality)

@@ -16,21 +16,23 @@ from typing import Any, Callable, Protocol
 
 import numpy as np
 
-from common.geometry import TransformBuffer, TransformError
-from common.geometry_messages import add_batch
-from common.keys import RELIABLE, STATUS, Delivery, Keys
-from common.node import Node
-from common.registry import stages
-from common.runtime import Counters, Shutdown
-from common.schemas import (Detections, Embeddings, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
-                            TransformBatch)
-from common.transport import Subscription, Transport
+from common.geometry.transforms import TransformBuffer, TransformError
+from common.geometry.messages import add_batch
+from common.messages.keys import RELIABLE, STATUS, Delivery, Keys
+from common.runtime.node import Node
+from common.messages.registry import stages
+from common.runtime.service import Counters, Shutdown
+from common.messages.schemas import (Detections, Embeddings, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
+                                     TransformBatch)
+from common.transport.base import Subscription, Transport
+from tools.drawing.images import jpeg_of
+from tools.drawing.tracks import label_boxes, project_to_image
 from tools.viewer.config import ViewerConfig
 from tools.viewer.core.health import NodeSeen, health
-from tools.viewer.core.drawing import StageMeter, Trails, colour_hex, label_boxes, project_to_image, yaw_of
+from tools.viewer.core.drawing import StageMeter, Trails, colour_hex, yaw_of
 from tools.viewer.web import LatestState
 
-__all__ = ["STAGES", "Sink", "ViewerNode", "jpeg_of"]
+__all__ = ["STAGES", "Sink", "ViewerNode"]
 
 # The viewer reads on its own schedule (``wake=False``): samples wait in the transport until
 # a poll, and no thread is woken per sample.
@@ -61,20 +63,6 @@ class Sink(Protocol):
     def on_message(self, stream: str, msg: Message) -> None: ...
 
     def close(self) -> None: ...
-
-
-def jpeg_of(frame: RGBDFrame, quality: int) -> bytes:
-    """The frame's colour image as JPEG (passed through when it already is one)."""
-    if frame.rgb.encoding == "jpeg":
-        return frame.rgb.data
-    import cv2
-
-    rgb = frame.rgb.to_array()
-    bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR) if rgb.ndim == 3 else rgb
-    ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality])
-    if not ok:
-        raise ValueError(f"cannot encode a {rgb.dtype.name} {rgb.shape} image as JPEG")
-    return buf.tobytes()
 
 
 class ViewerNode(Node):

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from common.geometry import PinholeCamera, RigidTransform
+from common.geometry.transforms import PinholeCamera, RigidTransform
 from services.localizer.core.noise import DepthNoiseModel, point_covariances
 
 __all__ = [

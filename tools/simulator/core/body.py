@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from common.poses import rot_x, rot_y, rot_z
+from common.geometry.poses import rot_x, rot_y, rot_z
 
 __all__ = ["Clothing", "Ellipsoids", "PersonPose", "body_ellipsoids", "torso_centre"]
 

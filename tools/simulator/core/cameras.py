@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from common.poses import OPTICAL_FROM_BODY, make_pose, rot_y, rot_z
+from common.geometry.poses import OPTICAL_FROM_BODY, make_pose, rot_y, rot_z
 
 __all__ = ["BACK_CAMERA_OFFSET", "FixedCamera", "back_camera"]
 

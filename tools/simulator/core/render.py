@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from common.geometry import PinholeCamera
+from common.geometry.transforms import PinholeCamera
 from tools.simulator.core.apartment import Apartment
 from tools.simulator.core.body import Ellipsoids
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from tools.simulator.core.apartment import Apartment
 from tools.simulator.core.head_servo import CommandedHead
-from common.poses import OPTICAL_FROM_BODY, make_pose, planar_pose, pose_inverse, rot_y, rot_z
+from common.geometry.poses import OPTICAL_FROM_BODY, make_pose, planar_pose, pose_inverse, rot_y, rot_z
 
 __all__ = [
     "HeadMotion",

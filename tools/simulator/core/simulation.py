@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from common.geometry import PinholeCamera
+from common.geometry.transforms import PinholeCamera
 from tools.simulator.core.body import Clothing, Ellipsoids, body_ellipsoids, torso_centre
 from tools.simulator.core.cameras import FixedCamera
 from tools.simulator.core.render import NEAR_M, Renderer, RenderResult

@@ -1,0 +1,1 @@
+"""The messages: their schemas and wire codec, the keys they travel on, and the node registry behind the keys."""

@@ -1,0 +1,109 @@
+"""``perception evaluate``: CLEAR MOT, IDF1, HOTA, recall errors and ID consistency of a tracker's output."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from common.runtime.cli_util import CliError
+from tools.evaluation.evaluate import (FORMATS, default_threshold, evaluate_sequences, evaluate_tables, find_sequences,
+                                      format_table)
+from tools.evaluation.readers import EvaluationInputError, read_table
+
+DESCRIPTION = """\
+Compare tracker output with ground truth, frame by frame (CLEAR MOT, Bernardin and
+Stiefelhagen 2008): last frame's correspondences are kept while still within the
+threshold, the rest are matched by the Hungarian algorithm.
+
+Formats:
+  tracks        GT CSV frame,id,x,y,z; tracks CSV frame,stamp,id,x,y,z (perception track).
+                Euclidean distance on the ground plane (x, y), or in 3-D with --dims 3;
+                a pair matches when its distance is < 1 m (--threshold).
+  motchallenge  frame,id,left,top,width,height,conf,... (no header); GT rows with conf < 1
+                dropped; a pair matches when 1 - IoU <= 0.5 (IoU >= 0.5).
+
+GT and TRACKS are two files, or two directories holding the sequences' files: one row
+per sequence and an overall row. In a directory, sequence SEQ is SEQ.csv or SEQ.txt
+(a GT directory may also use MOTChallenge's SEQ/gt/gt.txt); a prefix names the file's
+role: gt_SEQ for --gt, tracks_SEQ for --tracks, gt_ignore_SEQ for --gt-ignore (dets_SEQ
+is never read), so one folder can hold them side by side.
+
+Ignore regions (--gt-ignore, tracks format; KITTI's rule): people a tracker is neither
+required nor penalised for, in the GT's columns frame,id,x,y,z. After the matching, a
+track still unmatched but within the gate of an ignored person of that frame is dropped
+from the frame: no hit, no false positive, and left out of IDF1, MT/PT/ML and HOTA.
+The KITTI pedestrian dev set in one go:
+  perception evaluate --gt kitti_ped_dev/ --gt-ignore kitti_ped_dev/ --tracks out/
+  (out/ holding 0000.csv or tracks_0000.csv, ... from perception track)
+
+Prints the thesis's Table II (objects, matches, misses, FP, IDSW, recall errors, MOTP,
+MOTA), then IDF1/IDP/IDR, MT/PT/ML, fragmentations and TU Ilmenau's ID consistency, then
+HOTA, DetA and AssA (Luiten et al. 2021, as TrackEval computes them: the mean over
+alpha = 0.05..0.95 of a per-alpha score). HOTA's similarity is IoU for motchallenge and
+max(0, 1 - d / (2 * threshold)) for tracks (TrackEval's for points: 2 m for the 1 m
+gate, so alpha = 0.5 is the gate). A recall error is an ID switch to a hypothesis ID
+that had earlier been matched to a different ground-truth person.
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--gt", required=True, metavar="GT", help="ground-truth file or directory")
+    parser.add_argument("--tracks", required=True, metavar="TRACKS", help="tracker output file or directory")
+    parser.add_argument("--gt-ignore", metavar="IGNORE", default=None,
+                        help="tracks format: people neither required nor penalised (frame,id,x,y,z): a file, "
+                             "or a directory holding gt_ignore_SEQ.csv or SEQ.csv per sequence")
+    parser.add_argument("--format", dest="fmt", choices=sorted(FORMATS), default="tracks",
+                        help="input format (default: tracks)")
+    parser.add_argument("--threshold", type=float, default=None,
+                        help="match threshold: metres for tracks (default 1.0), 1 - IoU for motchallenge (default 0.5)")
+    parser.add_argument("--dims", type=int, choices=(2, 3), default=None,
+                        help="tracks format: 2 = ground plane (x, y) (default), 3 = (x, y, z)")
+    parser.add_argument("--json", action="store_true", help="print every figure as JSON instead of tables")
+    parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
+                        help="also draw the tracks against the ground truth, one top-down panel per sequence, "
+                             "with ID switches, misses and false positives marked and Table II in each title "
+                             "(needs matplotlib, the 'view' extra)")
+
+
+def main(args: argparse.Namespace) -> int:
+    if args.fmt == "motchallenge" and args.dims is not None:
+        raise CliError("--dims applies to --format tracks only (MOTChallenge files are 2-D boxes)")
+    if args.fmt == "motchallenge" and args.gt_ignore is not None:
+        raise CliError("--gt-ignore applies to --format tracks only (MOTChallenge GT rows with conf < 1 are dropped)")
+    if args.threshold is not None and not args.threshold > 0:
+        raise CliError(f"--threshold must be a positive number, got {args.threshold}")
+    try:
+        report = evaluate_sequences(args.gt, args.tracks, fmt=args.fmt, threshold=args.threshold,
+                                    dims=args.dims or 2, ignore=args.gt_ignore)
+    except EvaluationInputError as exc:
+        raise CliError(str(exc)) from exc
+    if args.json:
+        print(json.dumps(report.to_dict(), indent=2, allow_nan=False))
+    else:
+        print(format_table(report))
+    if args.plot is not None:
+        _plot(args, args.plot)
+    return 0
+
+
+def _plot(args: argparse.Namespace, out: Path) -> None:
+    """Evaluate again, keeping each frame's events, and draw the plot."""
+    from tools.evaluation.plot import PlotUnavailable, SequencePlot, plot_sequences
+
+    threshold = default_threshold(args.fmt) if args.threshold is None else args.threshold
+    ignore = None if args.gt_ignore is None else Path(args.gt_ignore)
+    panels = []
+    for seq in find_sequences(Path(args.gt), Path(args.tracks), ignore):
+        gt = read_table(seq.gt, args.fmt, ground_truth=True, dims=args.dims or 2)
+        hyp = read_table(seq.tracks, args.fmt, ground_truth=False, dims=args.dims or 2)
+        ign = read_table(seq.ignore, args.fmt, ground_truth=True, dims=args.dims or 2) if seq.ignore else None
+        panel = SequencePlot(seq.name, gt, hyp)
+        panel.result = evaluate_tables(gt, hyp, args.fmt, threshold, ignore=ign, on_frame=panel.on_frame)
+        panels.append(panel)
+    try:
+        written = plot_sequences(panels, out)
+    except PlotUnavailable as exc:
+        raise CliError(str(exc)) from exc
+    print(f"plot: {written}", file=sys.stderr if args.json else sys.stdout)

@@ -1,0 +1,2 @@
+"""The pipeline's messages in Foxglove's well-known schemas: the MCAP writer and the live
+WebSocket bridge (``bridge``)."""

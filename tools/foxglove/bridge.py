@@ -1,0 +1,268 @@
+"""The pipeline's messages in Foxglove's well-known schemas, live or into an MCAP file.
+
+One :class:`FoxgloveBridge` owns a Foxglove SDK context and these channels:
+
+* ``/camera/image`` CompressedImage (JPEG) of the colour frames;
+* ``/camera/annotations`` ImageAnnotations: the detections' boxes, labelled and coloured
+  by the track each shows (the page's colours);
+* ``/people`` SceneUpdate in the tracks' frame: per person a body-sized cylinder, the ID
+  as text, a velocity arrow and the 2-sigma covariance ellipse on the ground;
+* ``/tf`` FrameTransforms of ``tf`` and ``tf_static``;
+* ``/perception/{tracks,detections,localized,status}`` as JSON.
+
+A live server (:func:`start_live_server`) and an MCAP file (:class:`FoxgloveMcap`, for
+``perception export-foxglove`` and ``perception record --foxglove``) are sinks of the same
+context. The SDK (``foxglove-sdk``, the ``view`` extra) is imported only here.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from common.messages.schemas import (Detections, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
+                                     TransformBatch)
+from tools.drawing.tracks import colour_rgb, label_boxes, project_to_image
+
+__all__ = ["FoxgloveBridge", "FoxgloveMcap", "FoxgloveUnavailable", "TOPICS", "require_sdk", "start_live_server"]
+
+#: Topic -> Foxglove schema name, as the MCAP file and the live server advertise them.
+TOPICS = {
+    "/camera/image": "foxglove.CompressedImage",
+    "/camera/annotations": "foxglove.ImageAnnotations",
+    "/people": "foxglove.SceneUpdate",
+    "/tf": "foxglove.FrameTransforms",
+}
+_JSON = {Tracks: "/perception/tracks", Detections: "/perception/detections",
+         LocalizedDetections: "/perception/localized", ServiceStatus: "/perception/status"}
+_BODY_HEIGHT_M, _BODY_DIAMETER_M = 1.7, 0.45
+
+
+class FoxgloveUnavailable(RuntimeError):
+    """foxglove-sdk is not installed."""
+
+
+def _sdk() -> Any:
+    try:
+        import foxglove
+    except ImportError as exc:
+        raise FoxgloveUnavailable("Foxglove needs the foxglove-sdk package: pip install 'people-perception[view]'") from exc
+    return foxglove
+
+
+def require_sdk() -> None:
+    """Raise :class:`FoxgloveUnavailable` unless foxglove-sdk is installed (check before connecting)."""
+    _sdk()
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, bytes):
+        return f"<{len(value)} bytes>"
+    return value
+
+
+class FoxgloveBridge:
+    """Translates messages to Foxglove's schemas and logs them on its own context's channels."""
+
+    def __init__(self, jpeg_quality: int = 75) -> None:
+        fg = _sdk()
+        from foxglove import channels as ch
+
+        self.fg = fg
+        self.context = fg.Context()
+        self.jpeg_quality = jpeg_quality
+        ctx = self.context
+        self.image = ch.CompressedImageChannel("/camera/image", context=ctx)
+        self.annotations = ch.ImageAnnotationsChannel("/camera/annotations", context=ctx)
+        self.people = ch.SceneUpdateChannel("/people", context=ctx)
+        self.tf = ch.FrameTransformsChannel("/tf", context=ctx)
+        self.json = {model: fg.Channel(topic, message_encoding="json", context=ctx) for model, topic in _JSON.items()}
+        self._tracks: Tracks | None = None
+        self._view: LocalizedDetections | None = None
+        self.counts: dict[str, int] = {}
+
+    def _count(self, topic: str) -> None:
+        self.counts[topic] = self.counts.get(topic, 0) + 1
+
+    def on_message(self, stream: str, msg: Message) -> None:
+        t = msg.header.stamp_ns
+        if isinstance(msg, RGBDFrame):
+            from tools.drawing.images import jpeg_of
+
+            self.image.log(self.fg.messages.CompressedImage(
+                timestamp=self._stamp(t), frame_id=msg.camera_info.header.frame_id or msg.header.frame_id or "camera",
+                data=jpeg_of(msg, self.jpeg_quality), format="jpeg"), log_time=t)
+            self._count("/camera/image")
+        elif isinstance(msg, Detections):
+            self.annotations.log(self._annotations(msg), log_time=t)
+            self._count("/camera/annotations")
+        elif isinstance(msg, LocalizedDetections):
+            self._view = msg
+        elif isinstance(msg, Tracks):
+            self._tracks = msg
+            self.people.log(self._scene(msg), log_time=t)
+            self._count("/people")
+        elif isinstance(msg, TransformBatch):
+            self.tf.log(self._transforms(msg), log_time=t)
+            self._count("/tf")
+        model = type(msg)
+        if model in self.json:
+            self.json[model].log(_jsonable(msg.model_dump()), log_time=t)
+            self._count(_JSON[model])
+
+    # ------------------------------------------------------------------ conversions
+
+    def _stamp(self, stamp_ns: int) -> Any:
+        return self.fg.messages.Timestamp(stamp_ns // 10**9, stamp_ns % 10**9)
+
+    def _colour(self, track_id: int | None, alpha: float = 1.0) -> Any:
+        r, g, b = colour_rgb(track_id) if track_id is not None else (200, 200, 200)
+        return self.fg.messages.Color(r=r / 255, g=g / 255, b=b / 255, a=alpha)
+
+    def _annotations(self, dets: Detections) -> Any:
+        m = self.fg.messages
+        boxes = np.array([d.bbox_xyxy for d in dets.detections], np.float64).reshape(-1, 4)
+        labels: list[int | None] = [None] * len(boxes)
+        tracks, loc = self._tracks, self._view
+        if tracks is not None and tracks.tracks and loc is not None and loc.view is not None:
+            v = loc.view
+            px = project_to_image(np.array([t.position for t in tracks.tracks]), v.camera_to_frame, v.K, v.width, v.height)
+            labels = label_boxes(boxes, px, np.array([t.id for t in tracks.tracks]))
+        stamp = self._stamp(dets.header.stamp_ns)
+        points, texts = [], []
+        for (x1, y1, x2, y2), label in zip(boxes.tolist(), labels):
+            colour = self._colour(label)
+            points.append(m.PointsAnnotation(
+                timestamp=stamp, type=m.PointsAnnotationType.LineLoop, thickness=2.0, outline_color=colour,
+                points=[m.Point2(x=x1, y=y1), m.Point2(x=x2, y=y1), m.Point2(x=x2, y=y2), m.Point2(x=x1, y=y2)]))
+            if label is not None:
+                texts.append(m.TextAnnotation(timestamp=stamp, position=m.Point2(x=x1, y=max(0.0, y1 - 4)),
+                                              text=f"ID {label}", font_size=14.0, text_color=colour,
+                                              background_color=m.Color(r=0, g=0, b=0, a=0.5)))
+        return m.ImageAnnotations(points=points, texts=texts)
+
+    def _scene(self, tracks: Tracks) -> Any:
+        m = self.fg.messages
+        stamp, frame = self._stamp(tracks.header.stamp_ns), tracks.header.frame_id or "map"
+        upright = m.Quaternion(x=0, y=0, z=0, w=1)
+        entities = []
+        for t in tracks.tracks:
+            x, y = float(t.position[0]), float(t.position[1])
+            colour = self._colour(t.id, 0.8)
+            body = m.CylinderPrimitive(pose=m.Pose(position=m.Vector3(x=x, y=y, z=_BODY_HEIGHT_M / 2), orientation=upright),
+                                       size=m.Vector3(x=_BODY_DIAMETER_M, y=_BODY_DIAMETER_M, z=_BODY_HEIGHT_M),
+                                       bottom_scale=1.0, top_scale=1.0, color=colour)
+            text = m.TextPrimitive(pose=m.Pose(position=m.Vector3(x=x, y=y, z=_BODY_HEIGHT_M + 0.25), orientation=upright),
+                                   billboard=True, font_size=14.0, scale_invariant=True, color=self._colour(t.id),
+                                   text=f"ID {t.id}")
+            vx, vy = float(t.velocity[0]), float(t.velocity[1])
+            speed, yaw = math.hypot(vx, vy), math.atan2(vy, vx)
+            arrows = []
+            if speed > 0.05:
+                arrows.append(m.ArrowPrimitive(
+                    pose=m.Pose(position=m.Vector3(x=x, y=y, z=0.05),
+                                orientation=m.Quaternion(x=0, y=0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))),
+                    shaft_length=speed, shaft_diameter=0.05, head_length=0.15, head_diameter=0.12,
+                    color=self._colour(t.id)))
+            ellipse = self._ellipse(np.asarray(t.covariance)[:2, :2], x, y)
+            entities.append(m.SceneEntity(
+                timestamp=stamp, frame_id=frame, id=f"person-{t.id}", lifetime=m.Duration(1, 0),
+                metadata=[m.KeyValuePair(key="status", value=t.status)] if hasattr(m, "KeyValuePair") else None,
+                cylinders=[body], texts=[text], arrows=arrows,
+                lines=[m.LinePrimitive(type=m.LinePrimitiveLineType.LineLoop, thickness=0.03,
+                                       points=[m.Point3(x=px, y=py, z=0.02) for px, py in ellipse],
+                                       color=self._colour(t.id))]))
+        return m.SceneUpdate(entities=entities)
+
+    @staticmethod
+    def _ellipse(cov: np.ndarray, x: float, y: float, sigmas: float = 2.0, n: int = 24) -> list[tuple[float, float]]:
+        """Points of the ``sigmas`` ellipse of a (2, 2) covariance around (x, y)."""
+        vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+        radii = sigmas * np.sqrt(np.clip(vals, 0.0, None))
+        a = np.linspace(0, 2 * np.pi, n, endpoint=False)
+        pts = (vecs @ (radii[:, None] * np.stack([np.cos(a), np.sin(a)]))).T + [x, y]
+        return [(float(p[0]), float(p[1])) for p in pts]
+
+    def _transforms(self, batch: TransformBatch) -> Any:
+        m = self.fg.messages
+        return m.FrameTransforms(transforms=[m.FrameTransform(
+            timestamp=self._stamp(tf.stamp_ns), parent_frame_id=tf.parent_frame, child_frame_id=tf.child_frame,
+            translation=m.Vector3(x=float(tf.translation[0]), y=float(tf.translation[1]), z=float(tf.translation[2])),
+            rotation=m.Quaternion(x=float(tf.rotation_xyzw[0]), y=float(tf.rotation_xyzw[1]),
+                                  z=float(tf.rotation_xyzw[2]), w=float(tf.rotation_xyzw[3])))
+            for tf in batch.transforms])
+
+    def close(self) -> None:
+        """Nothing to flush here; the sinks (server, MCAP writer) are closed by their owners."""
+
+
+class FoxgloveMcap:
+    """An MCAP file in Foxglove's well-known schemas, written message by message; ``close`` finishes it.
+
+    Raises :class:`FoxgloveUnavailable` without the SDK, and OSError when ``path`` cannot be
+    written (a missing folder, a folder in its place). An existing file is overwritten: the
+    commands check for one first.
+    """
+
+    def __init__(self, path: Path, jpeg_quality: int = 75) -> None:
+        self.path = path
+        self.bridge = FoxgloveBridge(jpeg_quality)
+        self._writer = self.bridge.fg.open_mcap(str(path), allow_overwrite=True, context=self.bridge.context)
+        self.closed = False
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Messages written per Foxglove topic."""
+        return self.bridge.counts
+
+    def write(self, key: str, msg: Message) -> None:
+        """Translate ``msg`` (received on ``key``) and write it; types with no Foxglove topic are skipped."""
+        self.bridge.on_message(key, msg)
+
+    def close(self) -> None:
+        """Write the summary and close the file (idempotent)."""
+        if not self.closed:
+            self.closed = True
+            self._writer.close()
+
+    def __enter__(self) -> FoxgloveMcap:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class _LiveBridge(FoxgloveBridge):
+    """A bridge with a Foxglove WebSocket server on its context; ``close`` stops the server."""
+
+    def __init__(self, host: str, port: int, jpeg_quality: int) -> None:
+        super().__init__(jpeg_quality)
+        try:
+            self.server = self.fg.start_server(name="people-perception", host=host, port=port, context=self.context)
+        except Exception as exc:  # the SDK raises its own error types for a busy port
+            raise ValueError(f"cannot serve Foxglove on {host}:{port}: {exc}") from exc
+
+    @property
+    def port(self) -> int:
+        return int(self.server.port)
+
+    def close(self) -> None:
+        self.server.stop()
+
+
+def start_live_server(host: str, port: int, jpeg_quality: int = 75) -> _LiveBridge:
+    """A bridge serving Foxglove's WebSocket protocol on ``host:port`` (0: a free port)."""
+    return _LiveBridge(host, port, jpeg_quality)

@@ -1,0 +1,1 @@
+"""The system's small commands: ``perception router``, ``status``, ``selfcheck``, ``keys`` and ``certs``."""

@@ -27,6 +27,7 @@ from common.messages.schemas import (
     Tracks,
     TransformBatch,
 )
+from services.ros2.core.wire import GraphEntity, parse_token
 from tools.doctor.core.facts import (
     EdgeFacts,
     FrameFacts,
@@ -128,6 +129,8 @@ class Observer:
         self.localized_frames: set[str] = set()
         self.position_only = self.tracks_total = self.boxes_total = 0
         self.first_ns = self.last_ns = 0
+        self.ros2_tokens: set[str] = set()
+        self.ros2_domain = 0
 
     # ---------------------------------------------------------------- input
     def payload(self, key: str, data: bytes, recv_ns: int) -> None:
@@ -201,6 +204,18 @@ class Observer:
     def liveliness(self, service: str, instance: str, alive: bool) -> None:
         self.alive[(service, instance)] = alive
 
+    def ros2_domain_to_watch(self, default: int = 0) -> int:
+        """The ROS 2 domain of the ros2 node seen (its status's settings), else ``default``."""
+        for (service, _), seen in self.statuses.items():
+            if service == "ros2" and seen and seen[-1].settings.get("domain_id", "").isdigit():
+                return int(seen[-1].settings["domain_id"])
+        return default
+
+    def ros2_graph(self, domain: int, tokens: list[str]) -> None:
+        """The ROS 2 graph's liveliness tokens on the router (``@ros2_lv/<domain>/...``)."""
+        self.ros2_domain = domain
+        self.ros2_tokens |= set(tokens)
+
     # --------------------------------------------------------------- output
     def _node(self, service: str, instance: str) -> NodeFacts:
         seen = sorted(self.statuses.get((service, instance), []), key=lambda s: s.uptime_s)
@@ -232,4 +247,15 @@ class Observer:
             stages={cam: {s: dict(keys) for s, keys in st.items()} for cam, st in self.stages.items()},
             cards=sorted(self.cards), track_models=sorted(self.track_models), track_frames=sorted(self.track_frames),
             localized_frames=sorted(self.localized_frames), position_only=self.position_only,
-            tracks_total=self.tracks_total, boxes_total=self.boxes_total)
+            tracks_total=self.tracks_total, boxes_total=self.boxes_total, ros2_graph=_graph(self.ros2_tokens),
+            ros2_domain=self.ros2_domain)
+
+
+def _graph(tokens: set[str]) -> list[GraphEntity]:
+    out = []
+    for key in sorted(tokens):
+        try:
+            out.append(parse_token(key))
+        except ValueError:
+            continue  # a token of another rmw_zenoh version or not rmw_zenoh's
+    return out

@@ -3,12 +3,14 @@ liveliness, for a given time."""
 
 from __future__ import annotations
 
+import os
 import time
 from typing import Any
 
 from common.messages.keys import RELIABLE, Delivery, Keys
 from common.messages.schemas import ServiceStatus
 from common.transport.base import Subscription, Transport, wait_any
+from services.ros2.core.wire import ADMIN_SPACE
 from tools.doctor.collect import Observer
 
 __all__ = ["watch"]
@@ -55,11 +57,19 @@ def watch(transport: Transport, keys: Keys, duration_s: float, observer: Observe
         watched = time.monotonic() - start
         _drain(subs, observer)
         _query_status(transport, keys, observer, query_timeout_s)
+        _ros2_graph(transport, observer, query_timeout_s)
         return watched
     finally:
         unwatch()
         for sub in subs:
             sub.close()
+
+
+def _ros2_graph(transport: Transport, observer: Observer, timeout: float) -> None:
+    """The ROS 2 graph of the ros2 node's domain (else $ROS_DOMAIN_ID, else 0) on the router."""
+    env = os.environ.get("ROS_DOMAIN_ID", "0")
+    domain = observer.ros2_domain_to_watch(int(env) if env.isdigit() else 0)
+    observer.ros2_graph(domain, transport.alive(f"{ADMIN_SPACE}/{domain}/**", timeout=timeout))
 
 
 def _drain(subs: list[Subscription[Any]], observer: Observer) -> None:

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
+
+from services.ros2.core.wire import GraphEntity
 from common.messages.registry import stages
 
 __all__ = ["CHAIN", "NODES", "SYMBOLS", "Check", "EdgeFacts", "FrameFacts", "NodeFacts", "Observation", "Status",
@@ -154,6 +156,9 @@ class Observation:
     position_only: int = 0
     tracks_total: int = 0
     boxes_total: int = 0
+    #: The ROS 2 graph on the router (rmw_zenoh's liveliness tokens) of domain ``ros2_domain``.
+    ros2_graph: list[GraphEntity] = field(default_factory=list)
+    ros2_domain: int = 0
 
     def stream(self, key: str) -> StreamFacts:
         return self.streams.get(key) or StreamFacts(key)

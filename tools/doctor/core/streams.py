@@ -143,6 +143,8 @@ def node_checks(obs: Observation) -> list[Check]:
             out.append(Check(SECTION, f.service, "fail", f"FAILED (exit status {f.exit_status}): {f.error}",
                              f"fix what the error says, then start the {f.service} again"))
     for node in obs.nodes:
+        if node.service == "ros2":
+            continue  # its unreadable ROS 2 input is named in the ROS 2 section
         if node.state == "running" and node.alive is not False and (check := _drops(obs, node)) is not None:
             out.append(check)
     return out

@@ -90,15 +90,22 @@ def test_a_node_does_what_its_entry_declares(entry: NodeEntry, observed: dict[st
 
 @pytest.mark.parametrize("entry", NODES, ids=lambda e: e.name)
 def test_the_access_rules_let_a_node_do_what_it_does(entry: NodeEntry, observed: dict[str, list[dict[str, Any]]]) -> None:
-    grant = grants()[entry.name]
-    allowed = {"subscribes": grant.subscribe, "publishes": grant.publish, "serves": grant.serve, "watches": grant.watch}
+    import zenoh
+
+    grant = grants(domain=0)[entry.name]
+    allowed = {"subscribes": grant.subscribe, "publishes": grant.publish, "serves": grant.serve, "watches": grant.watch,
+               "tokens": grant.token}
     for run in observed[entry.name]:
-        for field, keys in run["keys"].items():
+        for field, keys in [*run["keys"].items(), ("tokens", run["tokens"])]:
             for key in keys:
                 if key.startswith(KEYS.base + "/"):
-                    assert any(key_matches(p, key) for p in allowed[field]), f"{entry.name} may not {field} {key}"
-    # and nothing beyond its own streams, status and liveliness
-    assert set(grant.publish) == {KEYS.pattern(s) for s in entry.publishes} | {KEYS.status(entry.name, "*")}
+                    ok = any(key_matches(p, key) for p in allowed[field])
+                else:  # ROS 2 keys: Zenoh's own inclusion (sub-chunk wildcards, verbatim @ chunks)
+                    ok = any(zenoh.KeyExpr(p).includes(zenoh.KeyExpr(key)) for p in allowed[field])
+                assert ok, f"{entry.name} may not {field} {key}"
+    # and nothing beyond its own streams, status and liveliness (and, for ROS 2, domain 0)
+    ros = {"0/**", "0/**/@adv/**"} if entry.ros2 else set()
+    assert set(grant.publish) == {KEYS.pattern(s) for s in entry.publishes} | {KEYS.status(entry.name, "*")} | ros
 
 
 @pytest.mark.parametrize("entry", NODES, ids=lambda e: e.name)

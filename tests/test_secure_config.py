@@ -152,4 +152,9 @@ def test_least_privilege_rules() -> None:
     assert [r["id"] for r in everything] == ["router-all"]
     for policy in acl["policies"]:
         assert all(rid in rules for rid in policy["rules"])
-    assert all(k2.startswith("pp/*/perception/v1/") for r in acl["rules"] if r["id"] != "router-all" for k2 in r["key_exprs"])
+    assert all(k2.startswith("pp/*/perception/v1/") for r in acl["rules"] if not r["id"].startswith(("router-all", "ros2-"))
+               for k2 in r["key_exprs"])
+    # the ros2 node alone reaches outside the project's keys: ROS 2 domain 0 (ROS_DOMAIN_ID), its graph and history
+    outside = {k2 for r in acl["rules"] if r["id"].startswith("ros2-") for k2 in r["key_exprs"]
+               if not k2.startswith("pp/*/perception/v1/")}
+    assert outside == {"0/**", "0/**/@adv/**", "@ros2_lv/0/**"}

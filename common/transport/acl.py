@@ -19,6 +19,7 @@ What each grant allows, as Zenoh's ACL messages and flows seen from the router:
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -51,20 +52,33 @@ class Grant:
     everything: bool = False
 
 
-def _node_grant(k: Keys, entry: NodeEntry) -> Grant:
+def ros2_domain() -> int:
+    """The ROS 2 domain the ros2 node is granted: ``$ROS_DOMAIN_ID``, else 0."""
+    text = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    return int(text) if text.isdigit() else 0
+
+
+def _node_grant(k: Keys, entry: NodeEntry, domain: int) -> Grant:
     """A node run by :func:`common.runtime.node.run_node`: its streams as :data:`common.messages.registry.NODES`
-    declares them, plus its own status and liveliness."""
+    declares them, plus its own status and liveliness. A node that speaks ROS 2 also gets ROS 2
+    domain ``domain``: every topic (``<domain>/**``), the history of transient-local publishers
+    (zenoh-ext's ``@adv`` keys, which no wildcard matches) and the graph (``@ros2_lv/<domain>/**``)."""
     status = k.status(entry.name, "*")
 
     def patterns(streams: tuple[str, ...]) -> tuple[str, ...]:
         return tuple(k.pattern(s) for s in streams)
 
-    return Grant(publish=(*patterns(entry.publishes), status), subscribe=patterns(entry.subscribes),
-                 serve=(*patterns(entry.serves), status), token=(k.alive(entry.name, "*"),),
-                 watch=patterns(entry.watches), answers=(k.status(),))
+    ros: tuple[str, ...] = ()
+    graph: tuple[str, ...] = ()
+    if entry.ros2:
+        ros = (f"{domain}/**", f"{domain}/**/@adv/**")
+        graph = (f"@ros2_lv/{domain}/**", f"{domain}/**/@adv/**")
+    return Grant(publish=(*patterns(entry.publishes), status, *ros), subscribe=(*patterns(entry.subscribes), *ros),
+                 serve=(*patterns(entry.serves), status), ask=ros[1:], token=(k.alive(entry.name, "*"), *graph),
+                 watch=(*patterns(entry.watches), *graph), answers=(k.status(),))
 
 
-def grants(prefix: str = DEFAULT_PREFIX) -> dict[str, Grant]:
+def grants(prefix: str = DEFAULT_PREFIX, domain: int | None = None) -> dict[str, Grant]:
     """Role -> grant, with keys of any robot under ``prefix``.
 
     Every node of :data:`common.messages.registry.NODES` logs in under its own name and is granted
@@ -76,7 +90,7 @@ def grants(prefix: str = DEFAULT_PREFIX) -> dict[str, Grant]:
     tracker_queries = tuple(k.pattern(s) for s in node("tracker").serves)
     out = {
         "router": Grant(everything=True),
-        **{entry.name: _node_grant(k, entry) for entry in NODES},
+        **{entry.name: _node_grant(k, entry, ros2_domain() if domain is None else domain) for entry in NODES},
         # The camera driver, the simulator or a replay: the robot's sensor streams (the
         # simulator reads detections to pace itself) and their own status.
         "sensors": Grant(publish=(k.frames("*"), k.tf(), k.tf_static(), k.groundtruth(), *(k.status(s, "*") for s in sensors)),

@@ -1,7 +1,9 @@
 """Collect the simulator's ground truth and score the tracker's output with ``evaluate``.
 
 Frames are matched on the source frame's ``seq``: the simulator's ground truth and the
-tracker's ``Tracks`` both carry the camera frame's header. Only the people the simulator
+tracker's ``Tracks`` both carry the camera frame's header. A ``Tracks`` whose stamp is a
+ground-truth frame's is taken as that frame's whatever its ``seq`` (a frame that came through
+ROS 2 is numbered by the ``ros2`` node, not by the simulator). Only the people the simulator
 marks as ``counted`` (in view and visible enough) are ground-truth objects; a frame the
 tracker published nothing for counts all its objects as misses.
 """
@@ -72,12 +74,21 @@ def score_tracks(gt: dict[int, PeopleGroundTruth], tracks: list[Tracks], name: s
     """(metrics as a dict, Table II and the pose line as text) of a run's ground truth by frame
     seq and its published ``Tracks``; ``plot``: also draw it there (PNG); ``source``: score the
     outputs of that camera's frames (see :func:`frame_outputs`)."""
-    tracks = frame_outputs(tracks, source)
+    seq_of_stamp = {msg.header.stamp_ns: seq for seq, msg in gt.items()}
+    tracks = frame_outputs([_as_frame(t, seq_of_stamp) for t in tracks], source)
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items() for p in msg.counted()]
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in tracks for tr in t.tracks if t.header.seq in gt]
     report, table = score_rows(gt_rows, hyp_rows, name, plot)
     report["pose"] = pose_scores(gt, tracks)
     return report, table + "\n\n" + pose_line(report["pose"])
+
+
+def _as_frame(t: Tracks, seq_of_stamp: dict[int, int]) -> Tracks:
+    """``t`` numbered as the ground-truth frame of its stamp, when there is one."""
+    seq = seq_of_stamp.get(t.header.stamp_ns)
+    if seq is None or seq == t.header.seq:
+        return t
+    return t.model_copy(update={"header": t.header.model_copy(update={"seq": seq})})
 
 
 def score(gt: GroundTruthLog, monitor: Monitor, name: str, plot: Path | None = None,

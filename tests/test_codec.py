@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from common.codec import DecodeError, decode, decode_any, encode, peek_schema
 from common.samples import example_messages
 from common.schemas import MESSAGE_TYPES, Detections, Embeddings, Image, Message, Tracks
-from tests.strategies import MESSAGE_STRATEGIES
+from tests.fixtures.strategies import MESSAGE_STRATEGIES
 
 EXAMPLES = example_messages()
 

@@ -9,7 +9,7 @@ import pytest
 
 from services.detector.core.boxes import DetectorError
 from services.detector.core.darknet import DarknetDetector, DarknetParams, expected_weight_count, parse_cfg
-from tests.detector_models import TINY_CFG, tiny_darknet
+from tests.fixtures.detector_models import TINY_CFG, tiny_darknet
 
 IMAGE = np.full((48, 64, 3), 100, np.uint8)
 

@@ -12,7 +12,7 @@ import pytest
 from perception.cli import main as cli_main
 from services.detector.core.boxes import DetectorError, as_rgb
 from services.detector.core.hog import HogDetector
-from tests.detector_models import constant_yolo_onnx, tiny_darknet
+from tests.fixtures.detector_models import constant_yolo_onnx, tiny_darknet
 
 
 @pytest.mark.parametrize("image", [np.zeros((0, 0, 3), np.uint8), np.zeros((10, 0, 3), np.uint8), np.zeros(5, np.uint8)])

@@ -18,7 +18,7 @@ from services.detector.core.yolo_onnx import (  # noqa: E402
     decode_yolo,
     letterbox,
 )
-from tests.detector_models import constant_yolo_onnx  # noqa: E402
+from tests.fixtures.detector_models import constant_yolo_onnx  # noqa: E402
 
 # Candidates in 640x640 network pixels: (cx, cy, w, h, objectness, class scores for person/car/dog).
 CANDIDATES = np.array([

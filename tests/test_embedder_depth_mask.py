@@ -13,7 +13,8 @@ from services.embedder.core import ColourDescriptor
 from services.embedder.core.colour import ColourParams
 from services.embedder.core.depth_mask import DEPTH_MISSING, MASK_EMPTY, DepthMaskParams, apply_mask, depth_masks
 from tests.fixtures.embedder_synthetic import Outfit, render_person
-from tests.test_embedder_service import BOX_GREEN, BOX_RED, Rig, detections, frame, scene
+from tests.fixtures.embedder_scene import BOX_GREEN, BOX_RED, detections, frame, scene
+from tests.helpers.embedder_rig import Rig
 
 RED = Outfit(skin=(220, 180, 150), hair=(40, 30, 20), shirt=(200, 30, 30), trousers=(30, 40, 160))
 

@@ -7,61 +7,12 @@ import time
 import numpy as np
 import pytest
 
-from common.keys import FRAMES, RELIABLE, Keys
-from common.memory import MemoryBus
-from common.runtime import Counters
 from common.samples import camera_info
-from common.schemas import Detection, Detections, Embeddings, Header, Image, RGBDFrame
+from common.schemas import Detection, Detections, Header, Image, RGBDFrame
 from services.embedder.config import EmbedderConfig
 from services.embedder.core import ColourDescriptor
-from services.embedder.service import EmbedderService
-from tests.fixtures.embedder_synthetic import Outfit, render_person
-
-KEYS = Keys(robot="testbot")
-RED = Outfit(skin=(220, 180, 150), hair=(40, 30, 20), shirt=(200, 30, 30), trousers=(30, 40, 160))
-GREEN = Outfit(skin=(220, 180, 150), hair=(40, 30, 20), shirt=(40, 160, 60), trousers=(25, 25, 25))
-BOX_RED = (20.0, 10.0, 84.0, 138.0)
-BOX_GREEN = (150.0, 20.0, 214.0, 148.0)
-
-
-def scene(seed: int = 0) -> np.ndarray:
-    """A 160x240 RGB image with a red-shirted person at BOX_RED and a green one at BOX_GREEN."""
-    rng = np.random.default_rng(seed)
-    img = np.full((160, 240, 3), 120, np.uint8)
-    img[10:138, 20:84] = render_person(RED, rng)
-    img[20:148, 150:214] = render_person(GREEN, rng)
-    return img
-
-
-def frame(seq: int, stamp_ns: int, image: np.ndarray | None = None) -> RGBDFrame:
-    header = Header(stamp_ns=stamp_ns, frame_id="camera", seq=seq, source="head")
-    img = scene(seq) if image is None else image
-    return RGBDFrame(header=header, rgb=Image.from_array(img, "rgb8", header),
-                     camera_info=camera_info(img.shape[1], img.shape[0], stamp_ns))
-
-
-def detections(src: RGBDFrame, boxes: list[tuple[float, float, float, float]], first_index: int = 0,
-               size: tuple[int, int] = (0, 0)) -> Detections:
-    dets = [Detection(index=first_index + i, bbox_xyxy=b, score=0.9) for i, b in enumerate(boxes)]
-    return Detections(header=src.header.model_copy(), detections=dets, image_width=size[0], image_height=size[1])
-
-
-class Rig:
-    def __init__(self, config: EmbedderConfig | None = None, backend: object | None = None) -> None:
-        bus = MemoryBus()
-        self.camera = bus.transport()
-        self.counters = Counters()
-        self.service = EmbedderService(bus.transport(), KEYS, config or EmbedderConfig(), self.counters,
-                                       backend=backend or ColourDescriptor())  # type: ignore[arg-type]
-        self.frames = self.camera.publisher(KEYS.frames("head"), RGBDFrame, FRAMES)
-        self.dets = self.camera.publisher(KEYS.detections("head"), Detections, RELIABLE)
-        self.out = self.camera.subscribe(KEYS.embeddings("head"), Embeddings, RELIABLE)
-
-    def received(self) -> list[Embeddings]:
-        got = []
-        while (r := self.out.recv(timeout=0.5 if not got else 0.05)) is not None:
-            got.append(r.msg)
-        return got
+from tests.fixtures.embedder_scene import BOX_GREEN, BOX_RED, detections, frame, scene
+from tests.helpers.embedder_rig import Rig
 
 
 def test_pairs_frame_and_detections_and_maps_indices() -> None:

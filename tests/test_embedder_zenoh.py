@@ -16,7 +16,7 @@ from common.router_process import RouterProcess
 from common.schemas import Detections, Embeddings, RGBDFrame
 from common.zenoh_transport import ZenohTransport
 from services.embedder.core.colour import DIM as COLOUR_DIM
-from tests.test_embedder_service import BOX_GREEN, BOX_RED, detections, frame
+from tests.fixtures.embedder_scene import BOX_GREEN, BOX_RED, detections, frame
 
 pytestmark = pytest.mark.zenoh
 

@@ -16,7 +16,8 @@ from services.embedder.core.orientation import OrientationClassifier, Orientatio
 from services.tracker.convert import orientations_for
 from services.tracker.core.robust import RobustParams, RobustTracker
 from tests.fixtures.embedder_onnx_models import projection_model
-from tests.test_embedder_service import BOX_GREEN, BOX_RED, Rig, detections, frame
+from tests.fixtures.embedder_scene import BOX_GREEN, BOX_RED, detections, frame
+from tests.helpers.embedder_rig import Rig
 
 H, W = 16, 8
 

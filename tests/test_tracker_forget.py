@@ -16,7 +16,7 @@ from common.memory import MemoryBus
 from common.schemas import ForgetReply, Tracks
 from services.tracker.config import PROFILES
 from services.tracker.memory_file import read_classifiers, read_last_seen, read_memory
-from tests.test_tracker_bad_inputs import KEYS, PERIOD_NS, T0, Person, Rig, config, ids_by_x
+from tests.helpers.tracker_rig import KEYS, PERIOD_NS, T0, Person, Rig, config, ids_by_x
 
 S = 1_000_000_000
 A: Person = (0, (2.0, 0.0, 1.0))

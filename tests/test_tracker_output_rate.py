@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from common.schemas import Tracks
-from tests.test_tracker_bad_inputs import T0, Rig, config
+from tests.helpers.tracker_rig import T0, Rig, config
 
 S = 1_000_000_000
 

@@ -63,7 +63,7 @@ def test_without_boxes_or_with_the_thesis_the_posture_stays_unknown() -> None:
 
 
 def test_the_service_publishes_posture_from_the_boxes(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    from tests.test_tracker_bad_inputs import T0, Rig, config
+    from tests.helpers.tracker_rig import T0, Rig, config
 
     rig = Rig(config(tmp_path))
     out = rig.walk(T0, 10, [(0, (2.0, 0.0, 1.0))])

@@ -16,7 +16,7 @@ from common.schemas import Detections, RGBDFrame
 from services.detector.config import DetectorConfig
 from services.detector.service import DetectorService
 from services.localizer.config import LocalizerConfig
-from tests.test_detector_service import FixedDetector
+from tests.helpers.fixed_detector import FixedDetector
 
 KEYS = Keys(robot="twodet")
 T0 = 1_700_000_000_000_000_000

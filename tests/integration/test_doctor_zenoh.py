@@ -20,7 +20,7 @@ from common.router_process import RouterProcess
 
 pytestmark = [pytest.mark.zenoh]
 PY = sys.executable
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 WATCH_S = "3"
 TIMEOUT = 90.0
 

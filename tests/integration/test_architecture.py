@@ -18,7 +18,7 @@ import pytest
 
 from common.registry import NODES as REGISTRY
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("common", "services", "tools", "perception")
 #: The pipeline nodes (services/), from the registry: attention included.
 NODES = tuple(n.package.split(".")[1] for n in REGISTRY if n.package.startswith("services."))

@@ -15,7 +15,7 @@ import pytest
 
 pytest.importorskip("matplotlib", reason="plots need matplotlib (the 'view' extra)")
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SOAK = ROOT / "benchmarks" / "soak.py"
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from common.zenoh_config import SHM_THRESHOLD_BYTES, ZenohOptions, build_zenoh_config
 
-PROBE = Path(__file__).resolve().parent / "helpers" / "shm_probe.py"
+PROBE = Path(__file__).resolve().parents[1] / "helpers" / "shm_probe.py"
 KEY = "transport/shared_memory/transport_optimization/message_size_threshold"
 
 

@@ -17,7 +17,7 @@ from common.zenoh_config import ZenohOptions
 from common.zenoh_transport import open_transport
 from tests.helpers.launcher import TIMEOUT, Launch
 
-DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
+DEPLOY = Path(__file__).resolve().parents[2] / "deploy"
 
 
 @pytest.fixture

@@ -29,7 +29,7 @@ from tests.helpers.scored_launch import ZenohClient, scored_run
 
 pytestmark = [pytest.mark.zenoh]
 PY = sys.executable
-SECURE = Path(__file__).resolve().parent.parent / "deploy" / "secure"
+SECURE = Path(__file__).resolve().parents[2] / "deploy" / "secure"
 
 
 @pytest.fixture(scope="module")
@@ -170,7 +170,7 @@ def _stop(proc: subprocess.Popen[bytes]) -> int:
 #: 0.846-0.856 and 0.856-0.859), at most 1.5 points apart within a pair. They are separate
 #: real-time runs: a frame skipped under load (latest-only) or a late embedding moves MOTA by
 #: about half a point, so 5 points, three times the largest gap seen, is room for a few more
-#: in one run than in the other. The floor is perception demo's (tests/test_pipeline_integration.py).
+#: in one run than in the other. The floor is perception demo's (tests/integration/test_pipeline_integration.py).
 SCORE_TOLERANCE = 0.05
 MOTA_FLOOR = 0.55
 

@@ -14,7 +14,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("services", "common", "tools", "perception")
 #: Importable in a test environment, absent from a runtime install.
 TEST_ONLY = ("onnx", "pytest", "hypothesis", "_pytest", "tests")

@@ -25,7 +25,7 @@ KEYS = Keys(robot="trackertest")
 DIM = 16
 LOOK = np.linspace(-1.0, 1.0, DIM)
 LOOK /= np.linalg.norm(LOOK)
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def start_tracker(router: RouterProcess, memory: Path, log: Path) -> subprocess.Popen[bytes]:

@@ -19,7 +19,7 @@ from common.schemas import Detections, RGBDFrame, ServiceStatus
 from common.zenoh_transport import ZenohTransport
 
 pytestmark = pytest.mark.zenoh
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_detector_process_round_trip(router: RouterProcess, zenoh_client: Callable[[], ZenohTransport],

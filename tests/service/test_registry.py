@@ -24,7 +24,7 @@ from common.memory import MemoryBus, key_matches, keys_intersect
 from common.registry import NODES, NodeEntry, node, stages
 from common.runtime import Counters
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 KEYS = Keys(robot="robot-name")
 
 #: Settings per node beyond the defaults: no file in the user's state directory, and the

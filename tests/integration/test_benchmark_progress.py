@@ -19,7 +19,7 @@ import pytest
 
 from common.progress import progress_bar
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: The tracker benchmark cut to 3 cases (about a second): 1 person x 1 gallery, and two `track` files.
 TRACKER_BENCH = [sys.executable, str(ROOT / "benchmarks" / "tracker.py"), "--reps", "3", "--people", "1",
                  "--gallery", "10", "--offline-frames", "10", "--profiles", "robust"]

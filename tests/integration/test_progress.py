@@ -15,7 +15,7 @@ import pytest
 
 from common.progress import progress
 
-KITTI = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti_ped_dev" / "dets_0000.csv"
+KITTI = Path(__file__).resolve().parents[3] / "shared" / "data" / "kitti_ped_dev" / "dets_0000.csv"
 
 
 def test_off_a_terminal_the_items_pass_through_unchanged() -> None:

@@ -13,7 +13,7 @@ from tools.launcher.launchfile import LaunchFileError, load_launch_file, substit
 from tools.launcher.plan import build_plan, connectable
 from tools.launcher.supervisor import BackoffState, describe_exit, error_line, should_restart
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DEPLOY = ROOT / "deploy"
 DEPLOY_FILES = sorted(DEPLOY.glob("*.yaml"))
 

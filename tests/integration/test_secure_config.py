@@ -18,7 +18,7 @@ from common.zenoh_config import ZenohOptions, build_zenoh_config
 from common.zenoh_security import SecurityError
 
 PY = sys.executable
-SECURE = Path(__file__).resolve().parent.parent / "deploy" / "secure"
+SECURE = Path(__file__).resolve().parents[2] / "deploy" / "secure"
 
 
 @pytest.fixture(scope="module")

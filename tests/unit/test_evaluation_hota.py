@@ -8,7 +8,7 @@ below were computed with trackeval 1.3.0 in a separate virtual environment (nump
 scipy 1.17.1), through its own MOTChallenge pipeline: ``Evaluator`` +
 ``datasets.MotChallenge2DBox`` (BENCHMARK MOT15, SEQ_INFO = the last frame of each
 sequence) + ``metrics.HOTA``; the reported figure is the mean over its 19 alphas. The
-same run gave MOTA and IDF1 equal to py-motmetrics's (tests/test_evaluation_cli.py).
+same run gave MOTA and IDF1 equal to py-motmetrics's (tests/unit/test_evaluation_cli.py).
 The ``trackeval`` tests below rerun that comparison wherever the package is importable.
 """
 

@@ -15,7 +15,7 @@ from services.localizer.config import LocalizerConfig
 from services.tracker.config import TrackerConfig
 from tools.launcher.launchfile import load_launch_file
 
-DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
+DEPLOY = Path(__file__).resolve().parents[2] / "deploy"
 MODELS: dict[str, type[BaseModel]] = {
     "detector": DetectorConfig,
     "localizer": LocalizerConfig,

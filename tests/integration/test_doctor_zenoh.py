@@ -9,7 +9,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from common.router_process import RouterProcess
+from tests.helpers.wait import wait_until
 
 pytestmark = [pytest.mark.zenoh]
 PY = sys.executable
@@ -56,11 +56,15 @@ def _system(router: RouterProcess, robot: str, fault: str, log: Path) -> subproc
 
 
 def _wait_ready(proc: subprocess.Popen[bytes], log: Path) -> None:
-    deadline = time.monotonic() + TIMEOUT
-    while b"READY" not in log.read_bytes():
-        if proc.poll() is not None or time.monotonic() > deadline:
+    def ready() -> bool:
+        if b"READY" in log.read_bytes():
+            return True
+        if proc.poll() is not None:
             pytest.fail(f"the system did not come up:\n{log.read_text(errors='replace')[-3000:]}")
-        time.sleep(0.1)
+        return False
+
+    wait_until(ready, TIMEOUT, interval=0.1,
+               what=lambda: f"the system to come up:\n{log.read_text(errors='replace')[-3000:]}")
 
 
 def _doctor(router: RouterProcess, robot: str) -> tuple[int, dict[str, dict[str, str]], str]:

@@ -62,7 +62,7 @@ services:
                                 timeout=TIMEOUT, cwd=ROOT, env=env, check=False)
         doctor = subprocess.run([PY, "-m", "perception", "-q", "doctor", "--duration", "1", "--json", *connect],
                                 capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT, env=env, check=False)
-        time.sleep(0.5)  # a restart would have been due 0.1 s after the exit
+        time.sleep(0.5)  # not a wait: time for a restart that must not come (it would be due 0.1 s after the exit)
         out = launch.output()
         # said once, plainly: which node stopped and why; started once, never again
         said = [line for line in out.splitlines() if "NOT restarted" in line]

@@ -15,6 +15,7 @@ import pytest
 
 from common.router_process import RouterProcess, free_port
 from tests.helpers.launcher import CHILD, PY, ROOT, TIMEOUT, Launch
+from tests.helpers.wait import wait_until
 from tools.launcher.supervisor import FailedChild, ProcessSpec, Supervisor
 
 
@@ -41,7 +42,7 @@ def _wait_gone(pids: list[int], timeout: float = 20.0) -> list[int]:
         left = [p for p in pids if _alive(p)]
         if not left:
             return []
-        time.sleep(0.05)
+        time.sleep(0.05)  # the poll interval of a deadline poll that returns the pids left, not a wait
     return [p for p in pids if _alive(p)]
 
 
@@ -194,6 +195,7 @@ def test_router_that_cannot_start_stops_the_launch_before_the_services(tmp_path:
 
 def test_supervisor_api_restarts_and_stops_on_request() -> None:
     out = io.BytesIO()
+    # the sleeper's time.sleep is not a wait: it is a service that stays up until stopped
     specs = [ProcessSpec("sleeper", [PY, "-c", "import time; print('up', flush=True); time.sleep(3600)"], dict(os.environ)),
              ProcessSpec("crash", [PY, CHILD, "crash", "1"], dict(os.environ), backoff_initial_s=0.01, backoff_max_s=0.05)]
     sup = Supervisor(specs, out, handle_signals=False)
@@ -201,10 +203,8 @@ def test_supervisor_api_restarts_and_stops_on_request() -> None:
     thread = threading.Thread(target=lambda: result.append(sup.run()))
     thread.start()
     try:
-        deadline = time.monotonic() + TIMEOUT
-        while (sup.restarts("crash") < 2 or b"[sleeper] up" not in out.getvalue()) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert sup.restarts("crash") >= 2 and b"[sleeper] up\n" in out.getvalue()
+        wait_until(lambda: sup.restarts("crash") >= 2 and b"[sleeper] up\n" in out.getvalue(), TIMEOUT, interval=0.05,
+                   what=lambda: f"two restarts and the sleeper up:\n{out.getvalue().decode(errors='replace')}")
     finally:
         sup.request_stop()
         thread.join(TIMEOUT)
@@ -225,6 +225,7 @@ def test_router_port_already_taken_is_reported_not_mistaken_for_ready(router: Ro
 def test_exit_status_2_is_not_restarted_and_said_once(caplog: pytest.LogCaptureFixture) -> None:
     out = io.BytesIO()
     failed: list[FailedChild] = []
+    # the sleeper's time.sleep is not a wait: it is a service that stays up until stopped
     specs = [ProcessSpec("sleeper", [PY, "-c", "import time; print('up', flush=True); time.sleep(3600)"], dict(os.environ)),
              ProcessSpec("embedder", [PY, CHILD, "config-error"], dict(os.environ), restart="always",
                          backoff_initial_s=0.01, backoff_max_s=0.05)]
@@ -234,10 +235,9 @@ def test_exit_status_2_is_not_restarted_and_said_once(caplog: pytest.LogCaptureF
     with caplog.at_level("INFO", logger="tools.launcher.supervisor"):
         thread.start()
         try:
-            deadline = time.monotonic() + TIMEOUT
-            while (not failed or b"[sleeper]  up" not in out.getvalue()) and time.monotonic() < deadline:
-                time.sleep(0.05)
-            time.sleep(0.3)  # a restart, if any, would be due after 0.01 s
+            wait_until(lambda: failed and b"[sleeper]  up" in out.getvalue(), TIMEOUT, interval=0.05,
+                       what=lambda: f"the embedder to fail, the sleeper up:\n{out.getvalue().decode(errors='replace')}")
+            time.sleep(0.3)  # not a wait: time for a restart that must not come (it would be due after 0.01 s)
         finally:
             sup.request_stop()
             thread.join(TIMEOUT)

@@ -24,6 +24,7 @@ from common.schemas import (
 from common.zenoh_transport import ZenohTransport
 from tests.fixtures import localizer_scene as scene
 from tests.fixtures.localizer_synthetic import Person
+from tests.helpers.wait import wait_until
 
 KEYS = Keys(robot="itest")
 
@@ -59,10 +60,12 @@ def test_localizer_process_over_router(
         tf = client.publisher(KEYS.tf(), TransformBatch, RELIABLE)
         tf_static = client.publisher(KEYS.tf_static(), TransformBatch, RELIABLE)
         deadline = time.monotonic() + 60.0
-        while not client.alive(KEYS.alive("localizer")):
+
+        def localizer_up() -> bool:
             assert proc.poll() is None, (tmp_path / "localizer.log").read_text()
-            assert time.monotonic() < deadline, "the localizer did not come up"
-            time.sleep(0.1)
+            return bool(client.alive(KEYS.alive("localizer")))
+
+        wait_until(localizer_up, 60.0, interval=0.1, what="the localizer to come up")
         assert dets.wait_for_subscribers(30.0) and frames.wait_for_subscribers(30.0)
 
         people = [Person((0.4, 0.1, 3.0))]

@@ -46,7 +46,7 @@ def _processes_mentioning(text: str) -> list[int]:
 def _wait_gone(text: str, timeout: float = 15.0) -> list[int]:
     deadline = time.monotonic() + timeout
     while (left := _processes_mentioning(text)) and time.monotonic() < deadline:
-        time.sleep(0.1)
+        time.sleep(0.1)  # the poll interval of a deadline poll that returns the processes left, not a wait
     return left
 
 

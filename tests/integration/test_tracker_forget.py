@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +16,7 @@ from common.schemas import ForgetReply, Tracks
 from services.tracker.config import PROFILES
 from services.tracker.memory_file import read_classifiers, read_last_seen, read_memory
 from tests.helpers.tracker_rig import KEYS, PERIOD_NS, T0, Person, Rig, config, ids_by_x
+from tests.helpers.wait import wait_until
 
 S = 1_000_000_000
 A: Person = (0, (2.0, 0.0, 1.0))
@@ -147,6 +147,8 @@ def test_perception_forget_over_a_real_router(tmp_path: Path, router, zenoh_clie
     finally:
         for close in closers:
             close()
-    time.sleep(0.2)
+    probe = zenoh_client()  # another session: asks the router, not the closed queryable's own session
+    wait_until(lambda: not probe.query(KEYS.forget_query() + "?id=0", timeout=1.0), 30.0,
+               what="the closed forget queryable to leave the router")
     nobody = run("5")
     assert nobody.returncode == 2 and "no tracker answered" in nobody.stderr

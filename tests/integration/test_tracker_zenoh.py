@@ -18,6 +18,7 @@ from common.keys import RELIABLE, Keys
 from common.router_process import RouterProcess
 from common.schemas import Embeddings, Header, LocalizedDetection, LocalizedDetections, ModelCard, Tracks
 from common.zenoh_transport import ZenohTransport
+from tests.helpers.wait import wait_until
 
 pytestmark = pytest.mark.zenoh
 
@@ -33,14 +34,6 @@ def start_tracker(router: RouterProcess, memory: Path, log: Path) -> subprocess.
            "--robot", KEYS.robot, "--memory", str(memory)]
     env = {**os.environ, "RUST_LOG": "error"}
     return subprocess.Popen(cmd, stdout=log.open("ab"), stderr=subprocess.STDOUT, cwd=ROOT, env=env)
-
-
-def wait_until(predicate: Callable[[], bool], timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.05)
 
 
 def feed_person(client: ZenohTransport, tracks_sub, seqs: range, stamp0: int) -> Tracks:  # type: ignore[no-untyped-def]
@@ -82,7 +75,7 @@ def test_tracker_process_tracks_answers_queries_and_keeps_ids_across_restart(
     tracks_sub = client.subscribe(KEYS.tracks(), Tracks, RELIABLE)
     proc = start_tracker(router, memory, tmp_path / "tracker.log")
     try:
-        wait_until(lambda: bool(client.alive(KEYS.alive("tracker"))), 30.0, "the tracker's liveliness token")
+        wait_until(lambda: bool(client.alive(KEYS.alive("tracker"))), 30.0, what="the tracker's liveliness token")
         last = feed_person(client, tracks_sub, range(0, 5), 1_700_000_000_000_000_000)
         assert [t.id for t in last.tracks] == [1] and last.appearance_available
         replies = client.query(KEYS.track_query() + "?id=1", timeout=10.0)
@@ -91,16 +84,16 @@ def test_tracker_process_tracks_answers_queries_and_keeps_ids_across_restart(
         assert replies[0][1].tracks[0].status == "confirmed"
         assert client.query(KEYS.track_query() + "?id=7", timeout=10.0)[0][1].tracks == []
         # the live track's gallery is written within memory_save_period_s (2 s) ...
-        wait_until(memory.exists, 30.0, "the ID memory file")
+        wait_until(memory.exists, 30.0, what="the ID memory file")
     finally:
         proc.kill()  # ... so even a crash (SIGKILL) keeps the identity
         proc.wait(timeout=30)
-    wait_until(lambda: not client.alive(KEYS.alive("tracker")), 30.0, "the token to vanish")
+    wait_until(lambda: not client.alive(KEYS.alive("tracker")), 30.0, what="the token to vanish")
 
     # a restarted tracker, seeing the same person much later, gives the same ID
     proc = start_tracker(router, memory, tmp_path / "tracker.log")
     try:
-        wait_until(lambda: bool(client.alive(KEYS.alive("tracker"))), 30.0, "the restarted tracker's token")
+        wait_until(lambda: bool(client.alive(KEYS.alive("tracker"))), 30.0, what="the restarted tracker's token")
         last = feed_person(client, tracks_sub, range(1000, 1004), 1_700_000_100_000_000_000)
         assert [t.id for t in last.tracks] == [1]
     finally:

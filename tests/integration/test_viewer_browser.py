@@ -120,11 +120,11 @@ def test_a_slow_browser_gets_the_newest_state_not_a_queue(router: RouterProcess,
                 with urllib.request.urlopen(f"http://127.0.0.1:{port}/api/state?after=0", timeout=15) as res:
                     snap = json.loads(res.read())
             except OSError:
-                time.sleep(0.2)
+                time.sleep(0.2)  # the poll interval while the server starts, inside the loop's deadline; not a wait
                 continue
             if snap.get("tracks"):
                 versions.append(snap["version"])
-                time.sleep(1.0)  # a slow browser
+                time.sleep(1.0)  # not a wait: the test is about a slow browser, which asks once a second
         assert len(versions) == 3, (tmp_path / "viewer.log").read_text()
         assert all(b - a > 3 for a, b in zip(versions, versions[1:]))
     finally:

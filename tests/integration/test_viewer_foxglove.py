@@ -21,6 +21,7 @@ from common.keys import Keys
 from common.router_process import RouterProcess, free_port
 from common.zenoh_transport import ZenohTransport
 from tests.fixtures.viewer_scene import IDS, ScenePublisher
+from tests.helpers.wait import wait_until
 
 pytest.importorskip("foxglove", reason="Foxglove needs foxglove-sdk (the 'view' extra)")
 pytest.importorskip("websockets", reason="the protocol client is the websockets package (the 'test' extra)")
@@ -70,15 +71,16 @@ def test_a_websocket_client_sees_the_channels_and_the_people(router: RouterProce
         [sys.executable, "-m", "perception", "view", "--foxglove-port", str(port), "--no-page", "--robot", KEYS.robot,
          "--connect", router.endpoint], stdout=log.open("wb"), stderr=subprocess.STDOUT,
         env={**os.environ, "RUST_LOG": "error"})
+
+    def connected() -> Any:
+        try:
+            return connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS, max_size=None, open_timeout=5)
+        except OSError:
+            assert proc.poll() is None, log.read_text()
+            return None
+
     try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                ws_cm = connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS, max_size=None, open_timeout=5)
-                break
-            except OSError:
-                assert time.monotonic() < deadline and proc.poll() is None, log.read_text()
-                time.sleep(0.2)
+        ws_cm = wait_until(connected, 60.0, interval=0.2, what=lambda: f"the Foxglove server\n{log.read_text()}")
         with ws_cm as ws:
             assert ws.subprotocol in SUBPROTOCOLS
             channels: dict[str, dict[str, Any]] = {}

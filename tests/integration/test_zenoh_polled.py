@@ -10,6 +10,7 @@ from typing import Callable
 from common.keys import RELIABLE, Delivery, Keys
 from common.schemas import Header, ServiceStatus
 from common.zenoh_transport import ZenohTransport
+from tests.helpers.wait import wait_until
 
 KEYS = Keys(robot="polled")
 
@@ -28,9 +29,7 @@ def test_a_polled_subscription_keeps_the_newest_samples_in_order(zenoh_client: C
     before = time.time_ns()
     for seq in range(5):
         pub.put(_status(seq))
-    deadline = time.monotonic() + 10
-    while woken.stats.received < 5 and time.monotonic() < deadline:
-        time.sleep(0.02)
+    wait_until(lambda: woken.stats.received >= 5, 10.0, what="the pushed subscription to get the 5 samples")
     assert woken.stats.received == 5
     assert polled.pending() == 0  # nothing was pushed: it waits inside Zenoh
     got = []
@@ -40,9 +39,10 @@ def test_a_polled_subscription_keeps_the_newest_samples_in_order(zenoh_client: C
     assert all(before - 1_000_000_000 < r.recv_ns < time.time_ns() + 1_000_000_000 for r in got)
     assert polled.stats.received == 3
     pub.put(_status(5))
-    deadline = time.monotonic() + 10
-    newest, arrivals = None, []
-    while newest is None and time.monotonic() < deadline:
+
+    def taken():  # type: ignore[no-untyped-def]
         newest, arrivals = polled.take_newest()
-        time.sleep(0.02)
-    assert newest is not None and newest.msg.header.seq == 5 and len(arrivals) == 1
+        return (newest, arrivals) if newest is not None else None
+
+    newest, arrivals = wait_until(taken, 10.0, what="the polled subscription to hold the new sample")
+    assert newest.msg.header.seq == 5 and len(arrivals) == 1

@@ -24,6 +24,7 @@ from common.schemas import (
     TransformBatch,
 )
 from perception.cli import main as cli_main
+from tests.helpers.wait import wait_until
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.scenarios import SCENARIOS
 from tools.simulator.groundtruth import write_groundtruth_csv
@@ -140,23 +141,25 @@ def test_max_speed_waits_for_the_detector_so_it_sees_every_frame(memory_bus: Mem
 def test_max_speed_waits_for_both_cameras_detectors(memory_bus: MemoryBus) -> None:
     """With a back camera, --max paces on both detectors: the slower one sees every frame too."""
     seen: dict[str, list[int]] = {"head": [], "back": []}
+    subscribed = {"head": threading.Event(), "back": threading.Event()}
     stop = threading.Event()
 
     def detector(camera: str, delay_s: float) -> None:
         side = memory_bus.transport()
         frames = side.subscribe(KEYS.frames(camera), RGBDFrame, FRAMES)
         out = side.publisher(KEYS.detections(camera), Detections, RELIABLE)
+        subscribed[camera].set()
         while not stop.is_set():
             got = frames.recv(timeout=0.1)
             if got is not None:
-                time.sleep(delay_s)
+                time.sleep(delay_s)  # not a wait: the slower detector's inference time
                 seen[camera].append(got.msg.header.seq)
                 out.put(Detections(header=Header(**got.msg.header.model_dump())))
 
     threads = [threading.Thread(target=detector, args=(c, d), daemon=True) for c, d in (("head", 0.0), ("back", 0.03))]
     for thread in threads:
         thread.start()
-    time.sleep(0.2)  # both subscribed
+    wait_until(lambda: all(e.is_set() for e in subscribed.values()), 30.0, what="both detectors to subscribe")
     service = SimulatorService(memory_bus.transport(), KEYS,
                                _config(max_speed=True, max_wait_s=10.0, duration_s=2.0, back_camera="back"))
     try:

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Install Chromium from the distribution's packages for the browser test of `perception view`
-# (tests/test_viewer_browser.py), when it is missing and apt-get can be used (root, or sudo
+# (tests/integration/test_viewer_browser.py), when it is missing and apt-get can be used (root, or sudo
 # without a password). Never fails: without Chromium that test is skipped, saying why.
 set -uo pipefail
 for name in chromium chromium-browser google-chrome; do

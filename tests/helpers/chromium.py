@@ -71,7 +71,7 @@ class Browser:
                 raise RuntimeError(f"chromium exited with status {self._proc.returncode}")
             if marker.is_file() and (text := marker.read_text().split()):
                 return int(text[0])
-            time.sleep(0.05)
+            time.sleep(0.05)  # the poll interval of a deadline poll, not a wait
         raise TimeoutError("chromium did not open its DevTools port")
 
     def call(self, method: str, timeout_s: float = 30.0, **params: Any) -> dict[str, Any]:
@@ -107,7 +107,7 @@ class Browser:
                 value = None  # the page is still loading
             if value:
                 return value
-            time.sleep(0.1)
+            time.sleep(0.1)  # the poll interval of a deadline poll, not a wait
         raise TimeoutError(f"{expression!r} still {value!r} after {timeout_s} s")
 
     def open_until(self, url: str, expression: str, timeout_s: float = 60.0, retry_s: float = 10.0,

@@ -24,7 +24,7 @@ def _append_pids(path: str, *pids: int) -> None:
 
 def _sleep_forever() -> None:
     while True:
-        time.sleep(3600)
+        time.sleep(3600)  # not a wait: a child that runs until it is stopped
 
 
 def main(argv: list[str]) -> int:
@@ -38,6 +38,7 @@ def main(argv: list[str]) -> int:
               flush=True)
         return 2
     if mode == "family":
+        # the grandchild's time.sleep is not a wait: it runs until it is stopped
         grandchild = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(3600)"])
         _append_pids(argv[1], os.getpid(), grandchild.pid)
         print("family ready", flush=True)

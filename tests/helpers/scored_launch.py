@@ -150,7 +150,7 @@ def scored_run(launch_file: Path, port: int, client: ZenohClient, workdir: Path,
                     run.consumer_tracks += bool(got.msg.tracks and got.msg.appearance_available)
                 if sim.poll() is not None and gt.idle_for(1.5):
                     break  # the scenario is over and the pipeline has drained
-                time.sleep(0.2)
+                time.sleep(0.2)  # not a wait: the pace of this loop that reads the pipeline while it runs
             monitor.poll()
             gt.poll()
             assert sim.wait(30) == 0, (workdir / "simulate.log").read_text()[-3000:]

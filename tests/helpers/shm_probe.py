@@ -17,6 +17,7 @@ import zenoh  # noqa: E402
 
 from common.transport.router_process import free_port  # noqa: E402
 from common.transport.zenoh_config import ZenohOptions, build_zenoh_config  # noqa: E402
+from tests.helpers.wait import wait_until  # noqa: E402
 
 
 def shmem_kib() -> int:
@@ -39,16 +40,21 @@ def main(variant: str) -> None:
     router = zenoh.open(config(ZenohOptions(mode="router", listen=[endpoint]), variant))
     sub_s = zenoh.open(config(ZenohOptions(connect=[endpoint]), variant))
     pub_s = zenoh.open(config(ZenohOptions(connect=[endpoint]), variant))
-    got = threading.Event()
-    sub = sub_s.declare_subscriber("probe/x", lambda s: got.set() if len(s.payload) == 4096 else None)
+    got, small = threading.Event(), threading.Event()
+    sub = sub_s.declare_subscriber("probe/x", lambda s: (got if len(s.payload) == 4096 else small).set())
     pub = pub_s.declare_publisher("probe/x")
-    for _ in range(20):  # small ones first: the sessions are up and matched
+
+    def matched() -> bool:  # small ones first, until one arrives: the sessions are up and matched
         pub.put(b"s" * 512)
-        time.sleep(0.05)
+        return small.wait(0.05)
+
+    wait_until(matched, 30.0, interval=0.0, what="a small message to arrive")
     before = shmem_kib()
     pub.put(b"x" * 4096)
     if not got.wait(5.0):
         raise SystemExit("the 4 KB message did not arrive")
+    # not a wait: the same settling time for both before measuring (the default's pool is still being
+    # mapped; ours must have mapped nothing by then), as a mapping that never comes cannot be awaited
     time.sleep(0.5)
     print(json.dumps({"variant": variant, "shmem_kib_added": shmem_kib() - before}), flush=True)
     sub.undeclare()

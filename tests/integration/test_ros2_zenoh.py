@@ -1,0 +1,202 @@
+"""perception ros2 as a real process on a real router, against a third party's implementation
+of rmw_zenoh's protocol on the other side: PyPI's zenoh-ros2-sdk publishes a ROS 2 RGB-D camera
+and /tf, and subscribes to the people; its graph discovery lists this node's topics. The
+transient-local late joiner is tested against zenoh-ext's advanced publisher, the one rmw_zenoh
+itself uses for /tf_static.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.messages.schemas import Header, RGBDFrame, Tracks, TrackState, Transform, TransformBatch
+from services.ros2.convert import camera_info_message, image_message, tf_message
+from services.ros2.core.types import types_of
+from services.ros2.core.wire import attachment
+from tests.helpers.wait import wait_until
+
+os.environ.setdefault("GIT_PYTHON_REFRESH", "quiet")
+sdk = pytest.importorskip("zenoh_ros2_sdk", reason="zenoh-ros2-sdk (the test extra) is not installed")
+
+pytestmark = [pytest.mark.zenoh, pytest.mark.slow]
+KEYS = Keys(robot="rosz")
+T = types_of()
+DOMAIN = 17
+COLOUR, DEPTH, INFO = ("/camera/camera/color/image_raw", "/camera/camera/aligned_depth_to_color/image_raw",
+                       "/camera/camera/color/camera_info")
+
+
+@pytest.fixture
+def sdk_session(router: Any, monkeypatch: pytest.MonkeyPatch) -> Iterator[Any]:
+    """zenoh-ros2-sdk's shared session, on the test's router, loopback only, no scouting."""
+    monkeypatch.setenv("ZENOH_CONFIG_OVERRIDE", 'scouting/multicast/enabled=false;listen/endpoints=["tcp/127.0.0.1:0"]')
+    host, port = router.endpoint.removeprefix("tcp/").rsplit(":", 1)
+    sdk.ZenohSession._instance = None
+    session = sdk.ZenohSession.get_instance(host, int(port))
+    try:
+        yield session, host, int(port)
+    finally:
+        session.session.close()
+        sdk.ZenohSession._instance = None
+
+
+def _node(router: Any, *extra: str) -> subprocess.Popen[str]:
+    cmd = [sys.executable, "-m", "perception", "ros2", "--robot", KEYS.robot, "--domain-id", str(DOMAIN), "--mode",
+           "client", "--connect", router.endpoint, "--no-multicast-scouting", *extra]
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env={**os.environ, "RUST_LOG": "error"})
+
+
+def _wait_alive(t: Any, node: subprocess.Popen[str], timeout: float = 30.0) -> None:
+    def up() -> bool:
+        assert node.poll() is None, node.communicate()[0]
+        return bool(t.alive(KEYS.alive("ros2")))
+
+    wait_until(up, timeout, what="perception ros2's liveliness")
+
+
+def _stop(node: subprocess.Popen[str]) -> str:
+    node.send_signal(signal.SIGINT)
+    out, _ = node.communicate(timeout=30)
+    assert node.returncode == 0, out
+    return out
+
+
+def _frame(k: int) -> RGBDFrame:
+    from common.messages.samples import rgbd_frame
+
+    return rgbd_frame(64, 48, stamp_ns=1_700_000_000_000_000_000 + k * 50_000_000)
+
+
+def _pub(session: tuple[Any, str, int], topic: str, type_name: str) -> Any:
+    _, host, port = session
+    return sdk.ROS2Publisher(topic, type_name, msg_definition=T.definition(type_name), type_hash=T.hash(type_name),
+                             domain_id=DOMAIN, router_ip=host, router_port=port, node_name="camera")
+
+
+def _fields(msg: Any) -> dict[str, Any]:
+    return {f: getattr(msg, f) for f in msg.__dataclass_fields__}
+
+
+def test_a_third_party_ros2_camera_in_and_the_people_out(router: Any, zenoh_client: Any, sdk_session: Any) -> None:
+    app = zenoh_client()
+    frames = app.subscribe(KEYS.frames("head"), RGBDFrame, FRAMES.__class__(latest=False, queue=64, congestion="drop"))
+    tf = app.subscribe(KEYS.tf(), TransformBatch, RELIABLE)
+    tracks = app.publisher(KEYS.tracks(), Tracks, RELIABLE)
+    node = _node(router)
+    try:
+        _wait_alive(app, node)
+        info, colour, depth = (_pub(sdk_session, INFO, "sensor_msgs/msg/CameraInfo"),
+                               _pub(sdk_session, COLOUR, "sensor_msgs/msg/Image"),
+                               _pub(sdk_session, DEPTH, "sensor_msgs/msg/Image"))
+        tf_pub = _pub(sdk_session, "/tf", "tf2_msgs/msg/TFMessage")
+        got: list[RGBDFrame] = []
+        sent: list[RGBDFrame] = []
+        deadline = time.monotonic() + 30
+        k = 0
+        while len(got) < 3 and time.monotonic() < deadline:
+            f = _frame(k)
+            k += 1
+            sent.append(f)
+            info.publish(**_fields(camera_info_message(T, f)))
+            depth.publish(**_fields(image_message(T, f, depth=True)))
+            colour.publish(**_fields(image_message(T, f)))
+            stamp = f.header.stamp_ns
+            tf_pub.publish(**_fields(tf_message(T, TransformBatch(header=Header(stamp_ns=stamp), transforms=[
+                Transform(parent_frame="map", child_frame="base_link", stamp_ns=stamp, translation=np.array([1.0, 2.0, 0]),
+                          rotation_xyzw=np.array([0, 0, 0, 1.0]))]))))
+            time.sleep(0.1)  # the camera's frame period
+            while (g := frames.try_recv()) is not None:
+                got.append(g.msg)
+        assert len(got) >= 3, "no frames/head from the ROS 2 camera"
+        by_stamp = {f.header.stamp_ns: f for f in sent}
+        for g in got:
+            s = by_stamp[g.header.stamp_ns]
+            assert np.array_equal(g.rgb.to_array(), s.rgb.to_array())
+            assert np.array_equal(g.depth.to_array(), s.depth.to_array())
+        tfs = []
+        end = time.monotonic() + 10
+        while not tfs and time.monotonic() < end:
+            if (m := tf.recv(timeout=0.2)) is not None:
+                tfs.append(m.msg)
+        assert tfs and tfs[0].transforms[0].child_frame == "base_link"
+
+        # the people, read by the third party's subscribers
+        _, host, port = sdk_session
+        seen: dict[str, list[Any]] = {"tracked": [], "position": [], "markers": []}
+
+        def sub(topic: str, type_name: str, bucket: str) -> Any:
+            return sdk.ROS2Subscriber(topic, type_name, seen[bucket].append, msg_definition=T.definition(type_name),
+                                      type_hash=T.hash(type_name), domain_id=DOMAIN, router_ip=host, router_port=port)
+
+        subs = [sub("/humans/bodies/tracked", "hri_msgs/msg/IdsList", "tracked"),
+                sub("/humans/bodies/p3/position", "geometry_msgs/msg/PointStamped", "position"),
+                sub("/humans/markers", "visualization_msgs/msg/MarkerArray", "markers")]
+        end = time.monotonic() + 20
+        while time.monotonic() < end and not (seen["tracked"] and seen["position"] and seen["markers"]):
+            stamp = time.time_ns()
+            tracks.put(Tracks(header=Header(stamp_ns=stamp, frame_id="map"), tracks=[TrackState(
+                id=3, status="confirmed", position=np.array([2.5, 1.0, 0.9]), velocity=np.zeros(3),
+                covariance=np.eye(6), last_update_ns=stamp, hits=5, age_s=1.0)]))
+            time.sleep(0.1)  # the tracker's output period
+        assert seen["tracked"] and list(seen["tracked"][-1].ids) == ["p3"]
+        p = seen["position"][-1]
+        assert (p.point.x, p.point.y, p.point.z) == (2.5, 1.0, 0.9) and p.header.frame_id == "map"
+        assert {m.ns for m in seen["markers"][-1].markers} == {"people", "people_ids"}
+
+        # the graph, as the third party's `ros2 topic list` sees it
+        topics = dict(sdk.get_topic_names_and_types(domain_id=DOMAIN, router_ip=host, router_port=port, timeout=2.0))
+        assert topics.get("/humans/bodies/tracked") == ["hri_msgs/msg/IdsList"]
+        assert "sensor_msgs/msg/Image" in topics.get(COLOUR, [])
+        assert "/humans/markers" in topics and "/tf_static" in topics
+        for s in subs:
+            s.close()
+    finally:
+        out = _stop(node)
+    assert "Traceback" not in out
+
+
+def test_a_late_joiner_gets_the_static_transforms(router: Any, zenoh_client: Any) -> None:
+    """/tf_static is transient local: rmw_zenoh publishes it with zenoh-ext's advanced publisher and a
+    cache; a node started after it must still get the robot's static transforms."""
+    import zenoh
+    from zenoh import ext as zext
+
+    conf = zenoh.Config()
+    for path, value in (("mode", '"client"'), ("connect/endpoints", f'["{router.endpoint}"]'),
+                        ("scouting/multicast/enabled", "false"), ("timestamping/enabled", "true")):
+        conf.insert_json5(path, value)  # rmw_zenoh's sessions timestamp their samples
+    robot = zenoh.open(conf)
+    key = T.key(DOMAIN, "/tf_static", "tf2_msgs/msg/TFMessage")
+    pub = zext.declare_advanced_publisher(robot, key, cache=zext.CacheConfig(max_samples=1), publisher_detection=True)
+    stamp = 1_700_000_000_000_000_000
+    batch = TransformBatch(header=Header(stamp_ns=stamp), transforms=[
+        Transform(parent_frame="base_link", child_frame="camera_link", stamp_ns=stamp, translation=np.array([0.1, 0, 1.2]),
+                  rotation_xyzw=np.array([0, 0, 0, 1.0]), static=True)])
+    pub.put(T.serialize(tf_message(T, batch), "tf2_msgs/msg/TFMessage"), attachment=attachment(1, stamp, bytes(range(16))))
+    app = zenoh_client()
+    tf_static = app.subscribe(KEYS.tf_static(), TransformBatch, RELIABLE)
+    node = _node(router, "--no-camera", "--no-people")
+    try:
+        got = None
+        deadline = time.monotonic() + 30
+        while got is None and time.monotonic() < deadline:
+            if (m := tf_static.recv(timeout=0.2)) is not None:
+                got = m.msg
+            assert node.poll() is None
+        assert got is not None, "the static transforms published before the node started never came"
+        assert got.transforms[0].child_frame == "camera_link" and got.transforms[0].static
+    finally:
+        pub.undeclare()
+        robot.close()
+        _stop(node)

@@ -5,9 +5,9 @@ Everything that names the nodes is derived from :data:`NODES` or checked against
 ``perception keys`` (:mod:`common.messages.keys`), the certificate roles (:mod:`common.transport.certs`) and the
 access-control rules (:mod:`common.transport.acl`), the demo's processes and the viewer's and doctor's
 stages (the entries with ``stage=True``, in data-flow order), and the import rules
-(``.importlinter``, ``tests/test_architecture.py``). A test builds every node on the in-memory
+(``.importlinter``, ``tests/integration/test_architecture.py``). A test builds every node on the in-memory
 transport and fails when what it really subscribes, publishes and serves differs from its entry
-here (``tests/test_registry.py``).
+here (``tests/service/test_registry.py``).
 
 Adding a node: its folder (``services/NAME/`` in the node shape, ARCHITECTURE.md "Writing a
 node") and one :class:`NodeEntry` line below.

@@ -55,7 +55,8 @@ class RouterProcess:
         cmd = [sys.executable, "-m", "perception", "-q", "router", "--listen", self.endpoint,
                "--no-multicast-scouting", *self.extra_args]
         # A file, not a pipe: a pipe nobody reads would block a chatty router.
-        self._log = open(self.log_path, "ab") if self.log_path else tempfile.TemporaryFile()  # noqa: SIM115
+        # "a+b": appended to, and readable back when the router fails to start
+        self._log = open(self.log_path, "a+b") if self.log_path else tempfile.TemporaryFile()  # noqa: SIM115
         env = {**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "error")}
         self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, env=env)
         if not wait_for_port(self.host, self.port, timeout, self.proc):

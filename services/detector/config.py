@@ -30,7 +30,7 @@ BACKENDS = ("hog", "depth", "yolo-onnx", "darknet")
 Backend = Literal["hog", "depth", "yolo-onnx", "darknet"]
 
 # The core's defaults, read by the sections below so each is written once, in the core
-# (tests/test_config_defaults.py checks they agree). Model files are required in the core
+# (tests/unit/test_config_defaults.py checks they agree). Model files are required in the core
 # and None here until configured: the placeholders are unused. ``providers`` None is
 # "not given" in both (a list here, a tuple there).
 _HOG = HogParams()

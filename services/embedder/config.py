@@ -23,7 +23,7 @@ __all__ = ["DepthMaskConfig", "EmbedderConfig", "OnnxConfig", "ThresholdsConfig"
            "with_sidecar"]
 
 #: The core's defaults, read by :class:`OnnxConfig` so each is written once, in the core
-#: (tests/test_config_defaults.py checks they agree). ``path`` is required in the core and
+#: (tests/unit/test_config_defaults.py checks they agree). ``path`` is required in the core and
 #: "" here until configured: the placeholder is unused. ``thresholds`` and ``providers``
 #: None are "not given" in both (other types here than there).
 _D = OnnxParams(path="")

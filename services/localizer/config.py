@@ -10,7 +10,7 @@ from services.localizer.core import DepthNoiseModel, LocalizerParams
 __all__ = ["LocalizerConfig", "StaticTransformConfig"]
 
 #: The core's defaults: every default below that the core also has is taken from here,
-#: so it is written once, in the core (tests/test_config_defaults.py checks they agree).
+#: so it is written once, in the core (tests/unit/test_config_defaults.py checks they agree).
 _D = LocalizerParams()
 
 

@@ -84,7 +84,7 @@ def _default_appearance() -> dict[str, AppearanceConfig]:
 
 
 #: The core's defaults: every default below that the core also has is taken from here,
-#: so it is written once, in the core (tests/test_config_defaults.py checks they agree).
+#: so it is written once, in the core (tests/unit/test_config_defaults.py checks they agree).
 _D = TrackerParams()
 _S_MAX = next(f.default for f in dataclasses.fields(AppearanceGate) if f.name == "s_max")
 _R = RobustParams()

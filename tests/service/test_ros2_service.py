@@ -2,7 +2,7 @@
 every kind of bad ROS 2 input counted and survived.
 
 The ROS 2 side here is this project's own writer (services.ros2.participant); the third-party
-implementation (zenoh-ros2-sdk) is on the other side in tests/test_ros2_zenoh.py.
+implementation (zenoh-ros2-sdk) is on the other side in tests/integration/test_ros2_zenoh.py.
 """
 
 from __future__ import annotations

@@ -33,7 +33,7 @@ The measurement is the position ``(x, y, z)``, a linear function of the state, s
 update is the ordinary Kalman update and is not duplicated here:
 :func:`services.tracker.core.kalman.update` (and ``kalman.project``) use only
 ``mean[..., :3]``, ``cov[..., :3, :3]`` and ``cov[..., :, :3]`` and work unchanged on
-this 7-entry state (tested in ``tests/test_tracker_ukf.py``).
+this 7-entry state (tested in ``tests/unit/test_tracker_ukf.py``).
 
 Every function takes and returns plain arrays, never mutates its inputs, and accepts
 leading batch dimensions: ``mean`` (..., 7), ``cov`` (..., 7, 7). Tracks and sigma points

@@ -1,0 +1,1 @@
+"""The camera node's pure parts: image sources (OpenCV, RealSense), camera models and pacing."""

@@ -85,7 +85,7 @@ def grants(prefix: str = DEFAULT_PREFIX, domain: int | None = None) -> dict[str,
     exactly the streams its entry declares.
     """
     k = Keys(robot=_ROBOT, prefix=prefix)
-    sensors = ("simulator", "replay", "camera")
+    sensors = ("simulator", "replay")
     # The tracker's queryables, as the registry lists them (query/track, ...).
     tracker_queries = tuple(k.pattern(s) for s in node("tracker").serves)
     out = {

@@ -33,6 +33,8 @@ CONFIGS: dict[str, list[dict[str, Any]]] = {
     "tracker": [{"memory_path": None}],
     "detector": [{}, {"backend": "depth", "floor_frame": "base_footprint"}],
     "viewer": [{"port": 0}],
+    # a folder of one image (made by the fixture: FOLDER), played in real time and paced by the detector
+    "camera": [{"source": "FOLDER"}, {"source": "FOLDER", "pace": "max"}],
 }
 
 
@@ -75,8 +77,17 @@ def _build(entry: NodeEntry, settings: dict[str, Any]) -> dict[str, set[str]]:
 
 
 @pytest.fixture(scope="module")
-def observed() -> dict[str, list[dict[str, Any]]]:
-    return {e.name: [_build(e, s) for s in CONFIGS.get(e.name, [{}])] for e in NODES}
+def observed(tmp_path_factory: pytest.TempPathFactory) -> dict[str, list[dict[str, Any]]]:
+    import cv2
+    import numpy as np
+
+    folder = tmp_path_factory.mktemp("camera")
+    cv2.imwrite(str(folder / "0001.png"), np.zeros((48, 64, 3), np.uint8))
+
+    def settings(s: dict[str, Any]) -> dict[str, Any]:
+        return {k: str(folder) if v == "FOLDER" else v for k, v in s.items()}
+
+    return {e.name: [_build(e, settings(s)) for s in CONFIGS.get(e.name, [{}])] for e in NODES}
 
 
 @pytest.mark.parametrize("entry", NODES, ids=lambda e: e.name)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from common.messages.keys import validate_chunk
 
@@ -48,6 +48,11 @@ class CameraConfig(BaseModel):
     retry_max_s: float = Field(default=10.0, gt=0.0, description="... doubling up to this")
     jpeg_quality: int = Field(default=0, ge=0, le=100,
                               description="publish colour as JPEG of this quality (0: raw rgb8, the default)")
+
+    @field_validator("camera_info", mode="before")
+    @classmethod
+    def _no_file(cls, v: object) -> object:
+        return None if v in ("", None) else v  # an unset ${CAMERA_INFO:-} in a launch file
 
     @model_validator(mode="after")
     def _names(self) -> CameraConfig:

@@ -174,7 +174,7 @@ def test_deploy_split_covers_the_four_services_once() -> None:
     def commands(name: str) -> set[str]:
         return {s.command for s in load_launch_file(DEPLOY / name, {}).services if s.enabled and s.command}
 
-    assert commands("hri-pc.yaml") == {"detector", "embedder"}
+    assert commands("hri-pc.yaml") == {"camera", "detector", "embedder"}
     assert commands("nav-pc.yaml") == {"localizer", "tracker"}
     assert commands("single-pc.yaml") == {"detector", "localizer", "embedder", "tracker"}
     hri = load_launch_file(DEPLOY / "hri-pc.yaml", {"HRI_PC": "10.0.0.1", "NAV_PC": "10.0.0.2"})

@@ -313,3 +313,15 @@ def test_doctor_says_what_is_wrong_with_an_unreadable_recording(tmp_path: Path, 
     assert cli_main(["doctor", "--recording", str(bad)]) == 2
     assert "bad.mcap" in capsys.readouterr().err
 
+
+
+def test_a_camera_node_that_lost_its_stream_is_named() -> None:
+    from tools.doctor.core.checks import run_checks as _run
+    from tools.doctor.core.facts import NodeFacts as _Node
+    from tools.doctor.core.facts import Observation as _Obs
+
+    cam = _Node("camera", "pc-1", settings={"camera": "head", "source": "rtsp://10.0.0.5/stream"},
+                counters={"connected": 0, "stream_lost": 1, "reopen_failed": 3}, window_s=5.0)
+    (line,) = [c for c in _run(_Obs(duration_s=5.0, nodes=[cam])) if c.name == "frames/head"]
+    assert line.status == "fail" and "lost its source 'rtsp://10.0.0.5/stream'" in line.figure
+    assert "reopens" in line.fix

@@ -37,6 +37,13 @@ def _silent(obs: Observation, key: str, producer: str) -> tuple[str, str]:
     stream, _, camera = key.partition("/")
     if not producer:
         if stream == "frames":
+            for node in obs.running("camera"):
+                if node.settings.get("camera", camera) == camera and node.counters.get("connected", 1) == 0:
+                    lost = node.counters.get("stream_lost", 0)
+                    return (f"nothing in {d:.1f} s: the camera node lost its source {node.settings.get('source', '')!r}"
+                            f" (stream_lost {lost:g}, reopen_failed {node.counters.get('reopen_failed', 0):g})",
+                            "check the camera's cable and power, or the stream's server; the node reopens it by "
+                            "itself with backoff")
             fix = (f"start the camera driver (or perception simulate / replay) publishing frames/{camera}, "
                    "and check it uses this robot's name")
             return f"nothing in {d:.1f} s", fix

@@ -109,9 +109,10 @@ class CameraService(Node):
         header = Header(stamp_ns=stamp, frame_id=self.config.optical_frame, seq=seq, source=self.config.camera)
         h, w = cap.rgb.shape[:2]
         if self.config.jpeg_quality:
-            rgb = Image.from_array(cap.rgb, "jpeg", header, quality=self.config.jpeg_quality)
+            pixels = cap.rgb[..., ::-1] if cap.order == "bgr8" else cap.rgb
+            rgb = Image.from_array(pixels, "jpeg", header, quality=self.config.jpeg_quality)
         else:
-            rgb = Image.from_array(cap.rgb, "rgb8", header)
+            rgb = Image.from_array(cap.rgb, "bgr8" if cap.order == "bgr8" else "rgb8", header)
         depth = None
         if cap.depth is not None:
             enc = "16UC1" if cap.depth.dtype == np.uint16 else "32FC1"

@@ -36,7 +36,8 @@ def test_a_folder_of_images_plays_in_name_order(tmp_path: Path) -> None:
     got = [src.read() for _ in range(6)]
     assert got[-1] is None
     assert [c.index for c in got[:-1]] == [1, 2, 3, 4, 5]
-    assert all(np.array_equal(c.rgb, s) for c, s in zip(got, sent))  # RGB order, pixel for pixel (png)
+    # OpenCV's BGR order, said so, pixel for pixel (png)
+    assert all(c.order == "bgr8" and np.array_equal(c.rgb[..., ::-1], s) for c, s in zip(got, sent))
     assert all(c.stamp_ns is None and c.depth is None for c in got[:-1])
 
 

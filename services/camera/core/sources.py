@@ -40,7 +40,7 @@ class Intrinsics:
 
 @dataclass(frozen=True)
 class Capture:
-    """One captured image: RGB (H, W, 3) uint8, depth aligned to it when the source has depth
+    """One captured image: colour (H, W, 3) uint8 (RGB, or BGR when ``order`` says so), depth aligned to it when the source has depth
     (uint16 millimetres, 0 = invalid, or float32 metres, NaN = invalid), the capture time (ns
     since the epoch, None for a file: the node stamps it by its frame number) and the frame
     number in the source (1 for the first frame of a file)."""
@@ -49,6 +49,9 @@ class Capture:
     depth: np.ndarray | None
     stamp_ns: int | None
     index: int
+    #: "bgr8" when ``rgb`` holds OpenCV's blue-green-red order, passed on as it is (a conversion
+    #: costs more than the rest of the frame's work; the receivers read either order).
+    order: str = "rgb8"
 
 
 class Source(Protocol):

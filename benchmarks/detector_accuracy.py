@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from services.localizer.core import FloorHomography, foot_points
+
 __all__ = ["PetsTruth", "Scores", "load_truth", "score_detections", "to_ground"]
 
 GT_SCALE = 0.625
@@ -58,11 +60,10 @@ def load_truth(root: Path) -> PetsTruth:
 
 
 def to_ground(H: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """(N, 2) ground-plane positions of the foot points (bottom centre) of (N, 4) xyxy boxes."""
-    boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
-    foot = np.column_stack([(boxes[:, 0] + boxes[:, 2]) / 2.0, boxes[:, 3], np.ones(len(boxes))])
-    g = foot @ H.T
-    return g[:, :2] / g[:, 2:3]
+    """(N, 2) ground-plane positions of the foot points (bottom centre) of (N, 4) xyxy boxes
+    through ``H``: the localizer's own foot point and floor homography."""
+    pixels, _ = foot_points(boxes)
+    return FloorHomography(H).to_floor(pixels)[0]
 
 
 def _iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:

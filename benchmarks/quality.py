@@ -36,7 +36,8 @@ Data (``../shared/data``, or ``$PERCEPTION_SHARED_DATA``; nothing is downloaded)
    cut. Positions only, so every tracker runs position-only.
 2. ``pets09_dev`` (skipped with ``--quick``): the whole chain on real video. The
    project's HOG detector (upsample 2.25) -> the colour embedder -> the ground plane
-   through ``ground_homography.json`` (foot point: the bottom centre of the box) ->
+   through ``ground_homography.json`` (foot point: the bottom centre of the box; the
+   localizer core's ``foot_points`` and ``FloorHomography``) ->
    each tracker. The project's tracker gets the colour descriptors (embedding model
    ``colour``, thresholds from TrackerConfig's defaults); the two baselines get the
    positions only. Detections and descriptors are cached under ``--cache-dir``
@@ -95,6 +96,7 @@ if str(ROOT) not in sys.path:
 
 from benchmarks import quality_sim  # noqa: E402
 from common.runtime.progress import Bar, progress_bar  # noqa: E402
+from services.localizer.core import FloorHomography, foot_points  # noqa: E402
 from services.tracker.config import TrackerConfig  # noqa: E402
 from services.tracker.offline import Detections, Row, frame_stamps, read_detections, track_config  # noqa: E402
 from tools.evaluation.evaluate import evaluate_tables  # noqa: E402
@@ -405,9 +407,10 @@ def pets_settings() -> tuple[object, object]:
     return (DetectorConfig.model_validate({"backend": "hog", "hog": {"upsample": PETS_UPSAMPLE}}), EmbedderConfig())
 
 
-#: The code whose change invalidates the cached PETS detections and descriptors.
+#: The code whose change invalidates the cached PETS detections, descriptors and ground positions.
 PETS_CODE = ("services/detector/core", "services/detector/config.py", "services/embedder/core",
-             "services/embedder/config.py")
+             "services/embedder/config.py", "services/localizer/core/floor.py",
+             "services/localizer/core/homography.py")
 
 
 def pets_cache_key(root: Path) -> str:
@@ -436,10 +439,11 @@ def pets_cache_key(root: Path) -> str:
 
 
 def to_ground(H: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """(N, 2) ground-plane positions of the boxes' foot points (bottom centre) through ``H``."""
-    foot = np.column_stack([(boxes[:, 0] + boxes[:, 2]) / 2.0, boxes[:, 3], np.ones(len(boxes))])
-    g = foot @ H.T
-    return g[:, :2] / g[:, 2:3]
+    """(N, 2) ground-plane positions of the boxes' foot points (bottom centre) through ``H``:
+    the localizer's own foot point and floor homography (what ``perception localizer
+    --floor-homography`` does with a frame without depth, less its checks: no box is dropped)."""
+    pixels, _ = foot_points(boxes)
+    return FloorHomography(H).to_floor(pixels)[0]
 
 
 def detect_pets(root: Path, log: Callable[[str], None] = print) -> Detections:

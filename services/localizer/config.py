@@ -2,16 +2,19 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from common.messages.keys import validate_chunk
-from services.localizer.core import DepthNoiseModel, LocalizerParams
+from services.localizer.core import DepthNoiseModel, FloorParams, LocalizerParams
 
 __all__ = ["LocalizerConfig", "StaticTransformConfig"]
 
 #: The core's defaults: every default below that the core also has is taken from here,
 #: so it is written once, in the core (tests/unit/test_config_defaults.py checks they agree).
 _D = LocalizerParams()
+_F = FloorParams()
 
 
 class StaticTransformConfig(BaseModel):
@@ -73,6 +76,30 @@ class LocalizerConfig(BaseModel):
     )
     frame_buffer: int = Field(default=15, ge=1, le=600, description="recent depth frames kept for pairing")
     max_pending: int = Field(default=64, ge=1, le=10000, description="detections messages waiting at most")
+    floor_without_depth: bool = Field(
+        default=True, description="a frame without a depth image (an RGB-only camera): put each person on the floor "
+                                  "from the box's foot point (True), or drop the frame as frame_without_depth (False)")
+    floor_homography: Path | None = Field(
+        default=None, description='a JSON file {"H": 3x3, "image_size": [w, h]} mapping a foot pixel (u, v, 1) to the '
+                                  "floor (x, y, w) of floor_homography_frame (a fixed camera); None: the floor through "
+                                  "the camera's pose in target_frame")
+    floor_homography_frame: str = Field(
+        default="", description="the frame the homography's floor coordinates are in; empty: target_frame")
+    floor_z_m: float = Field(
+        default=_F.floor_z_m, ge=-100.0, le=100.0,
+        description="height of the floor plane in target_frame (in floor_homography_frame with a homography)")
+    centre_height_m: float = Field(
+        default=_F.centre_height_m, ge=0.0, le=3.0,
+        description="the floor paths report the point this far above the feet: the body centre, as the depth path")
+    centre_height_sigma_m: float = Field(
+        default=_F.centre_height_sigma_m, gt=0.0, le=2.0, description="standard deviation of that height (z variance)")
+    max_floor_range_m: float = Field(
+        default=_F.max_floor_range_m, gt=0.0, le=1000.0,
+        description="feet farther than this from the camera's point on the floor are rejected (beyond_floor_range)")
+    foot_sigma_u_px: float = Field(
+        default=_F.foot_sigma_u_px, gt=0.0, le=100.0, description="sigma of the foot point's column (box centre)")
+    foot_sigma_v_px: float = Field(
+        default=_F.foot_sigma_v_px, gt=0.0, le=100.0, description="sigma of the foot point's row (box bottom)")
     static_transforms: list[StaticTransformConfig] = Field(
         default_factory=list, description="extra static transforms, e.g. the camera mount"
     )
@@ -97,6 +124,22 @@ class LocalizerConfig(BaseModel):
         if not self.min_depth_m < self.max_depth_m:
             raise ValueError(f"min_depth_m ({self.min_depth_m}) must be below max_depth_m ({self.max_depth_m})")
         return self
+
+    @property
+    def floor_frame(self) -> str:
+        """The frame the floor homography's coordinates are in."""
+        return self.floor_homography_frame or self.target_frame
+
+    def floor_params(self) -> FloorParams:
+        """The floor paths' parameters (frames without depth)."""
+        return FloorParams(
+            floor_z_m=self.floor_z_m,
+            centre_height_m=self.centre_height_m,
+            centre_height_sigma_m=self.centre_height_sigma_m,
+            max_floor_range_m=self.max_floor_range_m,
+            foot_sigma_u_px=self.foot_sigma_u_px,
+            foot_sigma_v_px=self.foot_sigma_v_px,
+        )
 
     def params(self) -> LocalizerParams:
         """The core's parameters."""

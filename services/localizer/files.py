@@ -17,8 +17,9 @@ import yaml
 from common.runtime.cli_util import CliError
 from common.runtime.config import ConfigError, read_config_file
 from common.geometry.transforms import PinholeCamera, RigidTransform
+from services.localizer.core import FloorHomography
 
-__all__ = ["parse_transform", "read_camera_info", "read_depth", "read_transforms"]
+__all__ = ["parse_transform", "read_camera_info", "read_depth", "read_floor_homography", "read_transforms"]
 
 _MODELS = ("plumb_bob", "rational_polynomial", "equidistant", "none")
 
@@ -151,3 +152,19 @@ def read_transforms(path: Path) -> list[tuple[str, str, RigidTransform]]:
             )
         )
     return out
+
+
+def read_floor_homography(path: Path) -> FloorHomography:
+    """The floor homography of a JSON/YAML file ``{"H": 3x3 (or 9 numbers), "image_size": [width, height]}``
+    (``image_size`` optional; other fields, such as a description, are ignored)."""
+    data = _read_mapping(path, "floor homography")
+    if "H" not in data:
+        raise CliError(f'floor homography {path} has no "H" (a 3x3 matrix: foot pixel (u, v, 1) -> floor (x, y, w))')
+    try:
+        H = _matrix(data["H"], 3, 3, f"H in {path}")
+        size = data.get("image_size")
+        if size is not None and (not isinstance(size, (list, tuple)) or len(size) != 2):
+            raise ValueError(f"image_size must be [width, height], got {size!r}")
+        return FloorHomography(H, None if size is None else (int(size[0]), int(size[1])))
+    except (TypeError, ValueError) as exc:
+        raise CliError(f"floor homography {path}: {exc}") from exc

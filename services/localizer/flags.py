@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
 from common.runtime.node import add_node_arguments
+from services.localizer.config import LocalizerConfig
+from services.localizer.files import read_floor_homography
 
-__all__ = ["add_arguments", "overrides"]
+__all__ = ["add_arguments", "overrides", "prepare"]
 
 #: flag -> (setting, type, metavar, help)
 _FLAGS: dict[str, tuple[str, type, str | None, str]] = {
@@ -20,6 +23,14 @@ _FLAGS: dict[str, tuple[str, type, str | None, str]] = {
     "--min-depth": ("min_depth_m", float, "M", "nearest valid depth (default 0.3)"),
     "--max-depth": ("max_depth_m", float, "M", "farthest valid depth (default 10)"),
     "--transform-wait": ("transform_wait_s", float, "S", "how long to wait for a transform before dropping (default 0.25)"),
+    "--floor-homography": ("floor_homography", Path, "FILE", 'frames without depth: place people on the floor through '
+                           'this image-to-floor homography, JSON {"H": 3x3, "image_size": [w, h]} (a fixed camera; '
+                           "default: through the camera's pose in the target frame)"),
+    "--floor-homography-frame": ("floor_homography_frame", str, "FRAME",
+                                 "frame of the homography's floor coordinates (default: the target frame)"),
+    "--floor-z": ("floor_z_m", float, "M", "height of the floor plane (default 0)"),
+    "--max-floor-range": ("max_floor_range_m", float, "M",
+                          "frames without depth: farthest person kept, on the floor from the camera (default 10)"),
 }
 
 
@@ -32,3 +43,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def overrides(args: argparse.Namespace) -> dict[str, Any]:
     return {dest: getattr(args, dest, None) for dest, *_ in _FLAGS.values()}
+
+
+def prepare(config: LocalizerConfig) -> dict[str, Any]:
+    """Read the floor homography before the transport opens, so a bad file stops the node at once."""
+    if config.floor_homography is None:
+        return {}
+    return {"floor_homography": read_floor_homography(config.floor_homography)}

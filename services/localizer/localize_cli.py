@@ -1,30 +1,41 @@
-"""``perception localize``: localize the boxes of a detections file on depth images, print JSON."""
+"""``perception localize``: localize the boxes of a detections file on depth images (or on the
+floor, without them), print JSON."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from common.runtime.cli_util import CliError
 from common.runtime.detections_file import read_detection_lines
 from common.geometry.transforms import PinholeCamera, TransformBuffer, TransformError
+from common.geometry.transforms import RigidTransform
 from services.localizer.core import (
+    MISMATCH_TOLERANCE,
     DepthNoiseModel,
+    FloorParams,
     Localization,
     LocalizerParams,
+    camera_pose_from_homography,
     localize,
+    localize_on_floor,
+    localize_on_floor_homography,
 )
 from services.localizer.files import (
     parse_transform,
     read_camera_info,
     read_depth,
+    read_floor_homography,
     read_transforms,
 )
+
+log = logging.getLogger(__name__)
 
 DESCRIPTION = """\
 Localize the person boxes of a detections file on a depth image and print the 3-D
@@ -61,12 +72,23 @@ Output (one line per input line)
    "rejected": {reason: count}, "rejected_indices": {index: reason}}
 
 Without transforms, positions are in the camera frame; with transforms the target
-frame defaults to 'map' and must be reachable from the camera frame."""
+frame defaults to 'map' and must be reachable from the camera frame.
+
+Without --depth (an RGB-only camera) each person is put on the floor from the box's
+foot point (bottom centre), at --centre-height above it ("depth": null, "pixel" the
+foot point, "depth_m" its depth along the optical axis, "valid_pixels" 0):
+  --floor-homography FILE  through an image-to-floor homography, JSON
+                           {"H": 3x3, "image_size": [w, h]} (a fixed camera); the
+                           positions are in its floor frame, named --target-frame
+                           (default map); no transform is needed
+  otherwise                through the transforms, which must place the camera above
+                           the floor z = --floor-z of --target-frame (default map)"""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--depth", type=Path, required=True, metavar="DEPTH", help="depth image, or a directory of them"
+        "--depth", type=Path, default=None, metavar="DEPTH",
+        help="depth image, or a directory of them (leave out: people on the floor, see below)"
     )
     parser.add_argument("--camera-info", type=Path, required=True, metavar="CAM", help="CameraInfo JSON/YAML")
     parser.add_argument(
@@ -130,6 +152,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="PX",
         help=f"box-centre pixel sigma (default {d.noise.pixel_sigma_px:g})",
     )
+    f = FloorParams()
+    parser.add_argument("--floor-homography", type=Path, default=None, metavar="FILE",
+                        help='without --depth: the image-to-floor homography, JSON {"H": 3x3, "image_size": [w, h]}')
+    parser.add_argument("--floor-z", type=float, default=f.floor_z_m, metavar="M",
+                        help=f"without --depth: height of the floor plane (default {f.floor_z_m:g})")
+    parser.add_argument("--centre-height", type=float, default=f.centre_height_m, metavar="M",
+                        help=f"without --depth: the position is this far above the feet (default {f.centre_height_m:g})")
+    parser.add_argument("--max-floor-range", type=float, default=f.max_floor_range_m, metavar="M",
+                        help=f"without --depth: farthest feet kept, from the camera (default {f.max_floor_range_m:g})")
     parser.add_argument("--output", "-o", type=Path, default=None, help="write here instead of stdout")
 
 
@@ -143,6 +174,7 @@ def _boxes(item: dict[str, Any], where: str) -> tuple[np.ndarray, list[float]]:
 
 
 def _depth_for(args: argparse.Namespace, item: dict[str, Any], where: str) -> Path:
+    assert args.depth is not None
     if not args.depth.is_dir():
         return args.depth
     stem = Path(str(item.get("image", ""))).stem
@@ -154,37 +186,70 @@ def _depth_for(args: argparse.Namespace, item: dict[str, Any], where: str) -> Pa
 
 def _record(
     item: dict[str, Any],
-    depth_path: Path,
-    cam_loc: Localization,
+    depth_path: Path | None,
+    camera_frame: str,
+    positions_camera: np.ndarray,
     out: Localization,
     scores: list[float],
     boxes: np.ndarray,
 ) -> dict[str, Any]:
+    """One output line; ``positions_camera`` (M, 3) are ``out``'s positions in ``camera_frame``."""
     dets = []
     for k, i in enumerate(out.indices.tolist()):
+        depth_m = float(out.depth_m[k])
         dets.append(
             {
                 "index": i,
                 "bbox_xyxy": boxes[i].tolist(),
                 "score": scores[i],
                 "pixel": out.pixels[k].round(3).tolist(),
-                "depth_m": round(float(out.depth_m[k]), 4),
+                "depth_m": round(depth_m, 4) if np.isfinite(depth_m) else None,
                 "valid_pixels": int(out.valid_pixels[k]),
                 "position": out.positions[k].round(4).tolist(),
-                "position_camera": cam_loc.positions[k].round(4).tolist(),
+                "position_camera": positions_camera[k].round(4).tolist(),
                 "cov": out.covs[k].round(8).tolist(),
                 "body_center_z": round(float(out.positions[k, 2]), 4),
             }
         )
     return {
         "image": item.get("image"),
-        "depth": str(depth_path),
+        "depth": None if depth_path is None else str(depth_path),
         "frame_id": out.frame,
-        "camera_frame": cam_loc.frame,
+        "camera_frame": camera_frame,
         "detections": dets,
         "rejected": out.rejected_counts(),
         "rejected_indices": {str(i): r for i, r in out.rejected.items()},
     }
+
+
+#: boxes (N, 4) -> (those boxes on the floor, the camera's pose in their frame)
+_Place = Callable[[np.ndarray], tuple[Localization, RigidTransform]]
+
+
+def _floor(args: argparse.Namespace, camera: PinholeCamera, camera_frame: str, target: str, to_target: RigidTransform
+           ) -> tuple[str, _Place]:
+    """Without --depth: ``(frame, place)``, ``place(boxes)`` -> (the boxes on the floor, the camera's pose in frame)."""
+    try:
+        params = FloorParams(floor_z_m=args.floor_z, centre_height_m=args.centre_height,
+                             max_floor_range_m=args.max_floor_range)
+    except ValueError as exc:
+        raise CliError(str(exc)) from exc
+    if args.floor_homography is None:
+        if target == camera_frame:
+            raise CliError("without --depth, give --floor-homography, or the transforms that place the camera above "
+                           "the floor of --target-frame (--transform PARENT:CHILD:X,Y,Z:QX,QY,QZ,QW)")
+        return target, lambda boxes: (localize_on_floor(camera, to_target, boxes, params, frame=target), to_target)
+    try:
+        hom = read_floor_homography(args.floor_homography).for_image(camera.width, camera.height)
+    except ValueError as exc:
+        raise CliError(f"--floor-homography: {exc}") from exc
+    pose = camera_pose_from_homography(hom, camera.K, params.floor_z_m)
+    if not pose.mismatch <= MISMATCH_TOLERANCE:
+        log.warning("the camera info's K does not fit the floor homography (mismatch %.2f): the ranges, depths and "
+                    "camera-frame positions are rough", pose.mismatch)
+    frame = args.target_frame or "map"
+    return frame, lambda boxes: (localize_on_floor_homography(hom, boxes, params, camera.width, camera.height, pose,
+                                                              frame=frame), pose.camera_to_floor)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -203,32 +268,48 @@ def main(args: argparse.Namespace) -> int:
     camera_frame = args.camera_frame or info_frame
     edges = [parse_transform(s) for s in args.transform] + (read_transforms(args.transforms) if args.transforms else [])
     buffer = TransformBuffer()
+    on_floor = args.depth is None
     try:
         for parent, child, tf in edges:
             buffer.set_transform(parent, child, 0, tf, static=True)
-        target = args.target_frame or ("map" if edges else camera_frame)
-        to_target = buffer.lookup(target, camera_frame, None)
+        target = args.target_frame or ("map" if edges or on_floor else camera_frame)
+        to_target = RigidTransform.identity()
+        if not (on_floor and args.floor_homography is not None):
+            to_target = buffer.lookup(target, camera_frame, None)
     except (TransformError, ValueError) as exc:
-        raise CliError(f"{exc} (give it with --transform PARENT:CHILD:X,Y,Z:QX,QY,QZ,QW or --transforms FILE)") from exc
+        hint = "give it with --transform PARENT:CHILD:X,Y,Z:QX,QY,QZ,QW or --transforms FILE"
+        if on_floor:
+            hint += "; without --depth the transforms place the camera above the floor, or give --floor-homography"
+        raise CliError(f"{exc} ({hint})") from exc
+    if on_floor:
+        target, place = _floor(args, camera, camera_frame, target, to_target)
     out_stream = args.output.open("w") if args.output else sys.stdout
     try:
         for n, item in read_detection_lines(args.detections):
             where = f"{args.detections}:{n}"
-            depth_path = _depth_for(args, item, where)
-            depth = read_depth(depth_path)
-            _check_size(camera, depth, item, where, depth_path)
             boxes, scores = _boxes(item, where)
-            cam_loc = localize(depth, camera, boxes, params, frame=camera_frame)
-            out = cam_loc.transformed(to_target, target)
-            out_stream.write(json.dumps(_record(item, depth_path, cam_loc, out, scores, boxes)) + "\n")
+            if on_floor:
+                _check_size(camera, None, item, where, None)
+                out, cam_to_frame = place(boxes)
+                record = _record(item, None, camera_frame, cam_to_frame.inverse().apply(out.positions), out,
+                                 scores, boxes)
+            else:
+                depth_path = _depth_for(args, item, where)
+                depth = read_depth(depth_path)
+                _check_size(camera, depth, item, where, depth_path)
+                cam_loc = localize(depth, camera, boxes, params, frame=camera_frame)
+                out = cam_loc.transformed(to_target, target)
+                record = _record(item, depth_path, camera_frame, cam_loc.positions, out, scores, boxes)
+            out_stream.write(json.dumps(record) + "\n")
     finally:
         if args.output:
             out_stream.close()
     return 0
 
 
-def _check_size(camera: PinholeCamera, depth: np.ndarray, item: dict[str, Any], where: str, depth_path: Path) -> None:
-    if depth.shape != (camera.height, camera.width):
+def _check_size(camera: PinholeCamera, depth: np.ndarray | None, item: dict[str, Any], where: str,
+                depth_path: Path | None) -> None:
+    if depth is not None and depth.shape != (camera.height, camera.width):
         raise CliError(
             f"depth image {depth_path} is {depth.shape[1]}x{depth.shape[0]}, "
             f"the camera info says {camera.width}x{camera.height}"

@@ -13,7 +13,9 @@ DESCRIPTION = """\
 Place each detected person in the map frame: for every box of a Detections message,
 take the 25th percentile of the valid depth pixels inside the box of the matching
 depth frame, cast the ray through the box centre to that depth, and transform the
-point (with its covariance) to --target-frame at the frame's time.
+point (with its covariance) to --target-frame at the frame's time. A frame without a
+depth image (an RGB-only camera) puts each person on the floor instead, from the box's
+foot point: through the camera's pose in --target-frame, or through --floor-homography.
 
 Subscribes to frames/{camera}, detections/{camera}, tf and tf_static; publishes
 LocalizedDetections on localized/{camera}. With --stream NAME (a second detector on the
@@ -26,4 +28,4 @@ add_arguments = flags.add_arguments
 
 
 def main(args: argparse.Namespace) -> int:
-    return run_node(args, "localizer", LocalizerConfig, flags.overrides(args), LocalizerService)
+    return run_node(args, "localizer", LocalizerConfig, flags.overrides(args), LocalizerService, prepare=flags.prepare)

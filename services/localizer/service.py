@@ -1,4 +1,9 @@
-"""LocalizerService: Detections + depth frames + transforms -> LocalizedDetections in the map frame.
+"""LocalizerService: Detections + frames + transforms -> LocalizedDetections in the map frame.
+
+A frame with a depth image places each box at its depth (:func:`~services.localizer.core.localize`);
+a frame without one (an RGB-only camera) puts each person on the floor from the box's foot
+point, through the camera's pose in the target frame or, for a fixed camera, through the
+``floor_homography`` (:mod:`services.localizer.core.floor`, :mod:`~services.localizer.core.homography`).
 
 Inputs (``keys`` of one robot, one camera):
 
@@ -6,7 +11,7 @@ Inputs (``keys`` of one robot, one camera):
   latest-only ring: the Detections of a frame arrive after the detector has worked on
   it, by which time newer frames have come in, so a latest-only subscription would
   almost never still hold the matching frame. Only the depth image and camera info are
-  kept, the last ``frame_buffer`` of them.
+  kept (the depth image may be absent), the last ``frame_buffer`` of them.
 * ``detections/{camera}`` Detections, joined with their frame on ``Header.join_key`` by
   a :class:`common.runtime.join.Joiner`.
 * ``tf`` and ``tf_static`` TransformBatch, into a :class:`TransformBuffer`.
@@ -53,7 +58,16 @@ from common.messages.schemas import (
 )
 from common.transport.base import Transport
 from services.localizer.config import LocalizerConfig
-from services.localizer.core import localize
+from services.localizer.core import (
+    MISMATCH_TOLERANCE,
+    FloorHomography,
+    Localization,
+    camera_pose_from_homography,
+    localize,
+    localize_on_floor,
+    localize_on_floor_homography,
+)
+from services.localizer.files import read_floor_homography
 
 __all__ = ["LocalizerService"]
 
@@ -61,7 +75,7 @@ log = logging.getLogger(__name__)
 
 
 @dataclass
-class _DepthFrame:
+class _Frame:
     depth: Image | None
     camera: PinholeCamera
     camera_frame: str
@@ -77,11 +91,16 @@ class LocalizerService(Node):
     name = "localizer"
 
     def __init__(
-        self, transport: Transport, keys: Keys, config: LocalizerConfig, counters: Counters | None = None
+        self, transport: Transport, keys: Keys, config: LocalizerConfig, counters: Counters | None = None,
+        floor_homography: FloorHomography | None = None,
     ) -> None:
         super().__init__(transport, keys, counters)
         self.config = config
         self.params = config.params()
+        self.floor = config.floor_params()
+        if floor_homography is None and config.floor_homography is not None:
+            floor_homography = read_floor_homography(config.floor_homography)
+        self.homography = floor_homography
         self.buffer = TransformBuffer(history_s=config.tf_history_s, tolerance_s=config.tf_tolerance_s)
         for st in config.static_transforms:
             self.buffer.set_transform(
@@ -121,7 +140,7 @@ class LocalizerService(Node):
         while (got := self.sub_frames.try_recv()) is not None:
             f = got.msg
             camera_frame = f.camera_info.header.frame_id or f.header.frame_id or self.config.camera_frame
-            frame = _DepthFrame(f.depth, camera_from_info(f.camera_info), camera_frame)
+            frame = _Frame(f.depth, camera_from_info(f.camera_info), camera_frame)
             self._dropped(self.join.add("frame", f.header.join_key, frame, now))
 
     def _take_detections(self, now: float) -> None:
@@ -147,16 +166,19 @@ class LocalizerService(Node):
     def _try(self, item: Joined[Detections], now: float) -> tuple[bool, LocalizedDetections | None]:
         """(done, message to publish). Not done means: wait for the transform."""
         h = item.anchor.header
-        frame: _DepthFrame = item.items["frame"]
+        frame: _Frame = item.items["frame"]
         key = h.join_key
-        if frame.depth is None:
-            self._drop("frame_without_depth", "frame %s has no depth image", key)
+        on_floor = frame.depth is None
+        if on_floor and not self.config.floor_without_depth:
+            self._drop("frame_without_depth", "frame %s has no depth image (floor_without_depth is off)", key)
             return True, None
-        if not frame.camera_frame:
+        # a homography's floor is in its own frame, any other position comes from the camera's
+        source = self.config.floor_frame if on_floor and self.homography is not None else frame.camera_frame
+        if not source:
             self._drop("no_camera_frame", "frame %s names no camera frame id (set camera_frame)", key)
             return True, None
         try:
-            tf = self.buffer.lookup(self.config.target_frame, frame.camera_frame, h.stamp_ns)
+            tf = self.buffer.lookup(self.config.target_frame, source, h.stamp_ns)
         except (MissingTransformError, ExtrapolationError) as exc:
             never = isinstance(exc, ExtrapolationError) and not exc.future
             if not never and now - item.arrived < self.config.transform_wait_s:
@@ -165,28 +187,68 @@ class LocalizerService(Node):
             return True, None
         return True, self._localize(item.anchor, frame, tf)
 
-    def _localize(self, msg: Detections, frame: _DepthFrame, tf: RigidTransform) -> LocalizedDetections | None:
+    def _size_mismatch(self, msg: Detections, width: int, height: int, what: str) -> bool:
+        """Whether the detections are for another image size than ``width`` x ``height`` (dropped and counted)."""
+        w, h = msg.image_width, msg.image_height
+        if (w and w != width) or (h and h != height):
+            self._drop("size_mismatch", "detections are for a %dx%d image, %s is %dx%d", w, h, what, width, height)
+            return True
+        return False
+
+    def _on_depth(self, msg: Detections, frame: _Frame, boxes: np.ndarray, tf: RigidTransform
+                  ) -> tuple[Localization, CameraView | None] | None:
+        """The boxes at their depth, in the target frame, and the camera's view; None when dropped."""
         assert frame.depth is not None
         try:
             depth = frame.depth.to_array()
         except ValueError as exc:
             self._drop("bad_depth", "depth image of seq %d cannot be decoded: %s", msg.header.seq, exc)
             return None
-        w, h = msg.image_width, msg.image_height
-        if (w and w != depth.shape[1]) or (h and h != depth.shape[0]):
-            self._drop(
-                "size_mismatch",
-                "detections are for a %dx%d image, depth is %dx%d",
-                w,
-                h,
-                depth.shape[1],
-                depth.shape[0],
-            )
+        if self._size_mismatch(msg, depth.shape[1], depth.shape[0], "depth"):
             return None
+        loc = localize(depth, frame.camera, boxes, self.params, frame=frame.camera_frame)
+        return loc.transformed(tf, self.config.target_frame), self._view(frame.camera, tf, self.params.max_depth_m)
+
+    def _on_floor(self, msg: Detections, frame: _Frame, boxes: np.ndarray, tf: RigidTransform
+                  ) -> tuple[Localization, CameraView | None] | None:
+        """The boxes on the floor (no depth image), in the target frame, and the camera's view; None when
+        dropped. ``tf`` maps the camera frame (without a homography) or the homography's frame into the target."""
+        cam, target, p = frame.camera, self.config.target_frame, self.floor
+        if self._size_mismatch(msg, cam.width, cam.height, "the camera"):
+            return None
+        if self.homography is None:
+            loc, cam_to_target = localize_on_floor(cam, tf, boxes, p, frame=target), tf
+        else:
+            try:
+                hom = self.homography.for_image(cam.width, cam.height)
+            except ValueError as exc:
+                self._drop("homography_size_mismatch", "frame seq %d: %s", msg.header.seq, exc)
+                return None
+            pose = camera_pose_from_homography(hom, cam.K, p.floor_z_m)
+            loc = localize_on_floor_homography(hom, boxes, p, cam.width, cam.height, pose, frame=self.config.floor_frame)
+            loc, cam_to_target = loc.transformed(tf, target), tf @ pose.camera_to_floor
+            if not pose.mismatch <= MISMATCH_TOLERANCE:
+                # the positions come from the homography alone; the camera's pose (range, depth, view) is unsure
+                self.counters.count("homography_intrinsics_mismatch")
+                self._log.warning("homography_intrinsics_mismatch", "the camera's K does not fit the floor homography "
+                                  "(mismatch %.2f > %.2f): ranges and depths are rough, no view is sent",
+                                  pose.mismatch, MISMATCH_TOLERANCE)
+                return loc, None
+        height = float(cam_to_target.translation[2]) - p.floor_z_m - p.centre_height_m
+        return loc, self._view(cam, cam_to_target, float(np.hypot(p.max_floor_range_m, height)))
+
+    @staticmethod
+    def _view(cam: PinholeCamera, cam_to_target: RigidTransform, max_range_m: float) -> CameraView:
+        return CameraView(camera_to_frame=cam_to_target.matrix, K=cam.K, width=cam.width, height=cam.height,
+                          max_range_m=max_range_m)
+
+    def _localize(self, msg: Detections, frame: _Frame, tf: RigidTransform) -> LocalizedDetections | None:
         dets = msg.detections
         boxes = np.array([d.bbox_xyxy for d in dets], dtype=np.float64).reshape(-1, 4)
-        loc = localize(depth, frame.camera, boxes, self.params, indices=np.arange(len(dets)), frame=frame.camera_frame)
-        out = loc.transformed(tf, self.config.target_frame)
+        got = self._on_depth(msg, frame, boxes, tf) if frame.depth is not None else self._on_floor(msg, frame, boxes, tf)
+        if got is None:
+            return None
+        out, view = got
         entries = []
         for k, i in enumerate(out.indices):
             d = dets[int(i)]
@@ -201,10 +263,12 @@ class LocalizerService(Node):
                     valid_pixels=int(out.valid_pixels[k]),
                 )
             )
-        rejected = loc.rejected_counts()
+        rejected = out.rejected_counts()
         for reason, n in rejected.items():
             self.counters.count(f"rejected_{reason}", n)
         self.counters.count("boxes_localized", len(entries))
+        if frame.depth is None:
+            self.counters.count("boxes_on_floor", len(entries))
         header = Header(
             stamp_ns=msg.header.stamp_ns,
             frame_id=self.config.target_frame,
@@ -213,9 +277,6 @@ class LocalizerService(Node):
             # camera's join keys downstream (the tracker fuses both)
             source=self.config.stream or msg.header.source,
         )
-        cam = frame.camera
-        view = CameraView(camera_to_frame=tf.matrix, K=cam.K, width=cam.width, height=cam.height,
-                          max_range_m=self.params.max_depth_m)
         return LocalizedDetections(
             header=header, camera_frame=frame.camera_frame, detections=entries, rejected=rejected, view=view,
             detector=msg.detector,

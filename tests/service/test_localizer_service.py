@@ -9,45 +9,20 @@ import time
 import numpy as np
 import pytest
 
-from common.messages.keys import RELIABLE, Keys
 from common.transport.memory import MemoryBus
-from common.runtime.service import Counters, Shutdown
+from common.runtime.service import Shutdown
 from common.messages.schemas import (
-    Detections,
     Header,
-    LocalizedDetections,
-    RGBDFrame,
     Transform,
     TransformBatch,
 )
-from common.transport.base import Transport
 from services.localizer.config import LocalizerConfig, StaticTransformConfig
-from services.localizer.service import LocalizerService
 from tests.fixtures import localizer_scene as scene
 from tests.fixtures.localizer_scene import T0, S
 from tests.fixtures.localizer_synthetic import Person
+from tests.helpers.localizer_rig import Rig
 
-KEYS = Keys()
 PEOPLE = [Person((0.3, 0.1, 2.5)), Person((-1.2, 0.0, 4.0))]
-
-
-class Rig:
-    """A localizer on a memory bus, plus a client transport playing robot, camera and detector."""
-
-    def __init__(self, bus: MemoryBus, **config: object) -> None:
-        self.counters = Counters()
-        self.service = LocalizerService(bus.transport(), KEYS, LocalizerConfig(**config), self.counters)
-        self.client: Transport = bus.transport()
-        self.frames = self.client.publisher(KEYS.frames("head"), RGBDFrame, RELIABLE)
-        self.dets = self.client.publisher(KEYS.detections("head"), Detections, RELIABLE)
-        self.tf = self.client.publisher(KEYS.tf(), TransformBatch, RELIABLE)
-        self.tf_static = self.client.publisher(KEYS.tf_static(), TransformBatch, RELIABLE)
-        self.out = self.client.subscribe(KEYS.localized("head"), LocalizedDetections, RELIABLE)
-
-    def robot(self, stamp_ns: int) -> None:
-        self.tf_static.put(scene.tf_static())
-        self.tf.put(scene.tf(stamp_ns - S // 10))
-        self.tf.put(scene.tf(stamp_ns + S // 10))
 
 
 def test_localizes_in_the_map_frame(memory_bus: MemoryBus) -> None:
@@ -171,14 +146,16 @@ def test_transform_older_than_history_is_dropped_at_once(memory_bus: MemoryBus) 
 
 
 @pytest.mark.parametrize(
-    ("make_frame", "reason"),
+    ("make_frame", "config", "reason"),
     [
-        (lambda: scene.frame(1, PEOPLE, with_depth=False), "frame_without_depth"),
-        (lambda: scene.frame(1, PEOPLE, frame_id=""), "no_camera_frame"),
+        (lambda: scene.frame(1, PEOPLE, with_depth=False), {"floor_without_depth": False}, "frame_without_depth"),
+        (lambda: scene.frame(1, PEOPLE, frame_id=""), {}, "no_camera_frame"),
+        (lambda: scene.frame(1, PEOPLE, frame_id="", with_depth=False), {}, "no_camera_frame"),
     ],
 )
-def test_unusable_frames_are_counted(memory_bus: MemoryBus, make_frame: object, reason: str) -> None:
-    rig = Rig(memory_bus)
+def test_unusable_frames_are_counted(memory_bus: MemoryBus, make_frame: object, config: dict[str, object],
+                                     reason: str) -> None:
+    rig = Rig(memory_bus, **config)
     f = make_frame()  # type: ignore[operator]
     rig.robot(f.header.stamp_ns)
     rig.frames.put(f)

@@ -78,6 +78,7 @@ def test_localizer_defaults() -> None:
     params = LocalizerConfig().params()
     assert differences(params) == {}
     assert differences(params.noise) == {}
+    assert differences(LocalizerConfig().floor_params()) == {}
     assert params.noise == DepthNoiseModel() and params == LocalizerParams()
 
 

@@ -11,6 +11,7 @@ import pytest
 
 from common.geometry.transforms import PinholeCamera, RigidTransform
 from perception.cli import main
+from services.localizer.core import homography_from_camera
 from tests.fixtures.localizer_synthetic import Person, person_box, render_depth
 
 K = [525.0, 0.0, 319.5, 0.0, 525.0, 239.5, 0.0, 0.0, 1.0]
@@ -148,3 +149,57 @@ def test_service_rejects_bad_settings_at_start(tmp_path: Path, capsys: pytest.Ca
     cfg.write_text("localizer:\n  typo_field: 1\n")
     assert main(["localizer", "--service-config", str(cfg)]) == 2
     assert "typo_field" in capsys.readouterr().err
+    missing = tmp_path / "missing.json"
+    assert main(["localizer", "--floor-homography", str(missing), "--connect", "tcp/127.0.0.1:1"]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------- without depth
+
+
+def floor_setup(tmp_path: Path, feet: np.ndarray) -> tuple[Path, Path, PinholeCamera, RigidTransform]:
+    """A pinhole camera mounted as MOUNT (1.2 m up, looking along base_link's x) and a detections
+    file whose boxes stand on ``feet`` (N, 3) of base_link, plus a box cut off by the lower edge."""
+    cam = PinholeCamera(np.array(K).reshape(3, 3), 640, 480)
+    mount = RigidTransform.from_quat(np.array([0.1, 0, 1.2]), np.array([-0.5, 0.5, -0.5, 0.5]))
+    px = cam.project(mount.inverse().apply(feet))
+    boxes = [[u - 20, v - 150, u + 20, v] for u, v in px.tolist()] + [[100, 300, 160, 480]]
+    (tmp_path / "cam.json").write_text(json.dumps({"width": 640, "height": 480, "K": K, "frame_id": "camera"}))
+    line = {"image": "f0001.jpg", "width": 640, "height": 480, "detections": [{"bbox_xyxy": b} for b in boxes]}
+    (tmp_path / "dets.jsonl").write_text(json.dumps(line) + "\n")
+    return tmp_path / "cam.json", tmp_path / "dets.jsonl", cam, mount
+
+
+def test_without_depth_through_the_transforms(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    feet = np.array([[3.0, 0.5, 0.0], [6.0, -1.0, 0.0]])
+    cam, dets, _, mount = floor_setup(tmp_path, feet)
+    code, [line], _ = run(capsys, "localize", "--camera-info", str(cam), "--detections", str(dets),
+                          "--transform", MOUNT, "--target-frame", "base_link")
+    assert code == 0 and line["depth"] is None and line["frame_id"] == "base_link"
+    assert line["rejected"] == {"foot_outside_image": 1}
+    got = [d["position"] for d in line["detections"]]
+    assert np.allclose(got, feet + [0.0, 0.0, 0.9], atol=1e-3)
+    assert np.allclose([d["position_camera"] for d in line["detections"]],
+                       mount.inverse().apply(feet + [0.0, 0.0, 0.9]), atol=1e-3)
+    assert [d["valid_pixels"] for d in line["detections"]] == [0, 0]
+    # without transforms there is no floor to put them on
+    code, _, err = run(capsys, "localize", "--camera-info", str(cam), "--detections", str(dets))
+    assert code == 2 and "--floor-homography" in err
+
+
+def test_without_depth_through_a_homography(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    feet = np.array([[3.0, 0.5, 0.0], [6.0, -1.0, 0.0]])
+    cam_path, dets, cam, mount = floor_setup(tmp_path, feet)
+    hom = homography_from_camera(cam, mount)
+    (tmp_path / "h.json").write_text(json.dumps({"H": hom.H.tolist(), "image_size": [640, 480]}))
+    code, [line], _ = run(capsys, "localize", "--camera-info", str(cam_path), "--detections", str(dets),
+                          "--floor-homography", str(tmp_path / "h.json"), "--max-floor-range", "5")
+    assert code == 0 and line["frame_id"] == "map"
+    assert line["rejected"] == {"foot_outside_image": 1, "beyond_floor_range": 1}
+    [d] = line["detections"]
+    assert np.allclose(d["position"], feet[0] + [0.0, 0.0, 0.9], atol=1e-3)
+    assert d["depth_m"] == pytest.approx(mount.inverse().apply(feet[0])[2], abs=1e-3)
+    (tmp_path / "h.json").write_text(json.dumps({"H": hom.H.tolist(), "image_size": [640, 360]}))
+    code, _, err = run(capsys, "localize", "--camera-info", str(cam_path), "--detections", str(dets),
+                       "--floor-homography", str(tmp_path / "h.json"))
+    assert code == 2 and "another aspect ratio" in err

@@ -16,8 +16,12 @@ REASON_FIX: dict[str, str] = {
     "no_transform": "the transform from the camera to the map is missing at the frames' stamps: see the Transforms lines",
     "no_depth_frame": "the depth frame of the detections never arrived or was evicted: raise the localizer's "
                       "frame_buffer, or check the frames' rate",
-    "frame_without_depth": "the frames carry no depth image: enable the camera's depth stream",
-    "size_mismatch": "detections are for another image size than the depth: register depth to the colour image",
+    "frame_without_depth": "the frames carry no depth image and the localizer's floor_without_depth is off: enable "
+                           "the camera's depth stream, or turn floor_without_depth on to put people on the floor",
+    "size_mismatch": "detections are for another image size than the depth (or, without depth, the camera info): "
+                     "register depth to the colour image",
+    "homography_size_mismatch": "the frames have another aspect ratio than the floor homography's image_size: fit "
+                                "the homography on this camera's images",
     "bad_depth": "the depth image cannot be decoded: send 16UC1 millimetres or 32FC1 metres",
     "no_camera_frame": "the frames name no frame_id: set the driver's frame id or the localizer's camera_frame",
     "pending_overflow": "too many detections wait for depth or transforms: a stage is far behind",

@@ -1,6 +1,6 @@
 """Tracking quality: this project's tracker side by side with two plain trackers, on the same data.
 
-    python benchmarks/quality.py [--quick] [--only kitti,pets,sim] [--json FILE] [--cache-dir DIR] [--data DIR]
+    python benchmarks/quality.py [--quick] [--only kitti,pets,pets-live,sim] [--json FILE] [--cache-dir DIR] [--data DIR]
                                  [--scenarios NAME,...] [--sim-seconds S] [--refresh-sim]
 
 Trackers (each takes a :class:`~services.tracker.offline.Detections` object and returns
@@ -501,6 +501,30 @@ def pets_detections(root: Path, cache_dir: Path, log: Callable[[str], None] = pr
     return dets
 
 
+def pets_live_section(root: Path, cache_dir: Path) -> str:
+    """The same 400 frames through the live services (benchmarks/pets_live.py), beside the offline chain."""
+    import importlib.util
+    import tempfile
+
+    spec = importlib.util.spec_from_file_location("benchmarks_pets_live", ROOT / "benchmarks" / "pets_live.py")
+    assert spec is not None and spec.loader is not None
+    live_mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = live_mod
+    spec.loader.exec_module(live_mod)
+    n = len(list((root / "frames").glob("frame_*.jpg")))
+    lines = ["### PETS09-S2L1 frames 1-%d through the live services (robust), beside the offline chain" % n, "",
+             "| chain | MOTA | IDF1 | IDSW | frames/s |", "|---|---|---|---|---|"]
+    offline = live_mod.judge(root, n, live_mod.run_offline(root, n, cache_dir))
+    lines.append(f"| offline (this section's PETS table) | {offline.mota:.3f} | {offline.idf1:.3f} | {offline.id_switches} | |")
+    for label, env in (("live, tracker as offline (fixed R)", live_mod.LIKE_OFFLINE),
+                       ("live, defaults (R from the floor homography)", {})):
+        with tempfile.TemporaryDirectory() as tmp:
+            run = live_mod.run_live(root, n, Path(tmp), env=env)
+        r = live_mod.judge(root, n, run.rows)
+        lines.append(f"| {label} | {r.mota:.3f} | {r.idf1:.3f} | {r.id_switches} | {run.fps:.1f} |")
+    return "\n".join(lines)
+
+
 def load_pets(root: Path, cache_dir: Path, log: Callable[[str], None] = print) -> list[Sequence]:
     """One sequence: HOG+colour detections, ground truth (conf 1 rows) and its conf 0 rows as ignore."""
     gt = np.loadtxt(root / "gt.txt", delimiter=",", ndmin=2)
@@ -646,7 +670,7 @@ def score_dict(s: Score) -> dict[str, object]:
             "frames_per_s": s.fps}
 
 
-DATASETS = ("kitti", "pets", "sim")
+DATASETS = ("kitti", "pets", "pets-live", "sim")
 SIM_QUICK_SECONDS = 10.0
 
 
@@ -730,6 +754,9 @@ def main(argv: list[str] | None = None) -> int:
         print("(the project's tracker uses the colour descriptors; kalman-baseline and norfair positions only)\n")
     else:
         print(f"PETS09 skipped: {pets} not found\n")
+
+    if "pets-live" in args.only and not args.quick and pets.is_dir():
+        print(pets_live_section(pets, args.cache_dir) + "\n")
 
     sim: dict[str, object] = {}
     if "sim" not in args.only:

@@ -38,8 +38,8 @@ def open_source(config: CameraConfig) -> Source:
     if config.backend == "realsense":
         from services.camera.core.realsense import RealSenseSource
 
-        return RealSenseSource(file=config.source or None, serial=config.serial or None, width=config.width,
-                               height=config.height, fps=int(config.fps))
+        return RealSenseSource(config.source, serial=config.serial, width=config.width, height=config.height,
+                               fps=config.fps)
     from services.camera.core.opencv import OpenCvSource
 
     return OpenCvSource(config.source, fps=config.fps, width=config.width, height=config.height)

@@ -47,14 +47,14 @@ def _video(path: Path, seconds: float, codec: str) -> None:
     writer.release()
 
 
-def run(video: Path, seconds: float) -> float:
+def run(video: Path, seconds: float, extra: tuple[str, ...] = ()) -> float:
     router = RouterProcess(log_path=str(video.with_suffix(".router.log"))).start()
     keys = Keys(robot="bench")
     try:
         t = open_transport(ZenohOptions(mode="client", connect=[router.endpoint]))
         sub = t.subscribe(keys.frames("head"), None, Delivery(latest=True, queue=1, congestion="drop"))
         proc = subprocess.Popen([sys.executable, "-m", "perception", "-q", "camera", str(video), "--robot", "bench",
-                                 "--connect", router.endpoint, "--hfov", "69"],
+                                 "--connect", router.endpoint, "--hfov", "69", *extra],
                                 env={**os.environ, "RUST_LOG": "error", "OPENBLAS_NUM_THREADS": "1"})
         while sub.recv(timeout=0.1) is None:  # started: its first frame is here
             assert proc.poll() is None, "the camera process stopped"
@@ -77,9 +77,11 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         video = Path(tmp) / ("clip.avi" if args.codec == "MJPG" else "clip.mp4")
         _video(video, args.seconds, args.codec)
-        cpus = [run(video, args.seconds) for _ in range(args.runs)]
-    print(f"perception camera, 640x480 {args.codec} file at 30 fps: {', '.join(f'{c:.1f}' for c in cpus)} % of one "
-          f"core (median {np.median(cpus):.1f} %)")
+        for label, extra in (("JPEG frames passed on", ()), ("decoded, sent raw (--service-config passthrough: false)",
+                                                            ("--no-passthrough",))):
+            cpus = [run(video, args.seconds, extra) for _ in range(args.runs)]
+            print(f"perception camera, 640x480 {args.codec} file at 30 fps, {label}: "
+                  f"{', '.join(f'{c:.1f}' for c in cpus)} % of one core (median {np.median(cpus):.1f} %)")
     return 0
 
 

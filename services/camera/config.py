@@ -46,6 +46,9 @@ class CameraConfig(BaseModel):
                                                                   "start); frame k is start + (k - 1) / fps")
     retry_initial_s: float = Field(default=0.5, gt=0.0, description="a lost live stream: the first wait before reopening")
     retry_max_s: float = Field(default=10.0, gt=0.0, description="... doubling up to this")
+    passthrough: bool = Field(default=True, description="opencv: a folder's JPEG files and an MJPG video's frames go "
+                                                         "out as the JPEGs they are, undecoded (the receivers decode "
+                                                         "them); false: decoded and sent raw")
     jpeg_quality: int = Field(default=0, ge=0, le=100,
                               description="publish colour as JPEG of this quality (0: raw rgb8, the default)")
 

@@ -32,6 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     pace.add_argument("--rate", type=float, default=None, help="a file's speed relative to real time (default 1)")
     pace.add_argument("--max", dest="pace", action="store_const", const="max", default=None,
                       help="a file: each frame once the detector has answered the previous one")
+    g.add_argument("--no-passthrough", dest="passthrough", action="store_const", const=False, default=None,
+                   help="decode JPEG files and MJPG videos here and send raw pixels (default: pass the JPEGs on)")
     g.add_argument("--loop", action="store_const", const=True, default=None, help="a file starts again at its end")
     g.add_argument("--start-ns", dest="start_ns", type=int, default=None,
                    help="a file's first stamp (default: now); frame k is start + (k - 1) / fps")
@@ -40,7 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def overrides(args: argparse.Namespace) -> dict[str, Any]:
     names = ("source", "backend", "serial", "camera", "frame_id", "width", "height", "fps", "camera_info", "hfov_deg",
-             "rate", "pace", "loop", "start_ns")
+             "rate", "pace", "loop", "start_ns", "passthrough")
     return {n: getattr(args, n) for n in names}
 
 

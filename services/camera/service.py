@@ -42,7 +42,8 @@ def open_source(config: CameraConfig) -> Source:
                                fps=config.fps)
     from services.camera.core.opencv import OpenCvSource
 
-    return OpenCvSource(config.source, fps=config.fps, width=config.width, height=config.height)
+    return OpenCvSource(config.source, fps=config.fps, width=config.width, height=config.height,
+                        passthrough=config.passthrough)
 
 
 class CameraService(Node):
@@ -107,6 +108,11 @@ class CameraService(Node):
             seq = self._seq
             stamp = cap.stamp_ns if cap.stamp_ns is not None else self._wall()
         header = Header(stamp_ns=stamp, frame_id=self.config.optical_frame, seq=seq, source=self.config.camera)
+        if cap.jpeg is not None and cap.size is not None:
+            h, w = cap.size
+            rgb = Image(header=header, encoding="jpeg", dtype="uint8", shape=(h, w, 3), data=cap.jpeg)
+            return RGBDFrame(header=header, rgb=rgb, depth=None, camera_info=self._camera_info(header, w, h))
+        assert cap.rgb is not None
         h, w = cap.rgb.shape[:2]
         if self.config.jpeg_quality:
             pixels = cap.rgb[..., ::-1] if cap.order == "bgr8" else cap.rgb

@@ -54,8 +54,27 @@ def test_a_video_file_plays_with_its_own_rate(tmp_path: Path) -> None:
     while (c := src.read()) is not None:
         frames.append(c)
     assert [c.index for c in frames] == list(range(1, 9))
-    assert abs(int(frames[3].rgb.mean()) - 90) <= 3
+    # an MJPG video's frames pass on as the JPEGs they are: the receivers decode them
+    assert frames[3].rgb is None and frames[3].size == (48, 64) and frames[3].jpeg[:2] == b"\xff\xd8"
+    decoded = cv2.imdecode(np.frombuffer(frames[3].jpeg, np.uint8), cv2.IMREAD_COLOR)
+    assert abs(int(decoded.mean()) - 90) <= 3
     src.close()
+    raw = OpenCvSource(str(path), passthrough=False)  # or decoded here, in OpenCV's BGR order
+    first = raw.read()
+    assert first is not None and first.jpeg is None and first.order == "bgr8" and first.rgb.shape == (48, 64, 3)
+    raw.close()
+
+
+def test_a_folder_of_jpegs_passes_them_on(tmp_path: Path) -> None:
+    folder = tmp_path / "jpegs"
+    folder.mkdir()
+    ok, jpg = cv2.imencode(".jpg", np.full((30, 40, 3), 128, np.uint8))
+    (folder / "a.jpg").write_bytes(jpg.tobytes())
+    cv2.imwrite(str(folder / "b.jpg"), np.full((30, 40), 50, np.uint8))  # grey: decoded, to colour
+    src = OpenCvSource(str(folder))
+    a, b = src.read(), src.read()
+    assert a.jpeg == jpg.tobytes() and a.size == (30, 40)
+    assert b.jpeg is None and b.rgb.shape == (30, 40, 3)
 
 
 def test_what_cannot_be_opened_is_one_clear_error(tmp_path: Path) -> None:

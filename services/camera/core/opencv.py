@@ -9,12 +9,32 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from common.messages.compressed import is_jpeg, jpeg_size
 from services.camera.core.sources import Capture, Intrinsics, SourceError, StreamLost
 
 __all__ = ["IMAGE_SUFFIXES", "OpenCvSource", "describe_source"]
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm")
 _URL = ("rtsp://", "rtsps://", "http://", "https://", "udp://", "tcp://", "rtmp://")
+
+
+def _fourcc(cap: cv2.VideoCapture) -> str:
+    code = int(cap.get(cv2.CAP_PROP_FOURCC))
+    return code.to_bytes(4, "little").decode("ascii", errors="replace")
+
+
+def _jpeg_capture(data: bytes, index: int, stamp: int | None) -> Capture | None:
+    """A colour JPEG as a capture passed on undecoded, or None when it is not one (a grey JPEG,
+    a corrupt header): then the caller decodes it."""
+    if not is_jpeg(data):
+        return None
+    try:
+        h, w, comps = jpeg_size(data)
+    except (ValueError, IndexError):
+        return None
+    if comps != 3 or h <= 0 or w <= 0:
+        return None
+    return Capture(None, None, stamp, index, jpeg=data, size=(h, w))
 
 
 def describe_source(spec: str) -> str:
@@ -36,17 +56,21 @@ class OpenCvSource:
 
     ``fps``: a folder's frame rate (it has none of its own), and the rate asked of a device; a
     video file reports its own. ``width``/``height``: the size asked of a device (0: its default).
+    ``passthrough``: a folder's JPEG files and an MJPG video's frames go out as the JPEGs they are,
+    undecoded (the receivers decode them); other frames are decoded.
     """
 
     is_file: bool
     intrinsics: Intrinsics | None = None
 
     def __init__(self, spec: str, *, fps: float = 30.0, width: int = 0, height: int = 0,
-                 open_timeout_s: float = 10.0) -> None:
+                 open_timeout_s: float = 10.0, passthrough: bool = True) -> None:
         # OpenCV's worker threads spin between frames: on a 640x480 stream they cost more than the
         # work they share (16 % of a core against 4 % at 30 Hz); one thread does a frame in ~1 ms
         cv2.setNumThreads(1)
         self.spec = spec
+        self.passthrough = passthrough
+        self._raw = False  # an MJPG video read as its JPEG packets
         self.kind = describe_source(spec)
         self._index = 0
         self._files: list[Path] = []
@@ -80,6 +104,8 @@ class OpenCvSource:
         self.fps = float(own) if own and 0 < own < 1000 else (fps or None)
         self._cap = cap
         self.name = {"device": f"device {spec}", "url": f"stream {spec}", "file": f"video {spec}"}[self.kind]
+        if self.is_file and passthrough and _fourcc(cap) == "MJPG" and cap.set(cv2.CAP_PROP_FORMAT, -1):
+            self._raw = True  # each packet is a JPEG: passed on undecoded
         if self.is_file:
             # a file that is not a video opens on some backends and then yields nothing
             ok, first = cap.read()
@@ -104,6 +130,10 @@ class OpenCvSource:
             if self._index >= len(self._files):
                 return None
             path = self._files[self._index]
+            if self.passthrough and path.suffix.lower() in (".jpg", ".jpeg"):
+                if (jpeg := _jpeg_capture(path.read_bytes(), self._index + 1, None)) is not None:
+                    self._index += 1
+                    return jpeg
             bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
             if bgr is None:
                 raise SourceError(f"{path}: not an image OpenCV can read")
@@ -120,6 +150,11 @@ class OpenCvSource:
                 return None
             raise StreamLost(f"{self.name} stopped delivering frames")
         self._index += 1
+        if self._raw:
+            jpeg = _jpeg_capture(bgr.tobytes(), self._index, stamp)
+            if jpeg is None:
+                raise SourceError(f"{self.name}: frame {self._index} is not a JPEG; play it with passthrough off")
+            return jpeg
         if bgr.ndim == 2:
             bgr = cv2.cvtColor(bgr, cv2.COLOR_GRAY2BGR)
         return Capture(bgr, None, stamp, self._index, order="bgr8")

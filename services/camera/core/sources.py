@@ -45,13 +45,17 @@ class Capture:
     since the epoch, None for a file: the node stamps it by its frame number) and the frame
     number in the source (1 for the first frame of a file)."""
 
-    rgb: np.ndarray
+    rgb: np.ndarray | None
     depth: np.ndarray | None
     stamp_ns: int | None
     index: int
     #: "bgr8" when ``rgb`` holds OpenCV's blue-green-red order, passed on as it is (a conversion
     #: costs more than the rest of the frame's work; the receivers read either order).
     order: str = "rgb8"
+    #: A JPEG frame passed on undecoded (an MJPG file's or a folder's own), with its (height,
+    #: width): then ``rgb`` is None and the receivers decode it.
+    jpeg: bytes | None = None
+    size: tuple[int, int] | None = None
 
 
 class Source(Protocol):

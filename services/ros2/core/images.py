@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from common.messages.compressed import PNG_MAGIC, jpeg_size, png_size
+
 __all__ = ["ENCODINGS", "ImageError", "Intrinsics", "Pixels", "compressed_pixels", "intrinsics", "raw_pixels"]
 
 #: ROS encoding -> (dtype, channels) for the encodings the pipeline reads.
@@ -87,41 +89,6 @@ def raw_pixels(msg: Any, *, depth: bool) -> Pixels:
     return Pixels(enc, dtype, shape, raw)
 
 
-def _jpeg_size(data: bytes) -> tuple[int, int, int]:
-    """(height, width, components) from a JPEG's start-of-frame marker."""
-    i = 2
-    n = len(data)
-    while i + 4 <= n:
-        if data[i] != 0xFF:
-            raise ValueError("a JPEG marker was expected")
-        marker = data[i + 1]
-        if marker == 0xFF:  # fill byte
-            i += 1
-            continue
-        if marker in (0xD8, 0x01) or 0xD0 <= marker <= 0xD7:
-            i += 2
-            continue
-        (length,) = struct.unpack_from(">H", data, i + 2)
-        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
-            if i + 10 > n:
-                break
-            h, w = struct.unpack_from(">HH", data, i + 5)
-            return h, w, data[i + 9]
-        i += 2 + length
-    raise ValueError("no start-of-frame marker")
-
-
-def _png_size(data: bytes) -> tuple[int, int, int, int]:
-    """(height, width, bit depth, colour type) from a PNG's IHDR chunk."""
-    if len(data) < 29 or data[12:16] != b"IHDR":
-        raise ValueError("no IHDR chunk")
-    w, h, bits, colour = struct.unpack_from(">IIBB", data, 16)
-    return h, w, bits, colour
-
-
-_PNG = b"\x89PNG\r\n\x1a\n"
-
-
 def compressed_pixels(msg: Any, *, depth: bool) -> Pixels:
     """A ``sensor_msgs/msg/CompressedImage`` (JPEG or PNG; image_transport's ``compressed`` and,
     for 16-bit depth, ``compressedDepth``) as compressed pixels, told apart by their magic bytes."""
@@ -135,12 +102,12 @@ def compressed_pixels(msg: Any, *, depth: bool) -> Pixels:
         data = data[12:]
     try:
         if data[:2] == b"\xff\xd8":
-            h, w, comps = _jpeg_size(data)
+            h, w, comps = jpeg_size(data)
             if depth:
                 raise ImageError("not_depth", f"a JPEG on the depth topic (format {fmt!r}): depth must be 16-bit PNG")
             return Pixels("jpeg", "uint8", (h, w, 3) if comps == 3 else (h, w), data)
-        if data[:8] == _PNG:
-            h, w, bits, colour = _png_size(data)
+        if data[:8] == PNG_MAGIC:
+            h, w, bits, colour = png_size(data)
             if depth:
                 if bits != 16 or colour != 0:
                     raise ImageError("not_depth", f"a {bits}-bit PNG of colour type {colour} on the depth topic: "

@@ -203,16 +203,27 @@ def settings_summary(config: BaseModel) -> dict[str, str]:
     return out
 
 
+#: Set by ``perception launch`` for a service whose settings come from its launch file: what to
+#: name in a configuration error instead of the temporary file they were written to.
+CONFIG_ORIGIN_ENV = "PERCEPTION_CONFIG_ORIGIN"
+
+
 def load_node_config(model: type[C], name: str, path: str | Path | None, overrides: Mapping[str, Any]) -> C:
     """Defaults -> ``path`` (section ``name`` if present) -> ``PERCEPTION_<NAME>__*`` -> overrides.
 
-    A bad value is a :class:`CliError` naming the field, the file and how to fix it.
+    A bad value is a :class:`CliError` naming the field, the file and how to fix it (the launch
+    file and its entry when ``perception launch`` wrote the file).
     """
+    import os
+
     env = f"PERCEPTION_{name.upper()}"
     try:
         return load_config(model, path, env_prefix=env, overrides=_prune(overrides), section=name)
     except ConfigError as exc:
-        raise CliError(f"{exc}\n(fix it in {path or 'the flags'} or the {env}__* environment)") from exc
+        origin = os.environ.get(CONFIG_ORIGIN_ENV, "")
+        text = str(exc).replace(str(path), origin) if origin and path is not None else str(exc)
+        where = origin if origin and path is not None else (path or "the flags")
+        raise CliError(f"{text}\n(fix it in {where} or the {env}__* environment)") from exc
 
 
 def run_node(args: argparse.Namespace, name: str, config_model: type[C], overrides: Mapping[str, Any],

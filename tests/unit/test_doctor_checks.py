@@ -325,3 +325,16 @@ def test_a_camera_node_that_lost_its_stream_is_named() -> None:
     (line,) = [c for c in _run(_Obs(duration_s=5.0, nodes=[cam])) if c.name == "frames/head"]
     assert line.status == "fail" and "lost its source 'rtsp://10.0.0.5/stream'" in line.figure
     assert "reopens" in line.fix
+
+
+def test_traffic_under_another_robot_name_is_named() -> None:
+    from tools.doctor.core.checks import run_checks as _run
+    from tools.doctor.core.facts import Observation as _Obs
+
+    obs = _Obs(duration_s=5.0, other_robots={"pp/mbot": ["detector", "simulator", "tracker"]})
+    (line,) = [c for c in _run(obs) if c.name == "frames/head"]
+    assert line.status == "fail" and "pp/mbot (detector, simulator, tracker)" in line.figure
+    assert "--robot mbot" in line.fix and "--key-prefix" not in line.fix
+    other = _Obs(duration_s=5.0, other_robots={"lab/r2": ["tracker"]})
+    (line,) = [c for c in _run(other) if c.name == "tracks"]
+    assert "--robot r2 --key-prefix lab" in line.fix

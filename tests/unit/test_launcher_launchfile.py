@@ -194,3 +194,20 @@ def test_router_configs_load_with_multicast_off(name: str) -> None:
     assert json.loads(conf.get_json("mode")) == "router"
     assert json.loads(conf.get_json("scouting/multicast/enabled")) is False
     assert json.loads(conf.get_json("listen/endpoints")) and json.loads(conf.get_json("connect/endpoints"))
+
+
+def test_a_launched_services_configuration_error_names_the_launch_file(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    from common.runtime.cli_util import CliError
+    from common.runtime.node import CONFIG_ORIGIN_ENV, load_node_config
+    from services.tracker.config import TrackerConfig
+
+    f = tmp_path / "robot.yaml"
+    f.write_text("services:\n  - name: tracker\n    command: tracker\n    config:\n      output_rate_hz: -5\n")
+    (spec,) = build_plan(load_launch_file(f, {}), {}, tmp_path / "cfg", origin=str(f))
+    assert spec.env[CONFIG_ORIGIN_ENV] == f"{f}, the config of service 'tracker'"
+    written = Path(spec.argv[spec.argv.index("--service-config") + 1])
+    monkeypatch.setenv(CONFIG_ORIGIN_ENV, spec.env[CONFIG_ORIGIN_ENV])
+    with pytest.raises(CliError) as err:
+        load_node_config(TrackerConfig, "tracker", written, {})
+    assert f"fix it in {f}, the config of service 'tracker'" in str(err.value) and str(written) not in str(err.value)

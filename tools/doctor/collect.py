@@ -131,6 +131,7 @@ class Observer:
         self.first_ns = self.last_ns = 0
         self.ros2_tokens: set[str] = set()
         self.ros2_domain = 0
+        self.other_robots: dict[str, set[str]] = {}
 
     # ---------------------------------------------------------------- input
     def payload(self, key: str, data: bytes, recv_ns: int) -> None:
@@ -211,6 +212,15 @@ class Observer:
                 return int(seen[-1].settings["domain_id"])
         return default
 
+    def others(self, own_base: str, keys: list[str]) -> None:
+        """Liveliness tokens of every robot and prefix on the router: those not under ``own_base``."""
+        for key in keys:
+            head, sep, rest = key.partition(_MARK + "alive/")
+            if not sep or key.startswith(own_base + "/"):
+                continue
+            service = rest.split("/", 1)[0]
+            self.other_robots.setdefault(head, set()).add(service)
+
     def ros2_graph(self, domain: int, tokens: list[str]) -> None:
         """The ROS 2 graph's liveliness tokens on the router (``@ros2_lv/<domain>/...``)."""
         self.ros2_domain = domain
@@ -248,6 +258,7 @@ class Observer:
             cards=sorted(self.cards), track_models=sorted(self.track_models), track_frames=sorted(self.track_frames),
             localized_frames=sorted(self.localized_frames), position_only=self.position_only,
             tracks_total=self.tracks_total, boxes_total=self.boxes_total, ros2_graph=_graph(self.ros2_tokens),
+            other_robots={k: sorted(v) for k, v in sorted(self.other_robots.items())},
             ros2_domain=self.ros2_domain)
 
 

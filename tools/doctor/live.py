@@ -58,6 +58,7 @@ def watch(transport: Transport, keys: Keys, duration_s: float, observer: Observe
         _drain(subs, observer)
         _query_status(transport, keys, observer, query_timeout_s)
         _ros2_graph(transport, observer, query_timeout_s)
+        observer.others(keys.base, transport.alive("**/perception/v1/alive/*/*", timeout=query_timeout_s))
         return watched
     finally:
         unwatch()

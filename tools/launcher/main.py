@@ -110,7 +110,7 @@ def main(args: argparse.Namespace) -> int:
     try:
         launch = load_launch_file(args.file, os.environ)
         with tempfile.TemporaryDirectory(prefix="perception-launch-") as config_dir:
-            plan = build_plan(launch, os.environ, Path(config_dir), only)
+            plan = build_plan(launch, os.environ, Path(config_dir), only, origin=str(args.file))
             problems = _check_programs(launch, {p.name for p in plan}) + _check_security(launch, {p.name for p in plan})
             if args.dry_run:
                 print(render_plan(launch, plan, os.environ))

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import yaml
 
+from common.runtime.node import CONFIG_ORIGIN_ENV
 from tools.launcher.launchfile import LaunchFile, LaunchFileError, RouterSpec, ServiceSpec
 from tools.launcher.supervisor import ProcessSpec
 
@@ -71,8 +72,10 @@ def _config_file(s: ServiceSpec, config_dir: Path) -> Path | None:
 
 
 def _service_spec(launch: LaunchFile, s: ServiceSpec, connect: list[str] | None, base_env: Mapping[str, str],
-                  config_dir: Path) -> ProcessSpec:
+                  config_dir: Path, origin: str = "") -> ProcessSpec:
     env = {**base_env, **s.env}
+    if origin and s.config is not None and not isinstance(s.config, Path):
+        env[CONFIG_ORIGIN_ENV] = f"{origin}, the config of service {s.name!r}"
     connect = s.connect if s.connect is not None else connect
     if connect:
         env["PERCEPTION_ZENOH_CONNECT"] = ",".join(connect)
@@ -113,11 +116,12 @@ def services_connect(launch: LaunchFile) -> list[str] | None:
 
 
 def build_plan(launch: LaunchFile, environ: Mapping[str, str], config_dir: Path,
-               only: Collection[str] = ()) -> list[ProcessSpec]:
+               only: Collection[str] = (), origin: str = "") -> list[ProcessSpec]:
     """The processes to start, in start order (router first), with inline configs written to ``config_dir``.
 
     ``only`` names the entries to start (services and/or ``router``); empty means every
-    enabled entry. Naming a disabled service starts it.
+    enabled entry. Naming a disabled service starts it. ``origin``: the launch file, named in a
+    service's configuration errors instead of the temporary file its inline ``config`` is written to.
     """
     names = ([ROUTER_NAME] if launch.router is not None else []) + [s.name for s in launch.services]
     unknown = sorted(set(only) - set(names))
@@ -137,7 +141,7 @@ def build_plan(launch: LaunchFile, environ: Mapping[str, str], config_dir: Path,
         plan.append(_router_spec(launch, base_env))
     for s in launch.services:
         if (s.name in only) if only else s.enabled:
-            plan.append(_service_spec(launch, s, connect, base_env, config_dir))
+            plan.append(_service_spec(launch, s, connect, base_env, config_dir, origin))
     if not plan:
         raise LaunchFileError("nothing to start: every service is disabled (enabled: false) or left out by --only")
     return plan

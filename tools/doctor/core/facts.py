@@ -156,6 +156,8 @@ class Observation:
     position_only: int = 0
     tracks_total: int = 0
     boxes_total: int = 0
+    #: Other robot names or key prefixes with nodes alive on the router: ``prefix/robot`` -> services.
+    other_robots: dict[str, list[str]] = field(default_factory=dict)
     #: The ROS 2 graph on the router (rmw_zenoh's liveliness tokens) of domain ``ros2_domain``.
     ros2_graph: list[GraphEntity] = field(default_factory=list)
     ros2_domain: int = 0

@@ -31,9 +31,22 @@ def position_only_text(obs: Observation) -> str:
     return ", ".join(f"{k}={n.counters.get(k, 0):g}" for n in obs.running("tracker") for k in POSITION_ONLY)
 
 
+def _elsewhere(obs: Observation) -> tuple[str, str] | None:
+    """Nodes alive under another robot name or key prefix: what a name mismatch looks like."""
+    if not obs.other_robots:
+        return None
+    names = "; ".join(f"{base} ({', '.join(services)})" for base, services in obs.other_robots.items())
+    base = next(iter(obs.other_robots))
+    parts = base.split("/")
+    fix = f"use --robot {parts[-1]}" + (f" --key-prefix {'/'.join(parts[:-1])}" if parts[:-1] != ["pp"] else "")
+    return names, f"the nodes run under another name: {fix} (or set that robot name on every node)"
+
+
 def _silent(obs: Observation, key: str, producer: str) -> tuple[str, str]:
     """(why nothing arrived on ``key``, the fix)."""
     d = obs.duration_s
+    if (other := _elsewhere(obs)) is not None and not obs.nodes:
+        return f"nothing in {d:.1f} s here, but traffic under {other[0]}", other[1]
     stream, _, camera = key.partition("/")
     if not producer:
         if stream == "frames":

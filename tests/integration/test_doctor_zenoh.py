@@ -32,6 +32,7 @@ FAULTS = {
     "no-odom-edge": ("chain map ← camera", "missing odom → base_link", "publish odom → base_link"),
     "static-once": ("static transforms", "no tf_static in", "republish static transforms"),
     "old-stamps": ("frame stamps (head)", "stamped 5.0 s before they arrive", "synchronise the PCs' clocks"),
+    "mount-high": ("people's height (camera)", "above the floor", "the camera's height in"),
     "embedder-stopped": ("embedder", "not running", "perception embedder"),
     "tracker-model": ("embedding model", "the tracker takes trinet", "set the tracker's embedding_model to colour"),
     "camera-mismatch": ("camera names", "tracker front", "set the tracker's camera to head"),

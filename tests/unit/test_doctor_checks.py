@@ -338,3 +338,26 @@ def test_traffic_under_another_robot_name_is_named() -> None:
     other = _Obs(duration_s=5.0, other_robots={"lab/r2": ["tracker"]})
     (line,) = [c for c in _run(other) if c.name == "tracks"]
     assert "--robot r2 --key-prefix lab" in line.fix
+
+
+def test_people_placed_at_an_impossible_height_name_the_mount() -> None:
+    import numpy as np
+
+    from tools.doctor.core.checks import run_checks as _run
+    from tools.doctor.core.facts import EdgeFacts as _Edge
+    from tools.doctor.core.facts import Observation as _Obs
+
+    rng = np.random.default_rng(0)
+    d = rng.uniform(1.5, 6.0, 60)
+    edges = [_Edge("base_link", "head_link", True), _Edge("head_link", "camera", True)]
+
+    def line(z: np.ndarray) -> tuple[str, str, str]:
+        people = [(float(zi), float(di), "camera") for zi, di in zip(z, d)]
+        (c,) = [c for c in _run(_Obs(duration_s=5.0, people=people, edges=edges)) if c.name.startswith("people's")]
+        return c.status, c.figure, c.fix
+
+    assert line(0.9 + rng.normal(0, 0.05, 60))[0] == "ok"
+    status, figure, fix = line(1.4 + rng.normal(0, 0.05, 60))  # the mount said 0.5 m higher than it is
+    assert status == "fail" and "1.4" in figure and "height in head_link → camera or base_link → head_link" in fix
+    status, figure, fix = line(0.9 - d * np.tan(np.radians(30)))  # the camera's pitch 30 degrees off
+    assert status == "fail" and "farther" in figure and "30°" in fix

@@ -41,6 +41,8 @@ __all__ = ["Observer", "relative_key"]
 _MARK = "/perception/v1/"
 #: Frames kept per camera for the camera checks, at least this far apart (s).
 FRAMES_KEPT, FRAME_EVERY_S = 8, 0.25
+#: Localized people kept for the geometry checks.
+PEOPLE_KEPT = 4000
 #: Depth pixels sampled per frame (a regular grid).
 DEPTH_SAMPLES = 4096
 
@@ -132,6 +134,7 @@ class Observer:
         self.ros2_tokens: set[str] = set()
         self.ros2_domain = 0
         self.other_robots: dict[str, set[str]] = {}
+        self.people: list[tuple[float, float, str]] = []
 
     # ---------------------------------------------------------------- input
     def payload(self, key: str, data: bytes, recv_ns: int) -> None:
@@ -183,6 +186,11 @@ class Observer:
             self.boxes_total += len(msg.detections)
         elif isinstance(msg, LocalizedDetections):
             self.localized_frames.add(msg.header.frame_id)
+            if msg.view is not None and len(self.people) < PEOPLE_KEPT:
+                cam = np.asarray(msg.view.camera_to_frame, dtype=np.float64)[:3, 3]
+                for d in msg.detections:
+                    p = np.asarray(d.position, dtype=np.float64)
+                    self.people.append((float(p[2]), float(np.hypot(*(p[:2] - cam[:2]))), msg.camera_frame))
         elif isinstance(msg, Embeddings):
             self.cards.add((msg.model.name, msg.model.dim, msg.model.metric, msg.model.thresholds is not None))
         elif isinstance(msg, Tracks):
@@ -258,7 +266,7 @@ class Observer:
             cards=sorted(self.cards), track_models=sorted(self.track_models), track_frames=sorted(self.track_frames),
             localized_frames=sorted(self.localized_frames), position_only=self.position_only,
             tracks_total=self.tracks_total, boxes_total=self.boxes_total, ros2_graph=_graph(self.ros2_tokens),
-            other_robots={k: sorted(v) for k, v in sorted(self.other_robots.items())},
+            other_robots={k: sorted(v) for k, v in sorted(self.other_robots.items())}, people=list(self.people),
             ros2_domain=self.ros2_domain)
 
 

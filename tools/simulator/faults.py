@@ -14,7 +14,10 @@ import numpy as np
 from common.messages.keys import Keys
 from common.messages.schemas import CameraInfo, Image, Message, RGBDFrame, TransformBatch
 
-__all__ = ["FAULTS", "OLD_STAMPS_S", "apply_faults"]
+__all__ = ["FAULTS", "MOUNT_ERROR_M", "OLD_STAMPS_S", "apply_faults"]
+
+#: mount-high: how much higher the head's mount is said to be than it is.
+MOUNT_ERROR_M = 0.5
 
 #: How far ``old-stamps`` puts the stamps in the past (s).
 OLD_STAMPS_S = 5.0
@@ -27,6 +30,7 @@ FAULTS: dict[str, str] = {
     "no-odom-edge": "no odom -> base_link transform",
     "static-once": "static transforms published with the first frame only",
     "old-stamps": f"every stamp {OLD_STAMPS_S:g} s in the past (an unsynchronised clock)",
+    "mount-high": f"the head's mount on tf_static {MOUNT_ERROR_M:g} m higher than it is",
 }
 
 
@@ -57,6 +61,10 @@ def apply_faults(pairs: list[tuple[str, Message]], faults: frozenset[str], keys:
     for key, msg in pairs:
         if key == keys.tf_static() and "static-once" in faults and seq > 0:
             continue
+        if key == keys.tf_static() and "mount-high" in faults and isinstance(msg, TransformBatch):
+            raised = [t.model_copy(update={"translation": t.translation + [0.0, 0.0, MOUNT_ERROR_M]})
+                      if (t.parent_frame, t.child_frame) == ("base_link", "head_link") else t for t in msg.transforms]
+            msg = msg.model_copy(update={"transforms": raised})
         if key == keys.tf() and "no-odom-edge" in faults and isinstance(msg, TransformBatch):
             kept = [t for t in msg.transforms if (t.parent_frame, t.child_frame) != ("odom", "base_link")]
             msg = msg.model_copy(update={"transforms": kept})

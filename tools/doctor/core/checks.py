@@ -13,6 +13,7 @@ from tools.doctor.core.camera import camera_checks
 from tools.doctor.core.chain import chain_checks, clock_checks
 from tools.doctor.core.config import config_checks
 from tools.doctor.core.facts import SYMBOLS, Check, Observation
+from tools.doctor.core.geometry import geometry_checks
 from tools.doctor.core.ros2 import ros2_checks
 from tools.doctor.core.streams import node_checks, stream_checks
 from tools.doctor.core.transforms import transform_checks
@@ -26,6 +27,7 @@ _CODES = {"ok": 0, "warn": 1, "fail": 2}
 def run_checks(obs: Observation) -> list[Check]:
     """The checklist for ``obs``, section by section."""
     return [*stream_checks(obs), *node_checks(obs), *ros2_checks(obs), *camera_checks(obs), *transform_checks(obs),
+            *geometry_checks(obs),
             *clock_checks(obs), *chain_checks(obs), *config_checks(obs)]
 
 

@@ -156,6 +156,9 @@ class Observation:
     position_only: int = 0
     tracks_total: int = 0
     boxes_total: int = 0
+    #: People as the localizer placed them: (height above the map's z = 0, horizontal distance
+    #: from the camera, the camera's frame), one row per localized person (a sample).
+    people: list[tuple[float, float, str]] = field(default_factory=list)
     #: Other robot names or key prefixes with nodes alive on the router: ``prefix/robot`` -> services.
     other_robots: dict[str, list[str]] = field(default_factory=dict)
     #: The ROS 2 graph on the router (rmw_zenoh's liveliness tokens) of domain ``ros2_domain``.

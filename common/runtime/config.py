@@ -9,6 +9,7 @@ raises :class:`ConfigError` naming the field, the value and the constraint.
 from __future__ import annotations
 
 import json
+import re
 import os
 from pathlib import Path
 from typing import Any, Mapping, TypeVar
@@ -16,7 +17,7 @@ from typing import Any, Mapping, TypeVar
 import yaml
 from pydantic import BaseModel, ValidationError
 
-__all__ = ["ConfigError", "format_validation_error", "load_config", "read_config_file"]
+__all__ = ["ConfigError", "format_validation_error", "key_line", "load_config", "read_config_file"]
 
 C = TypeVar("C", bound=BaseModel)
 
@@ -39,6 +40,8 @@ def format_validation_error(exc: ValidationError, source: str = "") -> str:
 def read_config_file(path: str | Path) -> dict[str, Any]:
     """A YAML (or JSON) mapping from ``path``; ConfigError if missing or malformed."""
     p = Path(path)
+    if p.is_dir():
+        raise ConfigError(f"config file {p} is a directory; give a YAML or JSON file")
     if not p.is_file():
         raise ConfigError(f"config file {p} does not exist")
     try:
@@ -51,6 +54,17 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise ConfigError(f"config file {p} must hold a mapping of settings, got {type(data).__name__}")
     return data
+
+
+def key_line(path: str | Path, key: str) -> int | None:
+    """The line number of the first line of a YAML/JSON file where ``key`` is a mapping key, if any
+    (for messages that name the line of a bad value)."""
+    pattern = re.compile(rf"""(^|[{{,\s])["']?{re.escape(key)}["']?\s*:""")
+    try:
+        lines = Path(path).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return None
+    return next((n for n, line in enumerate(lines, 1) if pattern.search(line)), None)
 
 
 def _merge(base: dict[str, Any], top: Mapping[str, Any]) -> dict[str, Any]:

@@ -15,7 +15,7 @@ import numpy as np
 import yaml
 
 from common.runtime.cli_util import CliError
-from common.runtime.config import ConfigError, read_config_file
+from common.runtime.config import ConfigError, key_line, read_config_file
 from common.geometry.transforms import PinholeCamera, RigidTransform
 from services.localizer.core import FloorHomography
 
@@ -74,23 +74,34 @@ def read_camera_info(path: Path) -> tuple[PinholeCamera, str]:
     """
     data = _read_mapping(path, "--camera-info")
 
-    def pick(*names: str, default: Any = None) -> Any:
+    def pick(*names: str, default: Any = None) -> tuple[str, Any]:
         for n in names:
             if n in data:
-                return data[n]
+                return n, data[n]
         if default is None:
             raise CliError(f"camera info {path} has no {names[0]!r}")
-        return default
+        return names[0], default
 
+    def field(names: tuple[str, ...], convert: Any, default: Any = None) -> Any:
+        name, value = pick(*names, default=default)
+        try:
+            return convert(value)
+        except (TypeError, ValueError) as exc:
+            line = key_line(path, name)
+            where = f"{path}:{line}" if line is not None else str(path)
+            raise CliError(f"camera info {where}: {name}: {exc}") from exc
+
+    width = field(("width", "image_width"), int)
+    height = field(("height", "image_height"), int)
+    K = field(("K", "k", "camera_matrix"), lambda v: _matrix(v, 3, 3, f"K in {path}"))
+    D = field(("D", "d", "distortion_coefficients"),
+              lambda v: np.asarray(_flat(v), dtype=np.float64).reshape(-1), default=[])
+    model = str(pick("distortion_model", default="plumb_bob")[1])
+    header: dict[str, Any] = data["header"] if isinstance(data.get("header"), dict) else {}
+    frame_id = str(data.get("frame_id") or header.get("frame_id") or "camera")
+    if model not in _MODELS:
+        raise CliError(f"camera info {path}: distortion_model {model!r} is not one of {', '.join(_MODELS)}")
     try:
-        width, height = int(pick("width", "image_width")), int(pick("height", "image_height"))
-        K = _matrix(pick("K", "k", "camera_matrix"), 3, 3, f"K in {path}")
-        D = np.asarray(_flat(pick("D", "d", "distortion_coefficients", default=[])), dtype=np.float64).reshape(-1)
-        model = str(pick("distortion_model", default="plumb_bob"))
-        header: dict[str, Any] = data["header"] if isinstance(data.get("header"), dict) else {}
-        frame_id = str(data.get("frame_id") or header.get("frame_id") or "camera")
-        if model not in _MODELS:
-            raise CliError(f"camera info {path}: distortion_model {model!r} is not one of {', '.join(_MODELS)}")
         return PinholeCamera(K, width, height, D, model), frame_id  # type: ignore[arg-type]
     except (TypeError, ValueError) as exc:
         raise CliError(f"camera info {path}: {exc}") from exc

@@ -7,7 +7,7 @@ import logging
 import time
 from pathlib import Path
 
-from common.runtime.cli_util import CliError
+from common.runtime.cli_util import CliError, check_input_file
 from common.runtime.node import load_node_config
 from services.tracker.config import DEFAULT_EMBEDDING_MODEL, PROFILES, TrackerConfig
 from services.tracker.offline import FormatError, read_detections, track, write_tracks
@@ -52,8 +52,7 @@ def main(args: argparse.Namespace) -> int:
                        f"give the tracker settings as --service-config {args.old_config}")
     config = load_node_config(TrackerConfig, "tracker", args.service_config, {
         "time_step": args.time_step, "profile": args.profile, "robust": {"scores": {"birth_score": args.birth_score}}})
-    if not args.detections.is_file():
-        raise CliError(f"detections file {args.detections} does not exist")
+    check_input_file(args.detections, "expected a detections CSV file: frame,stamp,x,y,z,score[,e0,e1,...]")
     try:
         dets = read_detections(args.detections)
     except FormatError as exc:

@@ -125,3 +125,17 @@ def test_bad_input_exits_2_with_one_line(command: str, kind: str, tmp_path: Path
     assert bad.name in err, err
     if kind == "bad-value" and fmt not in ("image", "recording"):
         assert ":3" in err or "line 3" in err, err
+
+
+@pytest.mark.parametrize("command", ["status", "forget", "detector", "router"])
+@pytest.mark.parametrize("endpoint", ["192.168.1.10:7447", "tpc/192.168.1.10:7447"])
+def test_endpoint_without_protocol_is_one_line(command: str, endpoint: str,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """A ``--connect`` endpoint of the wrong form: the expected form, no pydantic text or link."""
+    argv = [command, "--connect", endpoint] + (["1"] if command == "forget" else [])
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    assert "--connect" in err and "tcp/192.168.1.10:7447" in err, err
+    assert "pydantic" not in err and "validation error" not in err and "Traceback" not in err

@@ -26,14 +26,21 @@ class ConfigError(ValueError):
     """A configuration that cannot be used; the message says which value and why."""
 
 
-def format_validation_error(exc: ValidationError, source: str = "") -> str:
+def format_validation_error(exc: ValidationError, source: str = "", path: str | Path | None = None) -> str:
+    """One line per bad value (the field, why, what it got; with ``path``, the file's line that sets
+    it), after a line naming ``source``; a single bad value is one line."""
     lines = []
     for err in exc.errors(include_url=False):
         field = ".".join(str(p) for p in err["loc"]) or "(root)"
         value = err.get("input")
         shown = "" if isinstance(value, (dict, list)) or value is None else f" (got {value!r})"
-        lines.append(f"{field}: {err['msg']}{shown}")
+        leaf = next((str(p) for p in reversed(err["loc"]) if isinstance(p, str)), None)
+        line = key_line(path, leaf) if path is not None and leaf is not None else None
+        at = f", on line {line}" if line is not None else ""
+        lines.append(f"{field}: {err['msg']}{shown}{at}")
     where = f" in {source}" if source else ""
+    if len(lines) == 1:
+        return f"invalid configuration{where}: {lines[0]}"
     return f"invalid configuration{where}:\n  " + "\n  ".join(lines)
 
 
@@ -49,7 +56,9 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
         data = json.loads(text) if p.suffix == ".json" else yaml.safe_load(text)
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:
         raise ConfigError(f"config file {p} cannot be parsed: {exc}") from exc
-    if data is None:
+    if not text.strip():
+        raise ConfigError(f"config file {p} is empty; give a YAML or JSON mapping")
+    if data is None:  # only comments
         return {}
     if not isinstance(data, dict):
         raise ConfigError(f"config file {p} must hold a mapping of settings, got {type(data).__name__}")
@@ -122,4 +131,4 @@ def load_config(model: type[C], path: str | Path | None = None, *, env_prefix: s
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        raise ConfigError(format_validation_error(exc, source)) from exc
+        raise ConfigError(format_validation_error(exc, source, path)) from exc

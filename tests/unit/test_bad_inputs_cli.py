@@ -44,12 +44,14 @@ FORMATS: dict[str, tuple[str, str | bytes, str | bytes]] = {
     "track-csv": ("in.csv", "a,b,c\n1,2,3\n",
                   "frame,stamp,x,y,z,score\n0,0.0,1,1,1,0.9\n1,0.1,abc,1,1,0.9\n"),
     "gt-csv": ("in.csv", "a,b,c\n1,2,3\n", "frame,id,x,y,z\n0,1,1,1,1\n1,1,abc,1,1\n"),
+    "settings": ("settings.yaml", "frame,stamp,x,y,z,score\n", "{section}:\n  {ok}\n  {bad}\n"),
+    "launch": ("launch.yaml", "frame,stamp,x,y,z,score\n", "services:\n  - name: a\n    command: [1, 2]\n"),
     "recording": ("in.mcap", "frame,stamp,x,y,z,score\n", b"\x89MCAP0\r\n" + b"\x01" * 64),
 }
 
 
 def _good_jsonl(tmp: Path) -> Path:
-    p = tmp / "good.jsonl"
+    p = tmp / "inputs" / "good.jsonl"  # beside the image it names
     p.write_text(json.dumps(DETECTION_LINE) + "\n")
     return p
 
@@ -87,11 +89,33 @@ COMMANDS: dict[str, tuple[str, Callable[[Path, Path], list[str]]]] = {
     "inspect": ("recording", lambda bad, tmp: ["inspect", str(bad)]),
     "export-foxglove": ("recording", lambda bad, tmp: ["export-foxglove", str(bad), str(tmp / "out.mcap")]),
     "replay": ("recording", lambda bad, tmp: ["replay", str(bad), "--no-progress"]),
+    "doctor --recording": ("recording", lambda bad, tmp: ["doctor", "--recording", str(bad)]),
+    "launch --dry-run": ("launch", lambda bad, tmp: ["launch", str(bad), "--dry-run"]),
+    "track --service-config": ("settings:tracker", lambda bad, tmp: [
+        "track", "--detections", str(_good_track_csv(tmp)), "--output", str(tmp / "t.csv"), "--service-config", str(bad)]),
+    "detect --service-config": ("settings:detector", lambda bad, tmp: [
+        "detect", str(tmp / "inputs" / "f0001.png"), "--service-config", str(bad)]),
+    "embed --service-config": ("settings:embedder", lambda bad, tmp: [
+        "embed", str(_good_jsonl(tmp)), "--service-config", str(bad)]),
 }
+
+#: A settings file per section: a good line 2 and a bad value on line 3.
+SETTINGS_LINES = {"tracker": ("n_init: 3", "frame_period_s: -5"), "detector": ("backend: hog", "camera: ''"),
+                  "embedder": ("backend: colour", "camera: ''")}
+
+
+def _good_track_csv(tmp: Path) -> Path:
+    p = tmp / "dets.csv"
+    p.write_text("frame,stamp,x,y,z,score\n0,0.0,1,1,1,0.9\n")
+    return p
 
 
 def _make(kind: str, fmt: str, folder: Path) -> Path:
+    fmt, _, section = fmt.partition(":")
     name, wrong, bad_value = FORMATS[fmt]
+    if section:
+        ok, bad = SETTINGS_LINES[section]
+        bad_value = str(bad_value).format(section=section, ok=ok, bad=bad)
     path = folder / name
     if kind == "missing":
         return path
@@ -123,7 +147,7 @@ def test_bad_input_exits_2_with_one_line(command: str, kind: str, tmp_path: Path
     assert "Traceback" not in err + out
     assert 1 <= len(lines) <= 2, err
     assert bad.name in err, err
-    if kind == "bad-value" and fmt not in ("image", "recording"):
+    if kind == "bad-value" and fmt not in ("image", "recording", "launch"):
         assert ":3" in err or "line 3" in err, err
 
 

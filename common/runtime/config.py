@@ -12,7 +12,7 @@ import json
 import re
 import os
 from pathlib import Path
-from typing import Any, Mapping, TypeVar
+from typing import Any, Mapping, Sequence, TypeVar
 
 import yaml
 from pydantic import BaseModel, ValidationError
@@ -26,16 +26,17 @@ class ConfigError(ValueError):
     """A configuration that cannot be used; the message says which value and why."""
 
 
-def format_validation_error(exc: ValidationError, source: str = "", path: str | Path | None = None) -> str:
+def format_validation_error(exc: ValidationError, source: str = "", path: str | Path | None = None,
+                            section: str | None = None) -> str:
     """One line per bad value (the field, why, what it got; with ``path``, the file's line that sets
-    it), after a line naming ``source``; a single bad value is one line."""
+    it, under ``section`` if given), after a line naming ``source``; a single bad value is one line."""
     lines = []
     for err in exc.errors(include_url=False):
         field = ".".join(str(p) for p in err["loc"]) or "(root)"
         value = err.get("input")
         shown = "" if isinstance(value, (dict, list)) or value is None else f" (got {value!r})"
-        leaf = next((str(p) for p in reversed(err["loc"]) if isinstance(p, str)), None)
-        line = key_line(path, leaf) if path is not None and leaf is not None else None
+        names = [*([section] if section else []), *(p for p in err["loc"] if isinstance(p, str))]
+        line = key_line(path, names) if path is not None and names else None
         at = f", on line {line}" if line is not None else ""
         lines.append(f"{field}: {err['msg']}{shown}{at}")
     where = f" in {source}" if source else ""
@@ -65,15 +66,23 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
     return data
 
 
-def key_line(path: str | Path, key: str) -> int | None:
-    """The line number of the first line of a YAML/JSON file where ``key`` is a mapping key, if any
-    (for messages that name the line of a bad value)."""
-    pattern = re.compile(rf"""(^|[{{,\s])["']?{re.escape(key)}["']?\s*:""")
+def key_line(path: str | Path, keys: Sequence[str]) -> int | None:
+    """The line number of ``keys`` (a path of mapping keys, e.g. ``("tracker", "robust", "n_init")``)
+    in a YAML/JSON file: each key searched from the line of the one before, for messages that name
+    the line of a bad value; None when a key is not found."""
     try:
         lines = Path(path).read_text(encoding="utf-8").splitlines()
     except (OSError, UnicodeDecodeError):
         return None
-    return next((n for n, line in enumerate(lines, 1) if pattern.search(line)), None)
+    found = None
+    start = 0
+    for key in keys:
+        pattern = re.compile(rf"""(^|[{{,\s])["']?{re.escape(key)}["']?\s*:""")
+        found = next((n for n in range(start, len(lines)) if pattern.search(lines[n])), None)
+        if found is None:
+            return None
+        start = found
+    return None if found is None else found + 1
 
 
 def _merge(base: dict[str, Any], top: Mapping[str, Any]) -> dict[str, Any]:
@@ -116,12 +125,14 @@ def load_config(model: type[C], path: str | Path | None = None, *, env_prefix: s
     """
     data: dict[str, Any] = {}
     source = "defaults"
+    in_section = None
     if path is not None:
         data = read_config_file(path)
         source = str(path)
         if section is not None and section in data:
             data = data[section] or {}
             source = f"{path}, section {section!r}"
+            in_section = section
             if not isinstance(data, dict):
                 raise ConfigError(f"section {section!r} of {path} must be a mapping")
     if env_prefix:
@@ -131,4 +142,4 @@ def load_config(model: type[C], path: str | Path | None = None, *, env_prefix: s
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        raise ConfigError(format_validation_error(exc, source, path)) from exc
+        raise ConfigError(format_validation_error(exc, source, path, in_section)) from exc

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import yaml
 
-from common.runtime.cli_util import CliError
+from common.runtime.cli_util import CliError, check_input_file
 from common.runtime.config import ConfigError, key_line, read_config_file
 from common.geometry.transforms import PinholeCamera, RigidTransform
 from services.localizer.core import FloorHomography
@@ -34,7 +34,12 @@ def read_depth(path: Path) -> np.ndarray:
         except (OSError, ValueError) as exc:
             raise CliError(f"depth image {path} cannot be read as .npy: {exc}") from exc
     else:
-        depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+        level = cv2.utils.logging.getLogLevel()
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # our message says it once
+        try:
+            depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+        finally:
+            cv2.utils.logging.setLogLevel(level)
         if depth is None:
             raise CliError(f"depth image {path} cannot be decoded (use a 16-bit PNG in millimetres or a .npy array)")
     if depth.ndim != 2:
@@ -87,7 +92,7 @@ def read_camera_info(path: Path) -> tuple[PinholeCamera, str]:
         try:
             return convert(value)
         except (TypeError, ValueError) as exc:
-            line = key_line(path, name)
+            line = key_line(path, [name])
             where = f"{path}:{line}" if line is not None else str(path)
             raise CliError(f"camera info {where}: {name}: {exc}") from exc
 
@@ -140,8 +145,7 @@ def read_transforms(path: Path) -> list[tuple[str, str, RigidTransform]]:
     or an object with such a list under ``transforms`` (a TransformBatch as JSON)."""
     # common.runtime.config.read_config_file reads mappings only, and the list is this file's
     # documented form: only the mapping form ({"transforms": [...]}) could go through it.
-    if not path.is_file():
-        raise CliError(f"transforms file {path} does not exist")
+    check_input_file(path, "expected a JSON/YAML list of transforms")
     try:
         data = json.loads(path.read_text()) if path.suffix == ".json" else yaml.safe_load(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:

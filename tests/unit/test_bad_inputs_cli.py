@@ -2,8 +2,9 @@
 
 The inputs: a missing file, a directory, an empty file, a binary file, a file of another kind
 (a wrong header) and a file of the right kind with a bad value on its line 3, which the message
-must name. Each command gets the bad file where it reads its main input; its other inputs are
-good.
+must name (images, recordings, launch files and transform lists have no line to name: their
+message names the file, or the entry). Each command gets the bad file at one of its inputs; the
+others are good.
 """
 
 from __future__ import annotations
@@ -45,6 +46,9 @@ FORMATS: dict[str, tuple[str, str | bytes, str | bytes]] = {
                   "frame,stamp,x,y,z,score\n0,0.0,1,1,1,0.9\n1,0.1,abc,1,1,0.9\n"),
     "gt-csv": ("in.csv", "a,b,c\n1,2,3\n", "frame,id,x,y,z\n0,1,1,1,1\n1,1,abc,1,1\n"),
     "settings": ("settings.yaml", "frame,stamp,x,y,z,score\n", "{section}:\n  {ok}\n  {bad}\n"),
+    "topic-map": ("topics.yaml", "frame,stamp,x,y,z,score\n", "tf: [/tf]\nodom: [/odom]\npair_tolerance_ms: -1\n"),
+    "transforms": ("tf.yaml", "frame,stamp,x,y,z,score\n", "- parent_frame: map\n  child_frame: head_optical\n"
+                   "  translation: [0, 0, oops]\n"),
     "launch": ("launch.yaml", "frame,stamp,x,y,z,score\n", "services:\n  - name: a\n    command: [1, 2]\n"),
     "recording": ("in.mcap", "frame,stamp,x,y,z,score\n", b"\x89MCAP0\r\n" + b"\x01" * 64),
 }
@@ -89,6 +93,15 @@ COMMANDS: dict[str, tuple[str, Callable[[Path, Path], list[str]]]] = {
     "inspect": ("recording", lambda bad, tmp: ["inspect", str(bad)]),
     "export-foxglove": ("recording", lambda bad, tmp: ["export-foxglove", str(bad), str(tmp / "out.mcap")]),
     "replay": ("recording", lambda bad, tmp: ["replay", str(bad), "--no-progress"]),
+    "localize --depth": ("image", lambda bad, tmp: [
+        "localize", "--camera-info", str(_good_camera(tmp)), "--depth", str(bad), "--detections", str(_good_jsonl(tmp))]),
+    "localize --transforms": ("transforms", lambda bad, tmp: [
+        "localize", "--camera-info", str(_good_camera(tmp)), "--depth", str(_good_depth(tmp)),
+        "--detections", str(_good_jsonl(tmp)), "--transforms", str(bad)]),
+    "evaluate --tracks": ("gt-csv", lambda bad, tmp: ["evaluate", "--gt", str(_good_tracks(tmp)), "--tracks", str(bad)]),
+    "replay --topic-map": ("topic-map", lambda bad, tmp: ["replay", str(bad), "--topic-map", str(bad)]),
+    "simulate --service-config": ("settings:simulator", lambda bad, tmp: [
+        "simulate", "--service-config", str(bad), "--snapshot", str(tmp / "s.png")]),
     "doctor --recording": ("recording", lambda bad, tmp: ["doctor", "--recording", str(bad)]),
     "launch --dry-run": ("launch", lambda bad, tmp: ["launch", str(bad), "--dry-run"]),
     "track --service-config": ("settings:tracker", lambda bad, tmp: [
@@ -101,7 +114,7 @@ COMMANDS: dict[str, tuple[str, Callable[[Path, Path], list[str]]]] = {
 
 #: A settings file per section: a good line 2 and a bad value on line 3.
 SETTINGS_LINES = {"tracker": ("n_init: 3", "frame_period_s: -5"), "detector": ("backend: hog", "camera: ''"),
-                  "embedder": ("backend: colour", "camera: ''")}
+                  "embedder": ("backend: colour", "camera: ''"), "simulator": ("fps: 15", "width: -3")}
 
 
 def _good_track_csv(tmp: Path) -> Path:
@@ -147,7 +160,7 @@ def test_bad_input_exits_2_with_one_line(command: str, kind: str, tmp_path: Path
     assert "Traceback" not in err + out
     assert 1 <= len(lines) <= 2, err
     assert bad.name in err, err
-    if kind == "bad-value" and fmt not in ("image", "recording", "launch"):
+    if kind == "bad-value" and fmt.partition(":")[0] not in ("image", "recording", "launch", "transforms"):
         assert ":3" in err or "line 3" in err, err
 
 

@@ -9,11 +9,19 @@ import sys
 
 from common.messages.keys import DEFAULT_PREFIX, DEFAULT_ROBOT, Keys
 
-__all__ = ["CliError", "add_key_arguments", "fail", "keys_from_args", "setup_logging"]
+__all__ = ["CliError", "add_key_arguments", "check_input_file", "fail", "keys_from_args", "setup_logging"]
 
 
 class CliError(Exception):
     """A user-facing error: the command prints it and exits non-zero, without a traceback."""
+
+
+def check_input_file(path: str | os.PathLike[str], expected: str) -> None:
+    """A CliError naming ``path`` when it is missing or a directory; ``expected`` says what to give."""
+    if os.path.isdir(path):
+        raise CliError(f"{path} is a directory; give a file ({expected})")
+    if not os.path.isfile(path):
+        raise CliError(f"{path}: no such file ({expected})")
 
 
 def fail(message: str, code: int = 2) -> int:

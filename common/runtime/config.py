@@ -9,14 +9,15 @@ raises :class:`ConfigError` naming the field, the value and the constraint.
 from __future__ import annotations
 
 import json
+import re
 import os
 from pathlib import Path
-from typing import Any, Mapping, TypeVar
+from typing import Any, Mapping, Sequence, TypeVar
 
 import yaml
 from pydantic import BaseModel, ValidationError
 
-__all__ = ["ConfigError", "format_validation_error", "load_config", "read_config_file"]
+__all__ = ["ConfigError", "format_validation_error", "key_line", "load_config", "read_config_file"]
 
 C = TypeVar("C", bound=BaseModel)
 
@@ -25,20 +26,30 @@ class ConfigError(ValueError):
     """A configuration that cannot be used; the message says which value and why."""
 
 
-def format_validation_error(exc: ValidationError, source: str = "") -> str:
+def format_validation_error(exc: ValidationError, source: str = "", path: str | Path | None = None,
+                            section: str | None = None) -> str:
+    """One line per bad value (the field, why, what it got; with ``path``, the file's line that sets
+    it, under ``section`` if given), after a line naming ``source``; a single bad value is one line."""
     lines = []
     for err in exc.errors(include_url=False):
         field = ".".join(str(p) for p in err["loc"]) or "(root)"
         value = err.get("input")
         shown = "" if isinstance(value, (dict, list)) or value is None else f" (got {value!r})"
-        lines.append(f"{field}: {err['msg']}{shown}")
+        names = [*([section] if section else []), *(p for p in err["loc"] if isinstance(p, str))]
+        line = key_line(path, names) if path is not None and names else None
+        at = f", on line {line}" if line is not None else ""
+        lines.append(f"{field}: {err['msg']}{shown}{at}")
     where = f" in {source}" if source else ""
+    if len(lines) == 1:
+        return f"invalid configuration{where}: {lines[0]}"
     return f"invalid configuration{where}:\n  " + "\n  ".join(lines)
 
 
 def read_config_file(path: str | Path) -> dict[str, Any]:
     """A YAML (or JSON) mapping from ``path``; ConfigError if missing or malformed."""
     p = Path(path)
+    if p.is_dir():
+        raise ConfigError(f"config file {p} is a directory; give a YAML or JSON file")
     if not p.is_file():
         raise ConfigError(f"config file {p} does not exist")
     try:
@@ -46,11 +57,32 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
         data = json.loads(text) if p.suffix == ".json" else yaml.safe_load(text)
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:
         raise ConfigError(f"config file {p} cannot be parsed: {exc}") from exc
-    if data is None:
+    if not text.strip():
+        raise ConfigError(f"config file {p} is empty; give a YAML or JSON mapping")
+    if data is None:  # only comments
         return {}
     if not isinstance(data, dict):
         raise ConfigError(f"config file {p} must hold a mapping of settings, got {type(data).__name__}")
     return data
+
+
+def key_line(path: str | Path, keys: Sequence[str]) -> int | None:
+    """The line number of ``keys`` (a path of mapping keys, e.g. ``("tracker", "robust", "n_init")``)
+    in a YAML/JSON file: each key searched from the line of the one before, for messages that name
+    the line of a bad value; None when a key is not found."""
+    try:
+        lines = Path(path).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return None
+    found = None
+    start = 0
+    for key in keys:
+        pattern = re.compile(rf"""(^|[{{,\s])["']?{re.escape(key)}["']?\s*:""")
+        found = next((n for n in range(start, len(lines)) if pattern.search(lines[n])), None)
+        if found is None:
+            return None
+        start = found
+    return None if found is None else found + 1
 
 
 def _merge(base: dict[str, Any], top: Mapping[str, Any]) -> dict[str, Any]:
@@ -93,12 +125,14 @@ def load_config(model: type[C], path: str | Path | None = None, *, env_prefix: s
     """
     data: dict[str, Any] = {}
     source = "defaults"
+    in_section = None
     if path is not None:
         data = read_config_file(path)
         source = str(path)
         if section is not None and section in data:
             data = data[section] or {}
             source = f"{path}, section {section!r}"
+            in_section = section
             if not isinstance(data, dict):
                 raise ConfigError(f"section {section!r} of {path} must be a mapping")
     if env_prefix:
@@ -108,4 +142,4 @@ def load_config(model: type[C], path: str | Path | None = None, *, env_prefix: s
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        raise ConfigError(format_validation_error(exc, source)) from exc
+        raise ConfigError(format_validation_error(exc, source, path, in_section)) from exc

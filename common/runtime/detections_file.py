@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any, Iterator, TextIO
 
-from common.runtime.cli_util import CliError
+from common.runtime.cli_util import CliError, check_input_file
 
 __all__ = ["read_detection_lines"]
 
@@ -28,13 +28,16 @@ def read_detection_lines(path: str | Path, *, require_image: bool = False) -> It
     without an ``"image"`` path).
     """
     p = Path(path)
-    if str(path) != "-" and not p.is_file():
-        raise CliError(f"{p}: no such file (expected JSON lines as written by 'perception detect')")
-    stream: TextIO = sys.stdin if str(path) == "-" else p.open()
+    expected = "expected JSON lines as written by 'perception detect'"
+    if str(path) != "-":
+        check_input_file(p, expected)
+    stream: TextIO = sys.stdin if str(path) == "-" else p.open(encoding="utf-8")
+    seen = False
     with stream:
-        for n, raw in enumerate(stream, 1):
+        for n, raw in _lines(stream, p, expected):
             if not raw.strip():
                 continue
+            seen = True
             try:
                 obj = json.loads(raw)
             except json.JSONDecodeError as exc:
@@ -44,3 +47,15 @@ def read_detection_lines(path: str | Path, *, require_image: bool = False) -> It
             if require_image and not isinstance(obj.get("image"), str):
                 raise CliError(f'{p}:{n}: expected {{"image": path, "detections": [...]}}')
             yield n, obj
+    if not seen and str(path) != "-":
+        raise CliError(f"{p} is empty ({expected})")
+
+
+def _lines(stream: TextIO, p: Path, expected: str) -> Iterator[tuple[int, str]]:
+    """(line number, text) of ``stream``; a CliError naming the line where it stops being UTF-8 text."""
+    n = 0
+    try:
+        for n, raw in enumerate(stream, 1):
+            yield n, raw
+    except UnicodeDecodeError as exc:
+        raise CliError(f"{p}:{n + 1}: not a text file ({expected})") from exc

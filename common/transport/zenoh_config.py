@@ -20,10 +20,10 @@ import os
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, Field, field_validator
+from pydantic import BaseModel, Field, ValidationError, field_validator
 
-__all__ = ["DEFAULT_ROUTER", "SHM_THRESHOLD_BYTES", "ZenohOptions", "add_zenoh_arguments", "build_zenoh_config",
-           "options_from_args"]
+__all__ = ["DEFAULT_ROUTER", "SHM_THRESHOLD_BYTES", "ZenohFlagError", "ZenohOptions", "add_zenoh_arguments",
+           "build_zenoh_config", "options_from_args"]
 
 DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
 _RETRY = {"period_init_ms": 100, "period_max_ms": 500, "period_increase_factor": 2}
@@ -57,7 +57,8 @@ class ZenohOptions(BaseModel):
         for e in v:
             proto, sep, addr = e.partition("/")
             if not sep or not addr or proto not in {"tcp", "udp", "tls", "quic", "ws", "unixsock-stream", "unixpipe", "serial"}:
-                raise ValueError(f"endpoint {e!r} is not of the form PROTO/ADDRESS, e.g. tcp/192.168.1.10:7447")
+                hint = f"; did you mean tcp/{e}?" if not sep else ""
+                raise ValueError(f"endpoint {e!r} is not of the form PROTO/ADDRESS, e.g. tcp/192.168.1.10:7447{hint}")
         return v
 
     @field_validator("config_file")
@@ -131,7 +132,26 @@ def options_from_args(args: argparse.Namespace) -> ZenohOptions:
         "credentials": getattr(args, "credentials", None),
     }
     values.update({k: v for k, v in flags.items() if v is not None})
-    return ZenohOptions.model_validate(values)
+    try:
+        return ZenohOptions.model_validate(values)
+    except ValidationError as exc:
+        raise ZenohFlagError("; ".join(_flag_message(e) for e in exc.errors(include_url=False))) from exc
+
+
+class ZenohFlagError(ValueError):
+    """A Zenoh flag (or its ``PERCEPTION_ZENOH_*`` variable) that cannot be used: one line naming it."""
+
+
+_FLAG_OF = {"mode": "--mode", "connect": "--connect", "listen": "--listen", "config_file": "--config",
+            "multicast_scouting": "--multicast-scouting", "connect_timeout_s": "--connect-timeout",
+            "credentials": "--credentials"}
+
+
+def _flag_message(error: object) -> str:
+    err = dict(error)  # type: ignore[call-overload]
+    field = str(err["loc"][0]) if err.get("loc") else ""
+    msg = str(err["msg"]).removeprefix("Value error, ")
+    return f"{_FLAG_OF.get(field, field)}: {msg}" if field else msg
 
 
 def build_zenoh_config(opts: ZenohOptions) -> "zenoh.Config":  # type: ignore[name-defined]  # noqa: F821

@@ -16,7 +16,7 @@ from typing import Any, TextIO
 import cv2
 import numpy as np
 
-from common.runtime.cli_util import CliError
+from common.runtime.cli_util import CliError, check_input_file
 from common.runtime.progress import progress
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
@@ -40,11 +40,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def read_rgb(path: Path) -> np.ndarray:
     """(H, W, 3) uint8 RGB pixels of an image file; CliError if it cannot be read."""
-    if not path.is_file():
-        raise CliError(f"image {path} does not exist")
-    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    expected = "expected an image file: PNG, JPEG or another format OpenCV reads"
+    check_input_file(path, expected)
+    if path.stat().st_size == 0:
+        raise CliError(f"image {path} is empty ({expected})")
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # our message says it once
+    try:
+        bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    finally:
+        cv2.utils.logging.setLogLevel(level)
     if bgr is None:
-        raise CliError(f"image {path} cannot be decoded (not an image OpenCV can read?)")
+        raise CliError(f"image {path} cannot be decoded ({expected})")
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 

@@ -28,7 +28,8 @@ def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
                    "person's height in px: 2.25 for ~50 px people (PETS-like 480x360), 1.0 (the default) when "
                    "everyone is taller than ~105 px (a 640x480 RGB-D camera, people within ~8 m); cost grows with "
                    "its square")
-    g.add_argument("--conf", type=float, default=None, help="yolo-onnx/darknet: confidence threshold")
+    g.add_argument("--conf", type=float, default=None, metavar="P",
+                   help="yolo-onnx/darknet: confidence threshold, 0 to 1 (default 0.35)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -41,7 +41,7 @@ def crops_of_line(line: dict[str, Any], where: str, base: Path) -> tuple[list[np
     for i, det in enumerate(line.get("detections", [])):
         box = det.get("bbox_xyxy") if isinstance(det, dict) else None
         if not isinstance(box, list) or len(box) != 4 or not all(isinstance(v, (int, float)) for v in box):
-            raise CliError(f"{where}: detection {i} has no bbox_xyxy [x0, y0, x1, y1]")
+            raise CliError(f"{where}: detection {i} needs bbox_xyxy: [x0, y0, x1, y1], four numbers (got {box!r})")
         boxes.append(box)
     if not boxes:
         return [], np.zeros(0, np.int64)

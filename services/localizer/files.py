@@ -14,8 +14,8 @@ import cv2
 import numpy as np
 import yaml
 
-from common.runtime.cli_util import CliError
-from common.runtime.config import ConfigError, read_config_file
+from common.runtime.cli_util import CliError, check_input_file
+from common.runtime.config import ConfigError, key_line, read_config_file
 from common.geometry.transforms import PinholeCamera, RigidTransform
 from services.localizer.core import FloorHomography
 
@@ -34,7 +34,12 @@ def read_depth(path: Path) -> np.ndarray:
         except (OSError, ValueError) as exc:
             raise CliError(f"depth image {path} cannot be read as .npy: {exc}") from exc
     else:
-        depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+        level = cv2.utils.logging.getLogLevel()
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # our message says it once
+        try:
+            depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+        finally:
+            cv2.utils.logging.setLogLevel(level)
         if depth is None:
             raise CliError(f"depth image {path} cannot be decoded (use a 16-bit PNG in millimetres or a .npy array)")
     if depth.ndim != 2:
@@ -74,23 +79,34 @@ def read_camera_info(path: Path) -> tuple[PinholeCamera, str]:
     """
     data = _read_mapping(path, "--camera-info")
 
-    def pick(*names: str, default: Any = None) -> Any:
+    def pick(*names: str, default: Any = None) -> tuple[str, Any]:
         for n in names:
             if n in data:
-                return data[n]
+                return n, data[n]
         if default is None:
             raise CliError(f"camera info {path} has no {names[0]!r}")
-        return default
+        return names[0], default
 
+    def field(names: tuple[str, ...], convert: Any, default: Any = None) -> Any:
+        name, value = pick(*names, default=default)
+        try:
+            return convert(value)
+        except (TypeError, ValueError) as exc:
+            line = key_line(path, [name])
+            where = f"{path}:{line}" if line is not None else str(path)
+            raise CliError(f"camera info {where}: {name}: {exc}") from exc
+
+    width = field(("width", "image_width"), int)
+    height = field(("height", "image_height"), int)
+    K = field(("K", "k", "camera_matrix"), lambda v: _matrix(v, 3, 3, f"K in {path}"))
+    D = field(("D", "d", "distortion_coefficients"),
+              lambda v: np.asarray(_flat(v), dtype=np.float64).reshape(-1), default=[])
+    model = str(pick("distortion_model", default="plumb_bob")[1])
+    header: dict[str, Any] = data["header"] if isinstance(data.get("header"), dict) else {}
+    frame_id = str(data.get("frame_id") or header.get("frame_id") or "camera")
+    if model not in _MODELS:
+        raise CliError(f"camera info {path}: distortion_model {model!r} is not one of {', '.join(_MODELS)}")
     try:
-        width, height = int(pick("width", "image_width")), int(pick("height", "image_height"))
-        K = _matrix(pick("K", "k", "camera_matrix"), 3, 3, f"K in {path}")
-        D = np.asarray(_flat(pick("D", "d", "distortion_coefficients", default=[])), dtype=np.float64).reshape(-1)
-        model = str(pick("distortion_model", default="plumb_bob"))
-        header: dict[str, Any] = data["header"] if isinstance(data.get("header"), dict) else {}
-        frame_id = str(data.get("frame_id") or header.get("frame_id") or "camera")
-        if model not in _MODELS:
-            raise CliError(f"camera info {path}: distortion_model {model!r} is not one of {', '.join(_MODELS)}")
         return PinholeCamera(K, width, height, D, model), frame_id  # type: ignore[arg-type]
     except (TypeError, ValueError) as exc:
         raise CliError(f"camera info {path}: {exc}") from exc
@@ -129,8 +145,7 @@ def read_transforms(path: Path) -> list[tuple[str, str, RigidTransform]]:
     or an object with such a list under ``transforms`` (a TransformBatch as JSON)."""
     # common.runtime.config.read_config_file reads mappings only, and the list is this file's
     # documented form: only the mapping form ({"transforms": [...]}) could go through it.
-    if not path.is_file():
-        raise CliError(f"transforms file {path} does not exist")
+    check_input_file(path, "expected a JSON/YAML list of transforms")
     try:
         data = json.loads(path.read_text()) if path.suffix == ".json" else yaml.safe_load(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from common.runtime.node import add_node_arguments
-from services.tracker.config import TrackerConfig
+from services.tracker.config import PROFILES, TrackerConfig
 
 __all__ = ["add_arguments", "adjust", "overrides"]
 
@@ -15,6 +15,9 @@ __all__ = ["add_arguments", "adjust", "overrides"]
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("tracker")
     g.add_argument("--camera", default=None, help="camera whose streams to track, '*' for all (default head)")
+    g.add_argument("--profile", choices=PROFILES, default=None,
+                   help="'robust' (default): cue fusion, staged association, life cycle in seconds; "
+                        "'thesis': Pinto's thesis exactly")
     g.add_argument("--embedding-model", default=None, metavar="NAME",
                    help="only use descriptors of this model (default: the first model seen)")
     g.add_argument("--time-step", choices=("time", "frame"), default=None,
@@ -30,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def overrides(args: argparse.Namespace) -> dict[str, Any]:
-    return {"camera": args.camera, "embedding_model": args.embedding_model, "time_step": args.time_step,
+    return {"camera": args.camera, "profile": args.profile, "embedding_model": args.embedding_model, "time_step": args.time_step,
             "memory_path": args.memory, "output_rate_hz": args.output_rate, "no_embeddings": args.no_embeddings}
 
 

@@ -49,18 +49,22 @@ class Detections:
 
 def read_detections(path: str | Path) -> Detections:
     """Parse and validate a detections CSV file (raises :class:`FormatError`)."""
-    text = Path(path).read_text()
+    try:
+        text = Path(path).read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise FormatError(f"{path}: not a text file (expected a CSV file with the header "
+                          f"{','.join(INPUT_COLUMNS)}[,e0,e1,...])") from exc
     first, _, body = text.partition("\n")
     header = [h.strip() for h in first.strip().split(",")]
     if tuple(header[:6]) != INPUT_COLUMNS:
-        raise FormatError(f"{path}: the header must start with {','.join(INPUT_COLUMNS)}, got {first.strip()!r}")
+        raise FormatError(f"{path}:1: the header must start with {','.join(INPUT_COLUMNS)}, got {first.strip()!r}")
     extra = header[6:]
     if extra != [f"e{i}" for i in range(len(extra))]:
         raise FormatError(f"{path}: columns after 'score' must be e0,e1,...,e{len(extra) - 1} in order, got {','.join(extra)}")
     try:
         data = np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2, dtype=np.float64) if body.strip() else np.zeros((0, len(header)))
     except ValueError as exc:
-        raise FormatError(f"{path}: {exc}") from exc
+        raise FormatError(f"{path}:{_first_bad_value(body, header)}") from exc
     if data.shape[1] != len(header):
         raise FormatError(f"{path}: rows have {data.shape[1]} values, the header names {len(header)}")
     if not np.all(np.isfinite(data[:, :5])):
@@ -75,6 +79,22 @@ def read_detections(path: str | Path) -> Detections:
     if descriptors is not None and not np.all(np.isfinite(descriptors)):
         raise FormatError(f"{path}: embedding values must be finite numbers")
     return Detections(frames.astype(np.int64), data[:, 1], data[:, 2:5], data[:, 5], descriptors)
+
+
+def _first_bad_value(body: str, header: list[str]) -> str:
+    """``"N: what"``: the file's line number N where the rows under the header stop being numbers, and why."""
+    for n, line in enumerate(body.splitlines(), 2):
+        if not line.strip():
+            continue
+        values = [v.strip() for v in line.split(",")]
+        if len(values) != len(header):
+            return f"{n}: {len(values)} values, the header names {len(header)}"
+        for name, value in zip(header, values):
+            try:
+                float(value)
+            except ValueError:
+                return f"{n}: {name} is {value!r}, not a number"
+    return " the rows are not all numbers"
 
 
 def frame_stamps(dets: Detections) -> tuple[np.ndarray, np.ndarray]:

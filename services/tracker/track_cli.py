@@ -7,7 +7,7 @@ import logging
 import time
 from pathlib import Path
 
-from common.runtime.cli_util import CliError
+from common.runtime.cli_util import CliError, check_input_file
 from common.runtime.node import load_node_config
 from services.tracker.config import DEFAULT_EMBEDDING_MODEL, PROFILES, TrackerConfig
 from services.tracker.offline import FormatError, read_detections, track, write_tracks
@@ -29,8 +29,10 @@ Output CSV: frame,stamp,id,x,y,z, one row per Confirmed track per frame."""
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--detections", type=Path, required=True, metavar="DETS.csv", help="input detections")
     parser.add_argument("--output", type=Path, required=True, metavar="TRACKS.csv", help="where to write the tracks")
-    parser.add_argument("--config", type=Path, default=None, metavar="FILE",
-                        help="TrackerConfig YAML/JSON (or a deploy file with a 'tracker' section)")
+    parser.add_argument("--service-config", type=Path, default=None, metavar="FILE",
+                        help="YAML/JSON settings; its 'tracker' section if it has one, else the whole file")
+    # The old spelling: --config is the Zenoh config in every other command, so it only explains.
+    parser.add_argument("--config", dest="old_config", type=Path, default=None, help=argparse.SUPPRESS)
     parser.add_argument("--embedding-model", default=DEFAULT_EMBEDDING_MODEL, metavar="NAME",
                         help=f"model that made the e-columns; picks its thresholds (default {DEFAULT_EMBEDDING_MODEL})")
     parser.add_argument("--time-step", choices=("time", "frame"), default=None,
@@ -39,16 +41,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="'robust' (default): cue fusion, staged association, life cycle in seconds; "
                              "'thesis': Pinto's thesis exactly")
     parser.add_argument("--birth-score", type=float, default=None, metavar="S",
-                        help="robust: detections scoring below S update tracks but never start one")
+                        help="robust: detections scoring below S update tracks but never start one (default: the settings')")
     parser.add_argument("--status", action="store_true",
                         help="add a status column: confirmed, or coasting (robust: reported through a short miss)")
 
 
 def main(args: argparse.Namespace) -> int:
-    config = load_node_config(TrackerConfig, "tracker", args.config, {
+    if args.old_config is not None:
+        raise CliError(f"--config is the Zenoh config file in every command; "
+                       f"give the tracker settings as --service-config {args.old_config}")
+    config = load_node_config(TrackerConfig, "tracker", args.service_config, {
         "time_step": args.time_step, "profile": args.profile, "robust": {"scores": {"birth_score": args.birth_score}}})
-    if not args.detections.is_file():
-        raise CliError(f"detections file {args.detections} does not exist")
+    check_input_file(args.detections, "expected a detections CSV file: frame,stamp,x,y,z,score[,e0,e1,...]")
     try:
         dets = read_detections(args.detections)
     except FormatError as exc:
@@ -60,7 +64,7 @@ def main(args: argparse.Namespace) -> int:
             known = ", ".join(sorted(config.appearance)) or "none"
             raise CliError(
                 f"no appearance thresholds for embedding model {args.embedding_model!r} (configured: {known}); "
-                f"add t_lower, t_upper and t_recover under appearance.{args.embedding_model} in --config FILE, "
+                f"add t_lower, t_upper and t_recover under appearance.{args.embedding_model} in --service-config FILE, "
                 "or pick another --embedding-model")
     else:
         log.info("no embedding columns: tracking position-only")

@@ -289,5 +289,5 @@ def test_track_command_refuses_an_unknown_profile(tmp_path: Path, capsys: pytest
     assert "'bogus'" in (err := capsys.readouterr().err) and "'robust'" in err and "'thesis'" in err
     bad = tmp_path / "tracker.yaml"
     bad.write_text("profile: fast\n")
-    assert main(["track", "--detections", str(dets), "--output", str(tmp_path / "t.csv"), "--config", str(bad)]) == 2
+    assert main(["track", "--detections", str(dets), "--output", str(tmp_path / "t.csv"), "--service-config", str(bad)]) == 2
     assert "'robust' or 'thesis'" in capsys.readouterr().err and not (tmp_path / "t.csv").exists()

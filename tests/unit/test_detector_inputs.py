@@ -70,7 +70,7 @@ def test_detect_cli_on_pets09(shared_data: Path, capsys: pytest.CaptureFixture[s
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["detect", "{tmp}/absent.png"], "does not exist"),
+    (["detect", "{tmp}/absent.png"], "absent.png: no such file"),
     (["detect", "{tmp}/junk.png"], "cannot be decoded"),
     (["detect", "{tmp}/ok.png", "--backend", "yolo-onnx"], "needs yolo.model"),
     (["detect", "{tmp}/ok.png", "--backend", "yolo-onnx", "--model", "{tmp}/absent.onnx"], "absent.onnx does not exist"),

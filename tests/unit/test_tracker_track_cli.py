@@ -78,7 +78,7 @@ def test_unknown_profile_is_refused_with_the_allowed_names(tmp_path: Path, capsy
     dets, cfg = tmp_path / "dets.csv", tmp_path / "tracker.yaml"
     write_detections(dets)
     cfg.write_text("profile: fast\n")
-    code = main(["track", "--detections", str(dets), "--output", str(tmp_path / "o.csv"), "--config", str(cfg)])
+    code = main(["track", "--detections", str(dets), "--output", str(tmp_path / "o.csv"), "--service-config", str(cfg)])
     assert code == 2
     assert "'robust' or 'thesis'" in capsys.readouterr().err
 
@@ -105,7 +105,7 @@ def test_config_file_can_add_a_model(tmp_path: Path) -> None:
     dets, cfg = tmp_path / "dets.csv", tmp_path / "tracker.yaml"
     write_detections(dets)
     cfg.write_text("appearance:\n  mynet: {t_lower: 0.25, t_upper: 0.6, t_recover: 0.35}\n")
-    args = ["track", "--detections", str(dets), "--output", str(tmp_path / "o.csv"), "--config", str(cfg)]
+    args = ["track", "--detections", str(dets), "--output", str(tmp_path / "o.csv"), "--service-config", str(cfg)]
     assert main(args + ["--embedding-model", "mynet"]) == 0
     assert main(args + ["--embedding-model", "trinet"]) == 0  # shipped models stay available
 
@@ -130,8 +130,28 @@ def test_bad_config_value_is_named(tmp_path: Path, capsys: pytest.CaptureFixture
     dets, cfg = tmp_path / "dets.csv", tmp_path / "bad.yaml"
     write_detections(dets)
     cfg.write_text("n_init: 0\n")
-    assert main(["track", "--detections", str(dets), "--output", str(tmp_path / "o.csv"), "--config", str(cfg)]) == 2
+    assert main(["track", "--detections", str(dets), "--output", str(tmp_path / "o.csv"), "--service-config", str(cfg)]) == 2
     assert "n_init" in capsys.readouterr().err
+
+
+def test_old_config_flag_points_to_service_config(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--config`` is the Zenoh config everywhere; the old spelling here says what to use."""
+    dets, cfg = tmp_path / "dets.csv", tmp_path / "t.yaml"
+    write_detections(dets)
+    cfg.write_text("n_init: 3\n")
+    assert main(["track", "--detections", str(dets), "--output", str(tmp_path / "o.csv"), "--config", str(cfg)]) == 2
+    assert "--service-config" in capsys.readouterr().err
+
+
+def test_tracker_node_has_profile_flag() -> None:
+    import argparse
+
+    from services.tracker import flags
+
+    parser = argparse.ArgumentParser()
+    flags.add_arguments(parser)
+    assert flags.overrides(parser.parse_args(["--profile", "thesis"]))["profile"] == "thesis"
+    assert flags.overrides(parser.parse_args([]))["profile"] is None
 
 
 def test_empty_file_gives_header_only(tmp_path: Path) -> None:

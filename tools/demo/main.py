@@ -64,9 +64,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", default="still", help="simulated scenario (see `perception simulate --list`)")
     parser.add_argument("--duration", type=float, default=30.0, metavar="S", help="simulated seconds (default 30)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the scenario (default 0): same seed, same run")
-    parser.add_argument("--width", type=int, default=320, help="image width (default 320, for speed)")
-    parser.add_argument("--height", type=int, default=240, help="image height (default 240)")
-    parser.add_argument("--fps", type=float, default=10.0, help="camera frames per second (default 10)")
+    parser.add_argument("--width", type=int, default=320, metavar="PX", help="image width (default 320, for speed)")
+    parser.add_argument("--height", type=int, default=240, metavar="PX", help="image height (default 240)")
+    parser.add_argument("--fps", type=float, default=10.0, metavar="HZ", help="camera frames per second (default 10)")
     parser.add_argument("--detector", default="depth", help="detector backend (default depth; hog also needs no model)")
     parser.add_argument("--second-detector", default=None, metavar="BACKEND",
                         help="also run a second, slower detector on the camera (as in the TU Ilmenau "

@@ -51,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="key expression to record, repeatable (default: everything of the robot, KEYS.all())")
     parser.add_argument("--compression", choices=("zstd", "lz4", "none"), default="zstd",
                         help="MCAP chunk compression (default zstd; lz4 is cheaper on CPU)")
-    parser.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
+    parser.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds (default: at Ctrl-C)")
     parser.add_argument("--foxglove", type=Path, default=None, metavar="FOX.mcap",
                         help="also write the messages in Foxglove's well-known schemas into FOX.mcap, for the "
                              "Foxglove app (needs foxglove-sdk, the 'view' extra)")

@@ -50,9 +50,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="simulated seconds (default: the scenario's length; 0 = until Ctrl-C)",
     )
-    parser.add_argument("--fps", type=float, default=None, help="frames per simulated second (default 15)")
-    parser.add_argument("--width", type=int, default=None, help="image width (default 640)")
-    parser.add_argument("--height", type=int, default=None, help="image height (default 480)")
+    parser.add_argument("--fps", type=float, default=None, metavar="HZ", help="frames per simulated second (default 15)")
+    parser.add_argument("--width", type=int, default=None, metavar="PX", help="image width (default 640)")
+    parser.add_argument("--height", type=int, default=None, metavar="PX", help="image height (default 480)")
     parser.add_argument("--camera", default=None, help="camera name in keys and headers (default head)")
     parser.add_argument(
         "--back-camera",
@@ -63,7 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
              "base_link->NAME_link->NAME_optical on tf_static (default: none)",
     )
     speed = parser.add_mutually_exclusive_group()
-    speed.add_argument("--rate", type=float, default=None, help="speed relative to real time (default 1)")
+    speed.add_argument("--rate", type=float, default=None, metavar="X", help="speed relative to real time (default 1)")
     speed.add_argument(
         "--max",
         dest="max_speed",
@@ -82,19 +82,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-depth-noise", dest="depth_noise", action="store_false", default=None, help="exact depth (for debugging)"
     )
-    parser.add_argument("--start-ns", type=int, default=None, help="stamp of frame 0 (default: now)")
+    parser.add_argument("--start-ns", type=int, default=None, metavar="NS",
+                        help="stamp of frame 0 in ns since the epoch (default: now)")
     parser.add_argument("--head-control", action="store_true", default=None,
                         help="the head obeys HeadCommand (perception attention) instead of the scenario's motion")
     parser.add_argument("--fault", dest="faults", action="append", default=None, choices=sorted(FAULTS),
                         help="make a setup mistake on purpose, repeatable, to see what `perception doctor` "
                              "says: " + "; ".join(f"{k}: {v}" for k, v in FAULTS.items()))
     parser.add_argument(
-        "--settings",
+        "--service-config",
         dest="config_file",
         default=None,
         metavar="FILE",
-        help="YAML/JSON file with a 'simulator' section (--config is the Zenoh config)",
+        help="YAML/JSON settings; its 'simulator' section if it has one, else the whole file "
+             "(--config is the Zenoh config)",
     )
+    parser.add_argument("--settings", dest="config_file", default=None, help=argparse.SUPPRESS)  # the old spelling
     parser.add_argument("--ros2", action="store_true", default=None,
                         help="be a ROS 2 robot: the head camera (rgb8, 16UC1 aligned depth, camera info on the "
                              "RealSense driver's topics) and /tf, /tf_static as ROS 2 topics over rmw_zenoh, for "

@@ -6,11 +6,10 @@ import argparse
 import logging
 import sys
 
-from pydantic import ValidationError
 
 from common.runtime.cli_util import CliError
 from common.runtime.service import Shutdown
-from common.transport.zenoh_config import ZenohOptions, add_zenoh_arguments, options_from_args
+from common.transport.zenoh_config import ZenohFlagError, ZenohOptions, add_zenoh_arguments, options_from_args
 from common.transport.zenoh import TransportError, open_session
 
 log = logging.getLogger(__name__)
@@ -35,8 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def router_options(args: argparse.Namespace) -> ZenohOptions:
     try:
         opts = options_from_args(args)
-    except ValidationError as exc:
-        raise CliError(str(exc.errors(include_url=False)[0]["msg"])) from exc
+    except ZenohFlagError as exc:
+        raise CliError(str(exc)) from exc
     if opts.mode != "router":
         raise CliError("perception router always runs in router mode; drop --mode")
     opts.access_control = bool(getattr(args, "access_control", False))

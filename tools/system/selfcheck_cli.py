@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import time
 
-from pydantic import ValidationError
 
 from common.runtime.cli_util import CliError, add_key_arguments, keys_from_args
 from common.messages.codec import encode
@@ -14,7 +13,7 @@ from common.transport.router_process import RouterProcess
 from common.runtime.service import ServiceRuntime
 from common.messages.samples import example_messages
 from common.transport.base import Transport
-from common.transport.zenoh_config import ZenohOptions, add_zenoh_arguments, options_from_args
+from common.transport.zenoh_config import ZenohFlagError, ZenohOptions, add_zenoh_arguments, options_from_args
 from common.transport.zenoh import TransportError, open_transport
 
 DESCRIPTION = """\
@@ -61,8 +60,8 @@ def main(args: argparse.Namespace) -> int:
     keys = keys_from_args(args)
     try:
         opts = options_from_args(args)
-    except ValidationError as exc:
-        raise CliError(str(exc.errors(include_url=False)[0]["msg"])) from exc
+    except ZenohFlagError as exc:
+        raise CliError(str(exc)) from exc
     router = None
     if not opts.connect and opts.config_file is None and opts.mode == "client":
         router = RouterProcess().start()

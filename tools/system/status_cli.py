@@ -26,7 +26,7 @@ its error line, and the tracker's position-only counters next to it."""
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    parser.add_argument("--watch", type=float, default=None, metavar="S", help="refresh every S seconds until Ctrl-C")
+    parser.add_argument("--watch", type=float, default=None, metavar="S", help="refresh every S seconds until Ctrl-C (default: print once)")
     parser.add_argument("--timeout", type=float, default=1.0, metavar="S", help="how long to wait for answers (default 1)")
     add_key_arguments(parser)
     add_zenoh_arguments(parser)

@@ -20,7 +20,6 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from typing import Any
 
 from common.runtime.cli_util import CliError
 from common.messages.keys import Keys
@@ -32,9 +31,10 @@ from common.transport.zenoh_config import ZenohOptions
 from common.transport.zenoh import TransportError, open_transport
 from services.tracker.config import SEVERAL_CAMERAS
 from tools.demo.attention import AttentionLog
-from tools.demo.monitor import WIDTH, Monitor, wrap
+from tools.demo.monitor import Monitor
 from tools.demo.ros2_echo import TrackedEcho
 from tools.demo.scoring import GroundTruthLog, score
+from tools.demo.text import WIDTH, attention_line, closing_text
 from tools.launcher.supervisor import ProcessSpec, Supervisor
 from tools.simulator.core.cameras import BACK_CAMERA_OFFSET
 from tools.simulator.core.render import default_camera
@@ -171,25 +171,6 @@ def _wait_alive(transport: Transport, keys: Keys, supervisor_thread: threading.T
             return alive
         shutdown.wait(0.2)
     return alive
-
-
-def attention_line(a: dict[str, Any]) -> str:
-    """The attention node's scores (``report["attention"]``) as one line."""
-    return (f"attention (person {a['person_id']}): centring error p50 {a['center_error_px_p50']} px, "
-            f"p95 {a['center_error_px_p95']} px; visible {a['target_visible_fraction']} of {a['frames']} frames")
-
-
-def closing_text(stages_text: str, table: str, log_dir: Path, cpu: dict[str, float | None], extra: list[str],
-                 plotted: str | None) -> str:
-    """What the demo prints at the end (without ``--json``): the stages over the run, Table II
-    and the pose line (``table``), each process's CPU, ``extra`` lines and where the plot is;
-    no line longer than :data:`~tools.demo.monitor.WIDTH` columns."""
-    parts = ["", stages_text, "", "Table II for this run (ground truth from the simulator):", "", table, "",
-             "CPU per service: " + ", ".join(f"{n} {v}%" for n, v in cpu.items() if v is not None), *extra,
-             f"logs: {log_dir}"]
-    if plotted:
-        parts.append(f"plot of the run (tracks against the ground truth): {plotted}")
-    return wrap("\n".join(parts), WIDTH)
 
 
 def main(args: argparse.Namespace) -> int:

@@ -5,12 +5,11 @@ age of every message against its source frame's sensor stamp (``recv - header.st
 which is the latency from the camera to that stage. All processes run on one host in the
 demo, so the clocks agree. Rates and latencies come from the operator page's meter
 (:class:`~tools.drawing.meters.StageMeter`, fed with the transport's receive stamps), so the
-table and the page show the same numbers. Everything it renders fits :data:`WIDTH` columns.
+table and the page show the same numbers. Everything it renders fits :data:`~tools.demo.text.WIDTH` columns.
 """
 
 from __future__ import annotations
 
-import textwrap
 import threading
 import time
 from typing import Any
@@ -22,24 +21,17 @@ from common.messages.keys import STATUS, Delivery, Keys, stream
 from common.messages.registry import pipeline
 from common.messages.schemas import Message, ServiceStatus, Tracks
 from common.transport.base import Subscription, Transport
+from tools.demo.text import wrap
 from tools.drawing.meters import StageMeter
 
-__all__ = ["STAGES", "WIDTH", "Monitor", "wrap"]
+__all__ = ["STAGES", "Monitor"]
 
 #: (stage name, key method, message type), in pipeline order: each stage of the registry and
 #: the stream it publishes (the :class:`~common.messages.keys.Keys` method of the same name).
 STAGES: tuple[tuple[str, str, type[Message]], ...] = tuple(
     (n.name, n.publishes[0], getattr(schemas, stream(n.publishes[0]).message)) for n in pipeline())
-#: The width the live table and the final tables fit in (a default terminal's).
-WIDTH = 80
 #: The states a track is listed under, in this order.
 _STATES = ("confirmed", "coasting", "tentative")
-
-
-def wrap(text: str, width: int = WIDTH) -> str:
-    """``text`` with every line longer than ``width`` broken at spaces (indented after the first)."""
-    return "\n".join(textwrap.fill(line, width, subsequent_indent="  ", break_on_hyphens=False) if len(line) > width
-                     else line for line in text.split("\n"))
 
 
 class Monitor:
@@ -92,7 +84,7 @@ class Monitor:
 
     def render_summary(self) -> str:
         """Each stage over the whole run: messages, mean rate, latency p50/p95 (what ``--json``'s
-        ``pipeline`` holds), at most :data:`WIDTH` columns."""
+        ``pipeline`` holds), at most :data:`~tools.demo.text.WIDTH` columns."""
         rows = ["the pipeline over the run",
                 f"{'stage':<10} {'msgs':>6} {'rate Hz':>7} {'p50 ms':>7} {'p95 ms':>7}"]
         for name, numbers in self.summary().items():
@@ -102,7 +94,7 @@ class Monitor:
         return "\n".join(rows)
 
     def render(self, title: str = "", elapsed_s: float | None = None, now: float | None = None) -> str:
-        """The live view as text (no terminal control codes), at most :data:`WIDTH` columns.
+        """The live view as text (no terminal control codes), at most :data:`~tools.demo.text.WIDTH` columns.
 
         ``now``: the wall clock (s) the rates are computed at (default: the current time).
         """

@@ -10,9 +10,9 @@ import pytest
 from common.messages.keys import Keys
 from common.messages.schemas import Detections, Header, ServiceStatus, Tracks, TrackState
 from common.transport.memory import MemoryBus
-from tools.demo.main import attention_line, closing_text
-from tools.demo.monitor import STAGES, WIDTH, Monitor
+from tools.demo.monitor import STAGES, Monitor
 from tools.demo.scoring import pose_line, score_rows
+from tools.demo.text import WIDTH, attention_line, closing_text
 from tools.drawing.meters import StageMeter
 
 T0_NS = 1_700_000_000_000_000_000

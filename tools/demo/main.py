@@ -34,7 +34,7 @@ from tools.demo.attention import AttentionLog
 from tools.demo.monitor import Monitor
 from tools.demo.ros2_echo import TrackedEcho
 from tools.demo.scoring import GroundTruthLog, score
-from tools.demo.text import WIDTH, attention_line, closing_text
+from tools.demo.text import WIDTH, attention_line, closing_text, wrap
 from tools.launcher.supervisor import ProcessSpec, Supervisor
 from tools.simulator.core.cameras import BACK_CAMERA_OFFSET
 from tools.simulator.core.render import default_camera
@@ -198,7 +198,7 @@ def main(args: argparse.Namespace) -> int:
     sim: subprocess.Popen[bytes] | None = None
     looked: AttentionLog | None = None
     echo: TrackedEcho | None = None
-    print(f"starting the router and the four services (log: {log_dir / 'processes.log'}) ...", flush=True)
+    print(wrap(f"starting the router and the four services (log: {log_dir / 'processes.log'}) ..."), flush=True)
     with Shutdown() as shutdown:
         sup_thread.start()
         try:

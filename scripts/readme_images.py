@@ -54,7 +54,7 @@ def screenshot(out: Path, scenario: str, settle_s: float) -> None:
              "--duration", str(settle_s + 40), "--no-view", "--log-dir", tmp],
             stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT, cwd=ROOT, env={**os.environ, "RUST_LOG": "error"})
         try:
-            with Browser(width=1280, height=1000) as browser:
+            with Browser(width=1280, height=800) as browser:
                 browser.open_until(f"http://127.0.0.1:{port}/",
                                    "document.querySelectorAll('#tracks [data-track-id]').length > 0",
                                    timeout_s=120, retry_s=10, alive=lambda: demo.poll() is None)

@@ -16,7 +16,8 @@ from tests.fixtures.viewer_scene import IDS, ScenePublisher, camera_to_map
 from tools.viewer.config import ViewerConfig
 from tools.viewer.core.health import NodeSeen, health
 from tools.drawing.tracks import label_boxes, project_to_image
-from tools.viewer.core.drawing import StageMeter, Trails, colour_hex, yaw_of
+from tools.drawing.meters import StageMeter
+from tools.viewer.core.drawing import Trails, colour_hex, yaw_of
 from tools.viewer.node import ViewerNode
 from tools.viewer.web import LatestState, WebServer
 

@@ -34,6 +34,7 @@ from tools.demo.attention import AttentionLog
 from tools.demo.monitor import Monitor
 from tools.demo.ros2_echo import TrackedEcho
 from tools.demo.scoring import GroundTruthLog, score
+from tools.demo.text import WIDTH, attention_line, closing_text, wrap
 from tools.launcher.supervisor import ProcessSpec, Supervisor
 from tools.simulator.core.cameras import BACK_CAMERA_OFFSET
 from tools.simulator.core.render import default_camera
@@ -197,7 +198,7 @@ def main(args: argparse.Namespace) -> int:
     sim: subprocess.Popen[bytes] | None = None
     looked: AttentionLog | None = None
     echo: TrackedEcho | None = None
-    print(f"starting the router and the four services (log: {log_dir / 'processes.log'}) ...", flush=True)
+    print(wrap(f"starting the router and the four services (log: {log_dir / 'processes.log'}) ..."), flush=True)
     with Shutdown() as shutdown:
         sup_thread.start()
         try:
@@ -227,7 +228,7 @@ def main(args: argparse.Namespace) -> int:
                 env={**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "error")},
             )
             started = time.monotonic()
-            page = f"   page: http://127.0.0.1:{args.view_port}/" if args.view else ""
+            page = f"\nthe live page: http://127.0.0.1:{args.view_port}/" if args.view else ""
             if args.view:
                 print(f"the live page is on http://127.0.0.1:{args.view_port}/", flush=True)
                 _open_page(f"http://127.0.0.1:{args.view_port}/")
@@ -246,14 +247,14 @@ def main(args: argparse.Namespace) -> int:
                 if sim.poll() is not None and gt.idle_for(1.5):
                     break  # the scenario is over and the pipeline has drained
                 if tty:
-                    view = monitor.render(f"perception demo: scenario {args.scenario!r}, {args.width}x{args.height} "
-                                          f"at {args.fps:g} fps, {args.duration:g} s   (Ctrl-C to stop){page}", elapsed)
+                    view = monitor.render(f"perception demo: {args.scenario}, {args.width}x{args.height} at {args.fps:g} fps, "
+                                          f"{args.duration:g} s (Ctrl-C stops){page}", elapsed)
                     sys.stdout.write("\x1b[H\x1b[J" + view + "\n")
                     sys.stdout.flush()
                 elif not args.no_view and time.monotonic() - last_line > 5:
                     last_line = time.monotonic()
-                    n = len(monitor.latest_tracks.tracks) if monitor.latest_tracks else 0
-                    print(f"{elapsed:6.1f} s: {monitor.stats['tracker'].count} track updates, {n} confirmed tracks", flush=True)
+                    n = sum(t.status == "confirmed" for t in monitor.latest_tracks.tracks) if monitor.latest_tracks else 0
+                    print(f"{elapsed:6.1f} s: {monitor.meters['tracker'].count} track updates, {n} confirmed tracks", flush=True)
                 shutdown.wait(0.5)
             monitor.poll()
             gt.poll()
@@ -264,8 +265,6 @@ def main(args: argparse.Namespace) -> int:
             for name, (pid, t0) in cpu_start.items():
                 t1 = _cpu_seconds(pid)
                 cpu[name] = round(100.0 * (t1 - t0) / wall, 1) if t0 is not None and t1 is not None else None
-            if not args.no_view and not args.json:
-                print(monitor.render(f"final state after {time.monotonic() - started:.1f} s"))
         finally:
             if sim is not None and sim.poll() is None:
                 os.killpg(sim.pid, signal.SIGTERM)
@@ -279,7 +278,8 @@ def main(args: argparse.Namespace) -> int:
             sup_thread.join(60)
             log_file.close()
     plot = args.plot or log_dir / "tracks.png"
-    report, table = score(gt, monitor, args.scenario, plot=plot, source="head" if args.second_detector or args.back_camera else None)
+    report, table = score(gt, monitor, args.scenario, plot=plot, source="head" if args.second_detector or args.back_camera else None,
+                          width=WIDTH)
     if looked is not None:
         report["attention"] = looked.report()
     if echo is not None:
@@ -289,15 +289,7 @@ def main(args: argparse.Namespace) -> int:
         print(json.dumps({"scenario": args.scenario, "log": str(log_dir / "processes.log"), "plot": plotted,
                           "pipeline": monitor.summary(), "cpu_percent": cpu, **report}, indent=2))
     else:
-        print(f"\nTable II for this run (ground truth from the simulator; logs in {log_dir}):\n")
-        print(table)
-        print("\nCPU per service: " + ", ".join(f"{n} {v}%" for n, v in cpu.items() if v is not None))
-        if "attention" in report:
-            a = report["attention"]
-            print(f"attention (person {a['person_id']}): centring error p50 {a['center_error_px_p50']} px, "
-                  f"p95 {a['center_error_px_p95']} px; visible {a['target_visible_fraction']} of {a['frames']} frames")
-        if echo is not None:
-            print(echo.line())
-        if plotted:
-            print(f"plot of the run (tracks against the ground truth): {plotted}")
+        print(closing_text(monitor.render_summary(), table, log_dir, cpu,
+                           [*((attention_line(report["attention"]),) if "attention" in report else ()),
+                            *((echo.line(),) if echo is not None else ())], plotted))
     return 0

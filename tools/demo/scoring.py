@@ -70,15 +70,16 @@ def frame_outputs(tracks: list[Tracks], source: str | None = None) -> list[Track
 
 
 def score_tracks(gt: dict[int, PeopleGroundTruth], tracks: list[Tracks], name: str, plot: Path | None = None,
-                 source: str | None = None) -> tuple[dict[str, Any], str]:
+                 source: str | None = None, width: int | None = None) -> tuple[dict[str, Any], str]:
     """(metrics as a dict, Table II and the pose line as text) of a run's ground truth by frame
     seq and its published ``Tracks``; ``plot``: also draw it there (PNG); ``source``: score the
-    outputs of that camera's frames (see :func:`frame_outputs`)."""
+    outputs of that camera's frames (see :func:`frame_outputs`); ``width``: the tables' most
+    columns (see :func:`~tools.evaluation.evaluate.format_table`)."""
     seq_of_stamp = {msg.header.stamp_ns: seq for seq, msg in gt.items()}
     tracks = frame_outputs([_as_frame(t, seq_of_stamp) for t in tracks], source)
     gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items() for p in msg.counted()]
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in tracks for tr in t.tracks if t.header.seq in gt]
-    report, table = score_rows(gt_rows, hyp_rows, name, plot)
+    report, table = score_rows(gt_rows, hyp_rows, name, plot, width)
     report["pose"] = pose_scores(gt, tracks)
     return report, table + "\n\n" + pose_line(report["pose"])
 
@@ -92,9 +93,9 @@ def _as_frame(t: Tracks, seq_of_stamp: dict[int, int]) -> Tracks:
 
 
 def score(gt: GroundTruthLog, monitor: Monitor, name: str, plot: Path | None = None,
-          source: str | None = None) -> tuple[dict[str, Any], str]:
+          source: str | None = None, width: int | None = None) -> tuple[dict[str, Any], str]:
     """:func:`score_tracks` of a live run's logs."""
-    return score_tracks(gt.frames, monitor.all_tracks, name, plot, source)
+    return score_tracks(gt.frames, monitor.all_tracks, name, plot, source, width)
 
 
 def pose_scores(gt: dict[int, PeopleGroundTruth], tracks: list[Tracks], gate_m: float = 1.0) -> dict[str, Any]:
@@ -139,14 +140,14 @@ def pose_scores(gt: dict[int, PeopleGroundTruth], tracks: list[Tracks], gate_m: 
 
 
 def pose_line(pose: dict[str, Any]) -> str:
-    """The pose scores as one line of text."""
+    """The pose scores as two lines of text: posture, then orientation."""
     acc, err = pose["posture_accuracy"], pose["orientation_error_deg_p50"]
-    return (f"posture: {'-' if acc is None else f'{100 * acc:.1f} %'} right ({pose['posture_pairs']} pairs); "
+    return (f"posture: {'-' if acc is None else f'{100 * acc:.1f} %'} right ({pose['posture_pairs']} pairs)\n"
             f"orientation: median error {'-' if err is None else f'{err:.1f} deg'} ({pose['orientation_pairs']} pairs)")
 
 
 def score_rows(gt_rows: list[tuple[int, int, np.ndarray]], hyp_rows: list[tuple[int, int, np.ndarray]],
-               name: str, plot: Path | None = None) -> tuple[dict[str, Any], str]:
+               name: str, plot: Path | None = None, width: int | None = None) -> tuple[dict[str, Any], str]:
     """(metrics as a dict, Table II as text) of (frame, id, position) rows.
 
     ``plot``: also draw the tracks against the ground truth there (``perception evaluate
@@ -162,4 +163,4 @@ def score_rows(gt_rows: list[tuple[int, int, np.ndarray]], hyp_rows: list[tuple[
         except PlotUnavailable as exc:
             log.warning("no plot of the run: %s", exc)
     report = make_report([(name, mot)])
-    return report.to_dict(), format_table(report)
+    return report.to_dict(), format_table(report, width)

@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import logging
+import textwrap
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
@@ -286,8 +287,13 @@ def _num(x: float, digits: int = 3) -> str:
     return f"{x:.{digits}f}" if np.isfinite(x) else "-"
 
 
-def format_table(report: Report) -> str:
-    """Table II of Pinto's thesis (CLEAR MOT and recall errors), then the identity measures."""
+def format_table(report: Report, width: int | None = None) -> str:
+    """Table II of Pinto's thesis (CLEAR MOT and recall errors), then the identity measures.
+
+    ``width``: the most columns a line may take (the demo's terminal: 80). A table wider than
+    that is split into tables of fewer columns, each starting with the sequence's name, and
+    a longer title is wrapped. None: each table on one line per row, however wide.
+    """
     rows = list(report.sequences)
     if len(rows) > 1:
         rows.append(("overall", report.overall))
@@ -314,14 +320,39 @@ def format_table(report: Report) -> str:
     if report.ignore:
         title += "; tracks unmatched within the gate of an ignored person dropped"
     hota_title = f"HOTA (mean over alpha = 0.05..0.95; similarity {report.hota_similarity})"
-    return "\n".join([title, _render(clear_head, clear), "", _render(id_head, ident), "", hota_title,
-                      _render(hota_head, hota)])
+    return "\n".join([_wrap(title, width), _render(clear_head, clear, width), "", _render(id_head, ident, width), "",
+                      _wrap(hota_title, width), _render(hota_head, hota, width)])
 
 
-def _render(head: list[str], rows: list[list[str]]) -> str:
+def _wrap(text: str, width: int | None) -> str:
+    return text if width is None or len(text) <= width else textwrap.fill(text, width, subsequent_indent="  ")
+
+
+def _render(head: list[str], rows: list[list[str]], width: int | None = None) -> str:
+    """The table, or with ``width`` as many tables as it takes (columns split, the first kept in each)."""
+    widths = [max(len(c) for c in col) for col in zip(head, *rows)]
+    if width is None or sum(widths) + 2 * (len(widths) - 1) <= width:
+        return _render_one(head, rows)
+    parts: list[list[int]] = [[]]
+    used = widths[0]
+    for k in range(1, len(widths)):
+        if parts[-1] and used + 2 + widths[k] > width:
+            parts.append([])
+            used = widths[0]
+        parts[-1].append(k)
+        used += 2 + widths[k]
+    last = len(widths) - 1
+    return "\n\n".join(_render_one([head[0], *(head[k] for k in ks)], [[r[0], *(r[k] for k in ks)] for r in rows],
+                                   left_last=ks[-1] == last)
+                       for ks in parts)
+
+
+def _render_one(head: list[str], rows: list[list[str]], left_last: bool = True) -> str:
+    """Numbers right-aligned; the first column (the name) and, with ``left_last``, the last
+    (the ID histogram) left-aligned."""
     widths = [max(len(c) for c in col) for col in zip(head, *rows)]
     lines = [head, ["-" * w for w in widths], *rows]
+    left = {0, len(widths) - 1} if left_last else {0}
     return "\n".join(
-        "  ".join(c.ljust(w) if k == 0 or k == len(widths) - 1 else c.rjust(w) for k, (c, w) in enumerate(zip(line, widths)))
-        .rstrip()
+        "  ".join(c.ljust(w) if k in left else c.rjust(w) for k, (c, w) in enumerate(zip(line, widths))).rstrip()
         for line in lines)

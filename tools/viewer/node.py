@@ -29,7 +29,8 @@ from tools.drawing.images import jpeg_of
 from tools.drawing.tracks import label_boxes, project_to_image
 from tools.viewer.config import ViewerConfig
 from tools.viewer.core.health import NodeSeen, health
-from tools.viewer.core.drawing import StageMeter, Trails, colour_hex, yaw_of
+from tools.drawing.meters import StageMeter
+from tools.viewer.core.drawing import Trails, colour_hex, yaw_of
 from tools.viewer.web import LatestState
 
 __all__ = ["STAGES", "Sink", "ViewerNode"]

@@ -63,7 +63,8 @@ function render() {
   $("map-frame").textContent = `frame ${state.map_frame}`;
   $("camera-name").textContent = state.camera;
   const mode = state.appearance_available === false ? "   position only (no embeddings)" : "";
-  $("summary").textContent = `${state.tracks.length} confirmed tracks${mode}`;
+  const confirmed = state.tracks.filter((t) => t.status === "confirmed").length;
+  $("summary").textContent = `${confirmed} confirmed of ${state.tracks.length} tracks${mode}`;
   renderTracks();
   renderStages();
   renderNodes();
@@ -81,8 +82,7 @@ function renderTracks() {
 function renderStages() {
   const body = $("stages").tBodies[0];
   body.replaceChildren(...state.stages.map((s) => row(
-    [s.name, s.count, fmt(s.rate_hz), s.latency_p50_ms === null ? "–" : `${fmt(s.latency_p50_ms)} ms`,
-     s.latency_p95_ms === null ? "–" : `${fmt(s.latency_p95_ms)} ms`], { "data-stage": s.name })));
+    [s.name, s.count, fmt(s.rate_hz), fmt(s.latency_p50_ms), fmt(s.latency_p95_ms)], { "data-stage": s.name })));
 }
 
 function renderNodes() {
@@ -96,10 +96,18 @@ function renderNodes() {
   }));
 }
 
-function drawMap() {
-  const cv = $("map");
+// A canvas drawn at its displayed size (in device pixels): the layout decides its size.
+function fitCanvas(cv) {
+  const dpr = window.devicePixelRatio || 1;
+  const w = Math.max(1, Math.round(cv.clientWidth * dpr)), h = Math.max(1, Math.round(cv.clientHeight * dpr));
+  if (cv.width !== w || cv.height !== h) { cv.width = w; cv.height = h; }
   const ctx = cv.getContext("2d");
-  const W = cv.width, H = cv.height;
+  ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+  return [ctx, cv.clientWidth || 1, cv.clientHeight || 1];
+}
+
+function drawMap() {
+  const [ctx, W, H] = fitCanvas($("map"));
   ctx.clearRect(0, 0, W, H);
   // fit every track, trail point and the robot, at least 6 m across
   const xs = [], ys = [];
@@ -139,20 +147,37 @@ function showImage(seq, jpeg) {
   img.src = `data:image/jpeg;base64,${jpeg}`;
 }
 
+// The camera image is shown whole (object-fit: contain) in its box; the overlay covers the box
+// and draws in image pixels through the same scale and offset. Labels stay inside the image.
 function drawOverlay() {
-  const cv = $("overlay");
   if (!state || !state.image) return;
-  cv.width = state.image.width; cv.height = state.image.height;
-  const ctx = cv.getContext("2d");
-  ctx.clearRect(0, 0, cv.width, cv.height);
-  ctx.lineWidth = Math.max(1.5, cv.width / 200); ctx.font = `bold ${Math.max(11, cv.width / 28)}px sans-serif`;
+  const [ctx, W, H] = fitCanvas($("overlay"));
+  ctx.clearRect(0, 0, W, H);
+  const iw = state.image.width, ih = state.image.height;
+  const k = Math.min(W / iw, H / ih), ox = (W - iw * k) / 2, oy = (H - ih * k) / 2;
+  ctx.save();
+  ctx.translate(ox, oy); ctx.scale(k, k);
+  ctx.lineWidth = 2 / k;  // 2 CSS pixels, and labels 13, whatever the image's scale
+  const size = 13 / k;
+  ctx.font = `bold ${size}px sans-serif`; ctx.textBaseline = "top";
   for (const b of state.boxes) {
     const [x1, y1, x2, y2] = b.bbox;
     ctx.strokeStyle = b.colour; ctx.strokeRect(x1, y1, x2 - x1, y2 - y1);
     if (b.id !== null) {
-      ctx.fillStyle = b.colour; ctx.fillText(`ID ${b.id}`, x1 + 3, Math.max(12, y1 - 4));
+      const text = `ID ${b.id}`, w = ctx.measureText(text).width, pad = 2 / k;
+      // above the box when it fits, else inside its top; always within the image
+      const x = clamp(x1, 0, iw - w - 2 * pad), y = clamp(y1 - size - 2 * pad, 0, ih - size - 2 * pad);
+      ctx.fillStyle = "rgba(16, 18, 22, 0.7)"; ctx.fillRect(x, y, w + 2 * pad, size + 2 * pad);
+      ctx.fillStyle = b.colour; ctx.fillText(text, x + pad, y + pad);
     }
   }
+  ctx.restore();
 }
+
+function clamp(v, lo, hi) {
+  return Math.min(Math.max(v, lo), Math.max(lo, hi));
+}
+
+window.addEventListener("resize", () => { if (state) { drawMap(); drawOverlay(); } });
 
 pull();

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
 from pathlib import Path
 from typing import Callable, Iterator
 
@@ -18,6 +20,58 @@ SHARED_DATA = Path(os.environ.get("PERCEPTION_SHARED_DATA", ROOT.parent / "share
 
 # Zenoh logs to stdout; keep test output to errors unless asked otherwise.
 os.environ.setdefault("RUST_LOG", "error")
+
+#: The user's real state directory, read before the override below: the tracker's ID memory
+#: (services/tracker/config.py default_memory_path) lives there, and no test may write it.
+REAL_STATE_HOME = Path(os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state")
+#: Temporary directories our code names ``perception-*`` (the demo's logs, the launcher's
+#: configs, the browser's profile, ...); the session fails if a test leaves one behind.
+TEMP_PREFIX = "perception-"
+_STATE_PREFIX = "perception-test-state-"
+# Set at import, before any test or child process starts: os.environ is what every child inherits.
+TEST_STATE_HOME = Path(tempfile.mkdtemp(prefix=_STATE_PREFIX))
+os.environ["XDG_STATE_HOME"] = str(TEST_STATE_HOME)
+_BEFORE = pytest.StashKey[tuple[set[str], set[str]]]()
+_LEFT = pytest.StashKey[list[str]]()
+
+
+def _real_state_entries() -> set[str]:
+    """What our code may write under the real state directory (``people-perception/...``), each
+    entry with its modification time, so that a rewritten file counts as well as a new one."""
+    ours = REAL_STATE_HOME / "people-perception"
+    paths = [ours, *ours.rglob("*")] if ours.exists() else []
+    return {f"{p.relative_to(REAL_STATE_HOME)} (modified {p.stat().st_mtime_ns})" for p in paths}
+
+
+def _our_temp_entries() -> set[str]:
+    tmp = Path(tempfile.gettempdir())
+    return {p.name for p in tmp.glob(TEMP_PREFIX + "*") if not p.name.startswith(_STATE_PREFIX)}
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    session.config.stash[_BEFORE] = (_real_state_entries(), _our_temp_entries())
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Fail the session if it wrote the real state directory or left ``perception-*`` temp entries."""
+    shutil.rmtree(TEST_STATE_HOME, ignore_errors=True)
+    before = session.config.stash.get(_BEFORE, None)
+    if before is None or session.config.option.collectonly:
+        return
+    state_before, temp_before = before
+    problems = []
+    if new := sorted(_real_state_entries() - state_before):
+        problems.append(f"written under the real state directory {REAL_STATE_HOME}: {', '.join(new)}")
+    if new := sorted(_our_temp_entries() - temp_before):
+        problems.append(f"left in {tempfile.gettempdir()}: {', '.join(new)}")
+    session.config.stash[_LEFT] = problems
+    if problems and session.exitstatus == pytest.ExitCode.OK:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    for line in terminalreporter.config.stash.get(_LEFT, []):
+        terminalreporter.write_line(f"tests left something behind: {line}", red=True)
 
 
 @pytest.fixture

@@ -24,13 +24,22 @@ os.environ.setdefault("RUST_LOG", "error")
 #: The user's real state directory, read before the override below: the tracker's ID memory
 #: (services/tracker/config.py default_memory_path) lives there, and no test may write it.
 REAL_STATE_HOME = Path(os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state")
+#: The session's own directories, made in the real temporary directory and removed at the end:
+#: ``state/`` is XDG_STATE_HOME and ``tmp/`` is TMPDIR, for this process and every child it starts
+#: (set at import, before any test runs: os.environ is what children inherit). Other sessions on
+#: the machine share /tmp; this one's leftovers are told apart in its own ``tmp/``.
+TEST_ROOT = Path(tempfile.mkdtemp(prefix="perception-test-session-"))
+TEST_STATE_HOME = TEST_ROOT / "state"
+TEST_TMP = TEST_ROOT / "tmp"
+TEST_STATE_HOME.mkdir()
+TEST_TMP.mkdir()
+os.environ.setdefault("PYTEST_DEBUG_TEMPROOT", tempfile.gettempdir())  # pytest's tmp_path stays where it was
+os.environ["XDG_STATE_HOME"] = str(TEST_STATE_HOME)
+os.environ["TMPDIR"] = str(TEST_TMP)
+tempfile.tempdir = str(TEST_TMP)
 #: Temporary directories our code names ``perception-*`` (the demo's logs, the launcher's
 #: configs, the browser's profile, ...); the session fails if a test leaves one behind.
 TEMP_PREFIX = "perception-"
-_STATE_PREFIX = "perception-test-state-"
-# Set at import, before any test or child process starts: os.environ is what every child inherits.
-TEST_STATE_HOME = Path(tempfile.mkdtemp(prefix=_STATE_PREFIX))
-os.environ["XDG_STATE_HOME"] = str(TEST_STATE_HOME)
 _BEFORE = pytest.StashKey[tuple[set[str], set[str]]]()
 _LEFT = pytest.StashKey[list[str]]()
 
@@ -44,8 +53,7 @@ def _real_state_entries() -> set[str]:
 
 
 def _our_temp_entries() -> set[str]:
-    tmp = Path(tempfile.gettempdir())
-    return {p.name for p in tmp.glob(TEMP_PREFIX + "*") if not p.name.startswith(_STATE_PREFIX)}
+    return {p.name for p in TEST_TMP.glob(TEMP_PREFIX + "*")}
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
@@ -54,16 +62,17 @@ def pytest_sessionstart(session: pytest.Session) -> None:
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     """Fail the session if it wrote the real state directory or left ``perception-*`` temp entries."""
-    shutil.rmtree(TEST_STATE_HOME, ignore_errors=True)
     before = session.config.stash.get(_BEFORE, None)
     if before is None or session.config.option.collectonly:
+        shutil.rmtree(TEST_ROOT, ignore_errors=True)
         return
     state_before, temp_before = before
     problems = []
     if new := sorted(_real_state_entries() - state_before):
         problems.append(f"written under the real state directory {REAL_STATE_HOME}: {', '.join(new)}")
     if new := sorted(_our_temp_entries() - temp_before):
-        problems.append(f"left in {tempfile.gettempdir()}: {', '.join(new)}")
+        problems.append(f"left in the temporary directory: {', '.join(new)}")
+    shutil.rmtree(TEST_ROOT, ignore_errors=True)
     session.config.stash[_LEFT] = problems
     if problems and session.exitstatus == pytest.ExitCode.OK:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED

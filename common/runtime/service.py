@@ -186,7 +186,11 @@ class ServiceRuntime:
     def stop(self) -> None:
         self._stop.set()
         if self._thread is not None:
-            self._thread.join(timeout=2.0)
+            # the transport closes next: a thread still inside a Zenoh put then, or at interpreter
+            # exit, can abort the process; a put drops rather than blocks (STATUS), so this is quick
+            self._thread.join(timeout=10.0)
+            if self._thread.is_alive():
+                log.warning("%s: the status thread did not stop", self.name)
 
     def __enter__(self) -> ServiceRuntime:
         self.start()

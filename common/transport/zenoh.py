@@ -90,8 +90,10 @@ class ZenohTransport(Transport):
         listener = pub.declare_matching_listener(lambda st: state.__setitem__("matching", bool(st.matching)))
 
         def undeclare() -> None:
-            listener.undeclare()
-            pub.undeclare()
+            try:
+                listener.undeclare()
+            finally:
+                pub.undeclare()  # even when the listener's undeclare fails
 
         wrapped: Publisher[Any] = Publisher(key, model, pub.put, lambda: state["matching"], undeclare)
         self._closeables.append(wrapped)
@@ -143,9 +145,11 @@ class ZenohTransport(Transport):
             pub.put(payload, attachment=attachment)
 
         def undeclare() -> None:
-            if listener is not None:
-                listener.undeclare()
-            pub.undeclare()
+            try:
+                if listener is not None:
+                    listener.undeclare()
+            finally:
+                pub.undeclare()  # even when the listener's undeclare fails
 
         wrapped = RawPublisher(key, send, lambda: state["matching"], undeclare)
         self._closeables.append(wrapped)

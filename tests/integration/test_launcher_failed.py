@@ -83,3 +83,22 @@ services:
         assert launch.finish() == 0, launch.output()
     finally:
         launch.kill()
+
+
+@pytest.mark.zenoh
+def test_the_failure_report_closes_its_session_before_close_returns_even_with_no_router() -> None:
+    """The report's session opens in a thread; a thread still inside Zenoh at interpreter exit
+    aborts the launcher ('FATAL: exception not rethrown'), so close() waits for it, and the open
+    is bounded so that it can."""
+    from common.messages.keys import Keys
+    from common.transport.zenoh_config import ZenohOptions
+    from tools.launcher.report import REPORT_CONNECT_S, FailureReport
+    from tools.launcher.supervisor import FailedChild
+
+    options = ZenohOptions(mode="client", connect=[f"tcp/127.0.0.1:{free_port()}"], connect_timeout_s=-1)
+    report = FailureReport(Keys(robot="noreport"), options, {})
+    assert report.options.connect_timeout_s == REPORT_CONNECT_S
+    report(FailedChild(name="x", pid=1, returncode=2, error="bad", run_s=0.1))
+    report.close()
+    assert report._thread is not None and not report._thread.is_alive()
+    assert report.reported == []  # no router: nothing served, and nothing left running

@@ -50,8 +50,9 @@ def _wait_gone(text: str, timeout: float = 15.0) -> list[int]:
     return left
 
 
-def test_demo_runs_the_pipeline_and_scores_it() -> None:
-    proc = subprocess.Popen([PY, "-m", "perception", "demo", "--scenario", "still", "--duration", "20", "--json", "--no-view"],
+def test_demo_runs_the_pipeline_and_scores_it(tmp_path: Path) -> None:
+    proc = subprocess.Popen([PY, "-m", "perception", "demo", "--scenario", "still", "--duration", "20", "--json", "--no-view",
+                             "--log-dir", str(tmp_path)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     out, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err[-3000:]
@@ -67,11 +68,12 @@ def test_demo_runs_the_pipeline_and_scores_it() -> None:
 
 
 @pytest.mark.slow
-def test_demo_fuses_two_detectors_and_two_cameras_through_processes() -> None:
+def test_demo_fuses_two_detectors_and_two_cameras_through_processes(tmp_path: Path) -> None:
     """TU Ilmenau's fusion through real processes and a router: depth and HOG (3 Hz, its own
     stream) on the head camera, a back camera with its own chain, one tracker on every stream."""
     proc = subprocess.Popen([PY, "-m", "perception", "demo", "--scenario", "handover", "--duration", "20",
-                             "--second-detector", "hog", "--back-camera", "back", "--json", "--no-view"],
+                             "--second-detector", "hog", "--back-camera", "back", "--json", "--no-view",
+                             "--log-dir", str(tmp_path)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     out, err = proc.communicate(timeout=400)
     assert proc.returncode == 0, err[-3000:]

@@ -49,6 +49,10 @@ def failed_status(failed: FailedChild, service: str) -> ServiceStatus:
     )
 
 
+#: How long the report's session waits for the router (the launcher's own router may be gone).
+REPORT_CONNECT_S = 3.0
+
+
 class FailureReport:
     """Serve the status of every failed child over Zenoh; call it with each :class:`FailedChild`.
 
@@ -58,7 +62,11 @@ class FailureReport:
 
     def __init__(self, keys: Keys, options: ZenohOptions, services: Mapping[str, str]) -> None:
         self.keys = keys
-        self.options = options
+        # Bounded, so close() can wait for the session: a thread still inside Zenoh when the
+        # interpreter finalizes aborts the launcher ("FATAL: exception not rethrown").
+        timeout = options.connect_timeout_s
+        self.options = options.model_copy(update={"connect_timeout_s": REPORT_CONNECT_S if timeout < 0
+                                                  else min(timeout, REPORT_CONNECT_S)})
         self.services = dict(services)
         self._queue: queue.Queue[ServiceStatus | None] = queue.Queue()
         self._thread: threading.Thread | None = None
@@ -100,4 +108,6 @@ class FailureReport:
         """Withdraw the reports and close the session (if one was opened)."""
         if self._thread is not None:
             self._queue.put(None)
-            self._thread.join(timeout=10.0)
+            self._thread.join(timeout=REPORT_CONNECT_S + 10.0)  # opening is bounded; closing is quick
+            if self._thread.is_alive():
+                log.error("the failure report's Zenoh session did not close")

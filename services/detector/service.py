@@ -88,6 +88,19 @@ class DetectorService(Node):
         normal = cam_from_floor.matrix[:3, 2].copy()
         return Plane(normal, float(-normal @ cam_from_floor.translation - self.config.floor_height_m))
 
+    def _floor_agreement(self, floor: Plane | None) -> None:
+        """Count frames whose depth shows no floor where the transforms put it, with the camera's
+        height and tilt above each floor (for perception doctor: a wrong camera mount)."""
+        if floor is None or getattr(self.detector, "plane_inliers", 1) != 0:
+            return
+        self.counters.count("floor_disagrees")
+        self.counters.gauge("floor_transforms_height_m", round(floor.offset, 3))
+        self.counters.gauge("floor_transforms_tilt_deg", round(_tilt_deg(floor), 1))
+        seen = getattr(self.detector, "depth_floor", None)
+        if seen is not None:
+            self.counters.gauge("floor_depth_height_m", round(seen.offset, 3))
+            self.counters.gauge("floor_depth_tilt_deg", round(_tilt_deg(seen), 1))
+
     def poll(self, now: float) -> list[Any]:
         """Process the newest frame, if one arrived; returns what was published."""
         if self.buffer is not None:
@@ -126,7 +139,9 @@ class DetectorService(Node):
         try:
             K = np.asarray(frame.camera_info.K)
             if self.buffer is not None:
-                boxes, scores = self.detector.detect(rgb, depth, K, floor=self.floor(frame))  # type: ignore[call-arg]
+                floor = self.floor(frame)
+                boxes, scores = self.detector.detect(rgb, depth, K, floor=floor)  # type: ignore[call-arg]
+                self._floor_agreement(floor)
             else:
                 boxes, scores = self.detector.detect(rgb, depth, K)
         except (DetectorError, cv2.error) as exc:
@@ -151,3 +166,8 @@ class DetectorService(Node):
         )
         self.publisher.put(msg)
         return msg
+
+
+def _tilt_deg(plane: Plane) -> float:
+    """How far the optical axis points below the horizontal, above the floor ``plane`` (camera frame)."""
+    return float(np.degrees(-np.arcsin(np.clip(plane.normal[2], -1.0, 1.0))))

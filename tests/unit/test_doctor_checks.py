@@ -351,13 +351,35 @@ def test_people_placed_at_an_impossible_height_name_the_mount() -> None:
     d = rng.uniform(1.5, 6.0, 60)
     edges = [_Edge("base_link", "head_link", True), _Edge("head_link", "camera", True)]
 
-    def line(z: np.ndarray) -> tuple[str, str, str]:
-        people = [(float(zi), float(di), "camera") for zi, di in zip(z, d)]
+    def line(z: np.ndarray, camera_z: float = 1.2, up: float = 0.97) -> tuple[str, str, str]:
+        people = [(float(zi), float(di), "camera", camera_z, 10.0, up) for zi, di in zip(z, d)]
         (c,) = [c for c in _run(_Obs(duration_s=5.0, people=people, edges=edges)) if c.name.startswith("people's")]
         return c.status, c.figure, c.fix
 
     assert line(0.9 + rng.normal(0, 0.05, 60))[0] == "ok"
-    status, figure, fix = line(1.4 + rng.normal(0, 0.05, 60))  # the mount said 0.5 m higher than it is
+    # the mount said 0.5 m higher than it is: the camera too is placed 0.5 m higher
+    status, figure, fix = line(1.4 + rng.normal(0, 0.05, 60), camera_z=1.7)
     assert status == "fail" and "1.4" in figure and "height in head_link → camera or base_link → head_link" in fix
     status, figure, fix = line(0.9 - d * np.tan(np.radians(30)))  # the camera's pitch 30 degrees off
     assert status == "fail" and "farther" in figure and "30°" in fix
+    status, figure, fix = line(2 * 1.2 - 0.9 + rng.normal(0, 0.05, 60))  # mirrored about the camera
+    assert status == "fail" and "above the camera" in figure and "upside down" in fix
+    status, figure, fix = line(0.9 + rng.normal(0, 0.05, 60), up=-0.97)  # the transform rolled 180 degrees
+    assert status == "fail" and "image's up" in figure and "rolled 180°" in fix
+
+
+def test_a_depth_floor_that_disagrees_with_the_transforms_names_the_pitch() -> None:
+    from tools.doctor.core.checks import run_checks as _run
+    from tools.doctor.core.facts import EdgeFacts as _Edge
+    from tools.doctor.core.facts import NodeFacts as _Node
+    from tools.doctor.core.facts import Observation as _Obs
+
+    det = _Node("detector", "pc-1", counters={"floor_disagrees": 20, "frames_processed": 24}, window_s=3.0,
+                last={"floor_transforms_height_m": 1.22, "floor_transforms_tilt_deg": 37.0,
+                      "floor_depth_height_m": 1.21, "floor_depth_tilt_deg": 7.0})
+    obs = _Obs(duration_s=3.0, nodes=[det], edges=[_Edge("head_link", "camera", True)])
+    (line,) = [c for c in _run(obs) if c.name == "floor (detector)"]
+    assert line.status == "fail" and "20 of 24 frames" in line.figure and "pitch looks +30° off" in line.fix
+    assert "height" not in line.fix.split(":")[1]  # 1 cm is not a height error
+    det.counters["floor_disagrees"] = 2
+    assert not [c for c in _run(obs) if c.name == "floor (detector)"]

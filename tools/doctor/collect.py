@@ -134,7 +134,7 @@ class Observer:
         self.ros2_tokens: set[str] = set()
         self.ros2_domain = 0
         self.other_robots: dict[str, set[str]] = {}
-        self.people: list[tuple[float, float, str]] = []
+        self.people: list[tuple[float, float, str, float, float, float]] = []
 
     # ---------------------------------------------------------------- input
     def payload(self, key: str, data: bytes, recv_ns: int) -> None:
@@ -187,10 +187,13 @@ class Observer:
         elif isinstance(msg, LocalizedDetections):
             self.localized_frames.add(msg.header.frame_id)
             if msg.view is not None and len(self.people) < PEOPLE_KEPT:
-                cam = np.asarray(msg.view.camera_to_frame, dtype=np.float64)[:3, 3]
+                pose = np.asarray(msg.view.camera_to_frame, dtype=np.float64)
+                cam = pose[:3, 3]
+                up = float(pose[2, :3] @ np.array([0.0, -1.0, 0.0]))  # the image's up (optical -y), world z part
                 for d in msg.detections:
                     p = np.asarray(d.position, dtype=np.float64)
-                    self.people.append((float(p[2]), float(np.hypot(*(p[:2] - cam[:2]))), msg.camera_frame))
+                    self.people.append((float(p[2]), float(np.hypot(*(p[:2] - cam[:2]))), msg.camera_frame,
+                                        float(cam[2]), float(msg.view.max_range_m), up))
         elif isinstance(msg, Embeddings):
             self.cards.add((msg.model.name, msg.model.dim, msg.model.metric, msg.model.thresholds is not None))
         elif isinstance(msg, Tracks):
@@ -247,6 +250,7 @@ class Observer:
         return NodeFacts(
             service, instance, alive=alive if last.state == "running" else False, state=last.state, error=last.error,
             exit_status=last.exit_status, host=last.host, uptime_s=last.uptime_s, counters=counters,
+            last=dict(last.extra),
             window_s=last.uptime_s - first.uptime_s if len(seen) > 1 else 0.0, settings=dict(last.settings),
             subscribes=[relative_key(k) for k in last.subscribes], publishes=[relative_key(k) for k in last.publishes])
 

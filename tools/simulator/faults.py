@@ -12,12 +12,14 @@ from __future__ import annotations
 import numpy as np
 
 from common.messages.keys import Keys
-from common.messages.schemas import CameraInfo, Image, Message, RGBDFrame, TransformBatch
+from common.messages.schemas import CameraInfo, Image, Message, RGBDFrame, Transform, TransformBatch
 
 __all__ = ["FAULTS", "MOUNT_ERROR_M", "OLD_STAMPS_S", "apply_faults"]
 
 #: mount-high: how much higher the head's mount is said to be than it is.
 MOUNT_ERROR_M = 0.5
+#: mount-pitched: how far the camera's mount is said to be pitched off.
+PITCH_ERROR_DEG = 30.0
 
 #: How far ``old-stamps`` puts the stamps in the past (s).
 OLD_STAMPS_S = 5.0
@@ -31,6 +33,8 @@ FAULTS: dict[str, str] = {
     "static-once": "static transforms published with the first frame only",
     "old-stamps": f"every stamp {OLD_STAMPS_S:g} s in the past (an unsynchronised clock)",
     "mount-high": f"the head's mount on tf_static {MOUNT_ERROR_M:g} m higher than it is",
+    "mount-pitched": f"the camera's mount on tf_static pitched {PITCH_ERROR_DEG:g} degrees off",
+    "mount-upside-down": "the camera's mount on tf_static rolled 180 degrees (a camera mounted upside down)",
 }
 
 
@@ -51,6 +55,21 @@ def _frame(frame: RGBDFrame, faults: frozenset[str]) -> RGBDFrame:
     return RGBDFrame.model_construct(header=frame.header, rgb=rgb, depth=depth, camera_info=info)
 
 
+def _misrotated(t: Transform, faults: frozenset[str]) -> Transform:
+    """The camera's mount (head_link -> camera) with a wrong pitch (about the head's y axis) or a
+    roll of 180 degrees about the optical axis."""
+    from scipy.spatial.transform import Rotation
+
+    if t.parent_frame != "head_link":
+        return t
+    rot = Rotation.from_quat(t.rotation_xyzw)
+    if "mount-pitched" in faults:
+        rot = Rotation.from_euler("y", PITCH_ERROR_DEG, degrees=True) * rot
+    if "mount-upside-down" in faults:
+        rot = rot * Rotation.from_euler("z", 180.0, degrees=True)
+    return t.model_copy(update={"rotation_xyzw": rot.as_quat()})
+
+
 def apply_faults(pairs: list[tuple[str, Message]], faults: frozenset[str], keys: Keys,
                  seq: int) -> list[tuple[str, Message]]:
     """Frame ``seq``'s (key, message) pairs with ``faults`` applied (``old-stamps`` is applied
@@ -65,6 +84,8 @@ def apply_faults(pairs: list[tuple[str, Message]], faults: frozenset[str], keys:
             raised = [t.model_copy(update={"translation": t.translation + [0.0, 0.0, MOUNT_ERROR_M]})
                       if (t.parent_frame, t.child_frame) == ("base_link", "head_link") else t for t in msg.transforms]
             msg = msg.model_copy(update={"transforms": raised})
+        if key == keys.tf_static() and faults & {"mount-pitched", "mount-upside-down"} and isinstance(msg, TransformBatch):
+            msg = msg.model_copy(update={"transforms": [_misrotated(t, faults) for t in msg.transforms]})
         if key == keys.tf() and "no-odom-edge" in faults and isinstance(msg, TransformBatch):
             kept = [t for t in msg.transforms if (t.parent_frame, t.child_frame) != ("odom", "base_link")]
             msg = msg.model_copy(update={"transforms": kept})

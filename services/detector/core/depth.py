@@ -96,6 +96,8 @@ class DepthClusterDetector:
         self.initial = initial_plane(self.params.camera_height_m, self.params.tilt_deg)
         self.plane = self.initial
         self.plane_inliers = 0
+        #: When the transforms' floor has no support in the depth: the floor the depth shows (or None).
+        self.depth_floor: Plane | None = None
         self.heights = np.zeros(0)
         self._hog = hog if hog is not None else (HogDetector() if self.params.hog_confirm else None)
         self._rng = np.random.default_rng(seed)
@@ -121,9 +123,15 @@ class DepthClusterDetector:
             raise DetectorError(f"depth shape {depth.shape} differs from the image {image.shape[:2]}")
         p = self.params
         points = voxel_grid(backproject(depth, K, p.pixel_step, p.min_depth_m, p.max_depth_m), p.voxel_m)
+        self.depth_floor = None
         if floor is not None:
             bounded = replace(p.ground, max_step_deg=p.floor_max_deg, max_step_m=p.floor_max_m)
             self.plane, self.plane_inliers = refine_plane(points, floor, bounded, self._rng)
+            if self.plane_inliers == 0:
+                # no floor in the depth near the transforms' floor: where is the depth's floor? (a
+                # diagnosis for perception doctor, on its own random stream so detection is unchanged)
+                found, inliers = acquire_plane(points, self.initial, p.ground, np.random.default_rng(0))
+                self.depth_floor = found if inliers else None
         else:
             self.plane, self.plane_inliers = refine_plane(points, self.plane, p.ground, self._rng)
         if self.plane_inliers == 0 and floor is None:

@@ -81,6 +81,8 @@ class NodeFacts:
     host: str = ""
     uptime_s: float = 0.0
     counters: dict[str, float] = field(default_factory=dict)
+    #: The last status's extra counters and gauges as they were (not differenced).
+    last: dict[str, float] = field(default_factory=dict)
     window_s: float = 0.0
     settings: dict[str, str] = field(default_factory=dict)
     subscribes: list[str] = field(default_factory=list)
@@ -157,8 +159,9 @@ class Observation:
     tracks_total: int = 0
     boxes_total: int = 0
     #: People as the localizer placed them: (height above the map's z = 0, horizontal distance
-    #: from the camera, the camera's frame), one row per localized person (a sample).
-    people: list[tuple[float, float, str]] = field(default_factory=list)
+    #: from the camera, the camera's frame, the camera's height, its range, the world z part of the
+    #: image's up direction), one row per localized person (a sample).
+    people: list[tuple[float, float, str, float, float, float]] = field(default_factory=list)
     #: Other robot names or key prefixes with nodes alive on the router: ``prefix/robot`` -> services.
     other_robots: dict[str, list[str]] = field(default_factory=dict)
     #: The ROS 2 graph on the router (rmw_zenoh's liveliness tokens) of domain ``ros2_domain``.

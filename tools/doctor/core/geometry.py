@@ -39,7 +39,39 @@ def _mount(obs: Observation, camera_frame: str) -> str:
     return " or ".join(chain[:2]) if chain else f"the transforms above {camera_frame!r}"
 
 
+def _floor_checks(obs: Observation) -> list[Check]:
+    """The depth detector's floor against the transforms' (it counts the frames whose depth shows
+    no floor where the transforms put it, with both floors' camera height and tilt)."""
+    out = []
+    camera = next((f.frame_id for frames in obs.frames.values() for f in frames if f.frame_id), "camera")
+    for node in obs.running("detector"):
+        bad = node.counters.get("floor_disagrees", 0)
+        seen = node.counters.get("frames_processed", 0)
+        if bad <= 0 or bad < 0.25 * max(seen, 1):
+            continue
+        g = node.last
+        th, tt = g.get("floor_transforms_height_m"), g.get("floor_transforms_tilt_deg")
+        dh, dt = g.get("floor_depth_height_m"), g.get("floor_depth_tilt_deg")
+        where = _mount(obs, camera)
+        figure = f"the depth shows no floor where the transforms put it in {bad:g} of {seen:g} frames"
+        if th is not None and tt is not None:
+            figure += f": the transforms say the camera is {th:.2f} m up, tilted {tt:.0f}° down"
+        if th is not None and tt is not None and dh is not None and dt is not None:
+            figure += f"; the depth shows {dh:.2f} m, {dt:.0f}°"
+            off = [f"its pitch looks {tt - dt:+.0f}° off"] if abs(tt - dt) > 5 else []
+            off += [f"its height {th - dh:+.2f} m off"] if abs(th - dh) > 0.15 else []
+            fix = f"the camera's transform {where} is wrong: {' and '.join(off) or 'check it'}; measure the mount"
+        else:
+            fix = f"the camera's transform {where} (its height or pitch) does not match the floor the camera sees"
+        out.append(Check(SECTION, f"floor ({node.service})", "fail", figure, fix))
+    return out
+
+
 def geometry_checks(obs: Observation) -> list[Check]:
+    return [*_floor_checks(obs), *_people_checks(obs)]
+
+
+def _people_checks(obs: Observation) -> list[Check]:
     if len(obs.people) < MIN_PEOPLE:
         return []
     z = np.array([p[0] for p in obs.people])
@@ -48,6 +80,13 @@ def geometry_checks(obs: Observation) -> list[Check]:
     where = _mount(obs, camera)
     name = f"people's height ({camera})"
     median = float(np.median(z))
+    up = float(np.median([p[5] for p in obs.people]))
+    if up < -0.5:
+        return [Check(SECTION, name, "fail",
+                      f"the transforms put the image's up {math.degrees(math.acos(max(-1.0, min(1.0, up)))):.0f}° from "
+                      f"the world's up, yet {len(z)} upright people were detected in it",
+                      f"the camera's transform {where} is rolled 180° (or the camera is mounted upside down and its "
+                      "images are not flipped): fix the roll, or flip the images in the driver")]
     slope = 0.0
     if float(np.ptp(d)) > 1.0:
         slope, _ = np.polyfit(d, z, 1)
@@ -58,9 +97,23 @@ def geometry_checks(obs: Observation) -> list[Check]:
                       f"(median {median:.2f} m above the floor, {len(z)} people)",
                       f"the camera's pitch in {where} looks {abs(pitch):.0f}° off "
                       f"({'pitched down' if pitch < 0 else 'pitched up'} too little in the transform): measure the mount")]
+    cam_h = float(np.median([p[3] for p in obs.people]))
+    mirrored = 2 * cam_h - median  # where the people were, if the camera is rolled 180 degrees in the transform
+    if median > cam_h + 0.2 and PLAUSIBLE_M[0] <= mirrored <= PLAUSIBLE_M[1]:
+        return [Check(SECTION, name, "fail",
+                      f"people are above the camera: {median:.2f} m against its {cam_h:.2f} m (median of {len(z)}); "
+                      f"mirrored about the camera they would stand at {mirrored:.2f} m",
+                      f"the camera looks mounted upside down, or its transform {where} is rolled 180°: "
+                      "fix the roll in the transform (or turn the camera)")]
     if median < 0:
         return [Check(SECTION, name, "fail", f"people are {-median:.2f} m below the floor (median of {len(z)})",
                       f"the camera's transform {where} is wrong: its height, or a camera mounted upside down")]
+    max_range = float(np.median([p[4] for p in obs.people]))
+    far = int(np.sum(d > max_range * 1.05))
+    if far > 0.2 * len(d):
+        return [Check(SECTION, name, "fail", f"{far} of {len(d)} people are farther than the camera's range "
+                                             f"({max_range:.1f} m) on the floor",
+                      f"the camera's pose in {where} is wrong (its pitch or height), or the range is set too short")]
     if not PLAUSIBLE_M[0] <= median <= PLAUSIBLE_M[1]:
         off = median - CENTRE_M
         return [Check(SECTION, name, "fail",

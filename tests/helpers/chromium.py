@@ -11,7 +11,9 @@ from __future__ import annotations
 import base64
 import contextlib
 import json
+import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -45,7 +47,7 @@ class Browser:
              "--no-first-run", "--no-default-browser-check", "--disable-extensions",
              "--remote-debugging-address=127.0.0.1", "--remote-debugging-port=0", f"--user-data-dir={self._profile}",
              f"--window-size={width},{height}", "about:blank"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
         self._id = 0
         self._stack = contextlib.ExitStack()
         try:
@@ -130,14 +132,23 @@ class Browser:
 
     def close(self) -> None:
         self._stack.close()
-        if self._proc.poll() is None:
-            self._proc.terminate()
+        # Chromium's helper processes (crashpad, utilities) share its process group and may write
+        # into the profile after the browser itself has gone: stop them all, then remove it
+        for sig in (signal.SIGTERM, signal.SIGKILL):
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(self._proc.pid, sig)
             try:
-                self._proc.wait(10)
+                self._proc.wait(5)
+                break
             except subprocess.TimeoutExpired:
-                self._proc.kill()
-                self._proc.wait()
-        shutil.rmtree(self._profile, ignore_errors=True)
+                continue
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(self._proc.pid, signal.SIGKILL)  # helpers that outlived the browser
+        for _ in range(50):  # until nothing writes there any more
+            shutil.rmtree(self._profile, ignore_errors=True)
+            if not self._profile.exists():
+                break
+            time.sleep(0.1)  # poll interval, not a wait
 
     def __enter__(self) -> Browser:
         return self

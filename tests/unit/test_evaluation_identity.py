@@ -84,3 +84,41 @@ def test_combine_and_json() -> None:
 def test_bad_settings() -> None:
     with pytest.raises(ValueError, match="gap"):
         run({1: span(0, 5, 1)}, gap=0)
+
+
+def test_cli_identity(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """perception evaluate --identity on small CSVs: person 1 leaves, person 2 arrives and gets
+    track 7 (person 1's), person 1 comes back as the new track 9."""
+    import json
+
+    from perception.cli import main
+
+    gt = ["frame,id,x,y,z"]
+    tracks = ["frame,stamp,id,x,y,z"]
+    for f in range(0, 20):
+        gt.append(f"{f},1,0.0,0.0,0.0")
+        tracks.append(f"{f},{f / 10},7,0.1,0.0,0.0")
+    for f in range(30, 50):
+        gt.append(f"{f},2,5.0,0.0,0.0")
+        tracks.append(f"{f},{f / 10},7,5.1,0.0,0.0")
+    for f in range(60, 70):
+        gt.append(f"{f},1,0.0,0.0,0.0")
+        tracks.append(f"{f},{f / 10},9,0.1,0.0,0.0")
+    (tmp_path / "gt.csv").write_text("\n".join(gt) + "\n")
+    (tmp_path / "tracks.csv").write_text("\n".join(tracks) + "\n")
+    argv = ["evaluate", "--gt", str(tmp_path / "gt.csv"), "--tracks", str(tmp_path / "tracks.csv"), "--identity"]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "Identity per person" in text and "  7*: 1: 20, 2: 20" in text
+    assert all(len(line) <= 80 for line in text[text.index("Identity per person"):].splitlines())
+    assert main([*argv, "--json"]) == 0
+    ident = json.loads(capsys.readouterr().out)["identity"]
+    seq = next(iter(ident["sequences"].values()))
+    assert seq["coverage"] == {"7": {"1": 20, "2": 20}, "9": {"1": 10}}
+    assert [(e["person"], e["outcome"], e["track"]) for e in seq["events"]] == [
+        (2, "false recovery", 7), (1, "missed recovery", 9)]
+    assert {k: ident["overall"][k] for k in ("returns", "missed_recoveries", "false_recoveries", "false_newcomers",
+                                             "shared_tracks")} == dict(returns=1, missed_recoveries=1,
+                                                                        false_recoveries=1, false_newcomers=1,
+                                                                        shared_tracks=1)
+    assert main([*argv, "--gap", "0"]) == 2

@@ -62,7 +62,11 @@ Judging (KITTI, PETS): ``tools/evaluation`` (CLEAR MOT as py-motmetrics, IDF1) o
 ``conf = 0`` rows) are passed to the evaluation when its ``evaluate_tables`` takes an
 ``ignore`` argument; otherwise they are left out of the ground truth, a track on them
 counts as a false positive, and a note says so. HOTA is shown when the evaluation computes
-it. frames/s is the tracker's own time (no file reading, no judging) over
+it. The identity per person (``tools/evaluation/identity.py``, as ``perception evaluate
+--identity``) follows: returns after 10 or more frames out of the ground truth, true,
+missed and false recoveries (false: an ID matched earlier to another person; newcomers
+given such an ID in brackets), and track IDs covering two or more people (5 frames
+each); every dataset, the simulator included. frames/s is the tracker's own time (no file reading, no judging) over
 every frame from the first to the last detection.
 """
 

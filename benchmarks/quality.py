@@ -658,15 +658,16 @@ def format_scores(title: str, scores: dict[str, Score]) -> str:
 
 
 #: The identity per person (tools/evaluation/identity.py) beside IDF1 and HOTA.
-IDENTITY_HEAD = ["returns", "true rec", "missed rec", "false rec (new)", "shared IDs"]
-IDENTITY_NOTE = (f"(identity per person: a return is a person back after >= {DEFAULT_GAP} frames out of the ground truth; "
+IDENTITY_HEAD = ["returns (unmatched)", "true rec", "missed rec", "false rec (new)", "shared IDs"]
+IDENTITY_NOTE = (f"(identity per person: a return is a person back after >= {DEFAULT_GAP} frames out of the ground truth "
+                 "(in brackets those never matched on their return); "
                  "true rec: first matched with their own earlier ID, missed rec: with a fresh ID, false rec: "
                  "with an ID matched earlier to another person, newcomers' in brackets; shared IDs: track IDs "
                  f"matched >= {DEFAULT_MIN_FRAMES} frames to each of two or more people)")
 
 
 def identity_cells(i: Identity) -> list[str]:
-    return [str(i.returns), str(i.true_recoveries), str(i.missed_recoveries),
+    return [f"{i.returns} ({i.unmatched_returns})", str(i.true_recoveries), str(i.missed_recoveries),
             f"{i.false_recoveries} ({i.false_newcomers})", str(i.shared_tracks)]
 
 

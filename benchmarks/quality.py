@@ -62,7 +62,11 @@ Judging (KITTI, PETS): ``tools/evaluation`` (CLEAR MOT as py-motmetrics, IDF1) o
 ``conf = 0`` rows) are passed to the evaluation when its ``evaluate_tables`` takes an
 ``ignore`` argument; otherwise they are left out of the ground truth, a track on them
 counts as a false positive, and a note says so. HOTA is shown when the evaluation computes
-it. frames/s is the tracker's own time (no file reading, no judging) over
+it. The identity per person (``tools/evaluation/identity.py``, as ``perception evaluate
+--identity``) follows: returns after 10 or more frames out of the ground truth, true,
+missed and false recoveries (false: an ID matched earlier to another person; newcomers
+given such an ID in brackets), and track IDs covering two or more people (5 frames
+each); every dataset, the simulator included. frames/s is the tracker's own time (no file reading, no judging) over
 every frame from the first to the last detection.
 """
 
@@ -100,6 +104,7 @@ from services.localizer.core import FloorHomography, foot_points  # noqa: E402
 from services.tracker.config import TrackerConfig  # noqa: E402
 from services.tracker.offline import Detections, Row, frame_stamps, read_detections, track_config  # noqa: E402
 from tools.evaluation.evaluate import evaluate_tables  # noqa: E402
+from tools.evaluation.identity import DEFAULT_GAP, DEFAULT_MIN_FRAMES, Identity, IdentityCollector  # noqa: E402
 from tools.evaluation.metrics import ClearMot  # noqa: E402
 from tools.evaluation.readers import TrackTable  # noqa: E402
 
@@ -316,13 +321,20 @@ def rows_table(rows: list[Row]) -> TrackTable:
 
 def judge(gt: TrackTable, rows: list[Row], ignore: TrackTable | None = None) -> ClearMot:
     """CLEAR MOT and IDF1 on the ground plane, 1 m gate; ``ignore`` passed on when the evaluation takes it."""
+    return judge_identity(gt, rows, ignore)[0]
+
+
+def judge_identity(gt: TrackTable, rows: list[Row], ignore: TrackTable | None = None) -> tuple[ClearMot, Identity]:
+    """:func:`judge`, and the identity per person from the same matching (default gap and blip size)."""
     params = inspect.signature(evaluate_tables).parameters
-    extra: dict[str, object] = {}
+    collect = IdentityCollector()
+    extra: dict[str, object] = {"on_frame": collect}
     if ignore is not None and len(ignore) and "ignore" in params:
         extra["ignore"] = ignore
     if "hota" in params:  # HOTA when the evaluation can compute it on request
         extra["hota"] = True
-    return evaluate_tables(gt, rows_table(rows), "tracks", GATE_M, **extra)  # type: ignore[arg-type]
+    result = evaluate_tables(gt, rows_table(rows), "tracks", GATE_M, **extra)  # type: ignore[arg-type]
+    return result, collect.result(gt.frames, gt.ids)
 
 
 @dataclass
@@ -343,6 +355,12 @@ class Score:
     seconds: float
     frames: int
     parts: list[tuple[float, int]] = field(default_factory=list)
+    identities: list[Identity] = field(default_factory=list)  # per sequence, in the order of ``sequences``
+
+    @property
+    def identity(self) -> Identity:
+        """The identity measures summed over the sequences."""
+        return Identity.combine(self.identities)
 
     @property
     def fps(self) -> float:
@@ -351,17 +369,19 @@ class Score:
 
 def score(tracker: TrackerAdapter, sequences: list[Sequence], bar: Bar | None = None) -> Score:
     """Run ``tracker`` on every sequence (timed), judge each, sum; ``bar`` counts the sequences done."""
-    parts, times = [], []
+    parts, times, identities = [], [], []
     for seq in sequences:
         dets = seq.dets if tracker.uses_appearance else _positions_only(seq.dets)
         t0 = time.perf_counter()
         rows = tracker.run(dets)
         times.append((time.perf_counter() - t0, len(frame_stamps(seq.dets)[0])))
-        parts.append((seq.name, judge(seq.gt, rows, seq.ignore)))
+        result, identity = judge_identity(seq.gt, rows, seq.ignore)
+        parts.append((seq.name, result))
+        identities.append(identity)
         if bar is not None:
             bar.update()
     return Score(ClearMot.combine(r for _, r in parts), parts, sum(t for t, _ in times), sum(n for _, n in times),
-                 times)
+                 times, identities)
 
 
 # ------------------------------------------------------------------------------------
@@ -547,17 +567,19 @@ def score_sim(tracker: TrackerAdapter, captures: list[quality_sim.Capture], bar:
     others get the positions. frames/s counts every frame the tracker was given.
     ``bar`` counts the scenarios done.
     """
-    parts, times = [], []
+    parts, times, identities = [], [], []
     for cap in captures:
         dets = None if tracker.config is not None else _positions_only(quality_sim.detections(cap))
         t0 = time.perf_counter()
         rows = quality_sim.replay(cap, tracker.config) if dets is None else tracker.run(dets)  # type: ignore[arg-type]
         times.append((time.perf_counter() - t0, cap.frames))
-        parts.append((cap.name, quality_sim.judge_demo(cap, rows)))
+        collect = IdentityCollector()
+        parts.append((cap.name, quality_sim.judge_demo(cap, rows, on_frame=collect)))
+        identities.append(collect.result(cap.gt_seq, cap.gt_id))
         if bar is not None:
             bar.update()
     return Score(ClearMot.combine(r for _, r in parts), parts, sum(t for t, _ in times), sum(n for _, n in times),
-                 times)
+                 times, identities)
 
 
 def chain_check(captures: list[quality_sim.Capture], replayed: Score | None) -> list[dict[str, object]]:
@@ -621,38 +643,56 @@ def _f(x: float, digits: int = 3) -> str:
 def format_scores(title: str, scores: dict[str, Score]) -> str:
     hota = any(np.isfinite(getattr(s.result, "hota", float("nan"))) for s in scores.values())
     head = ["tracker", "MOTA", "IDF1", "IDSW", "recall err", "misses", "FP", "MOTP (m)"]
-    head += ["HOTA"] * hota + ["frames/s"]
+    head += ["HOTA"] * hota + IDENTITY_HEAD + ["frames/s"]
     lines = [f"### {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for name, s in scores.items():
         r = s.result
         cells = [name, _f(r.mota), _f(r.idf1), str(r.id_switches), str(r.recall_errors), str(r.misses),
                  str(r.false_positives), _f(r.motp)]
-        cells += [_f(getattr(r, "hota", float("nan")))] * hota + [f"{s.fps:,.0f}"]
+        cells += [_f(getattr(r, "hota", float("nan")))] * hota + identity_cells(s.identity) + [f"{s.fps:,.0f}"]
         lines.append("| " + " | ".join(cells) + " |")
     objects = next(iter(scores.values())).result.objects if scores else 0
     lines.append(f"\n({objects} ground-truth objects; {next(iter(scores.values())).frames if scores else 0} frames)")
+    lines.append(IDENTITY_NOTE)
     return "\n".join(lines)
+
+
+#: The identity per person (tools/evaluation/identity.py) beside IDF1 and HOTA.
+IDENTITY_HEAD = ["returns (unmatched)", "true rec", "missed rec", "false rec (new)", "shared IDs"]
+IDENTITY_NOTE = (f"(identity per person: a return is a person back after >= {DEFAULT_GAP} frames out of the ground truth "
+                 "(in brackets those never matched on their return); "
+                 "true rec: first matched with their own earlier ID, missed rec: with a fresh ID, false rec: "
+                 "with an ID matched earlier to another person, newcomers' in brackets; shared IDs: track IDs "
+                 f"matched >= {DEFAULT_MIN_FRAMES} frames to each of two or more people)")
+
+
+def identity_cells(i: Identity) -> list[str]:
+    return [f"{i.returns} ({i.unmatched_returns})", str(i.true_recoveries), str(i.missed_recoveries),
+            f"{i.false_recoveries} ({i.false_newcomers})", str(i.shared_tracks)]
 
 
 def format_sequences(title: str, scores: dict[str, Score]) -> str:
     """One row per sequence and tracker, then the overall row (sums over the sequences) of each tracker."""
     head = ["sequence", "tracker", "objects", "MOTA", "IDF1", "IDSW", "recall err", "misses", "FP", "MOTP (m)", "HOTA",
-            "frames/s"]
+            *IDENTITY_HEAD, "frames/s"]
     lines = [f"### {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
 
-    def cells(seq: str, name: str, r: ClearMot, seconds: float, frames: int) -> str:
+    def cells(seq: str, name: str, r: ClearMot, identity: Identity, seconds: float, frames: int) -> str:
         fps = f"{frames / seconds:,.0f}" if seconds > 0 else "-"
         row = [seq, name, str(r.objects), _f(r.mota), _f(r.idf1), str(r.id_switches), str(r.recall_errors),
-               str(r.misses), str(r.false_positives), _f(r.motp), _f(getattr(r, "hota", float("nan"))), fps]
+               str(r.misses), str(r.false_positives), _f(r.motp), _f(getattr(r, "hota", float("nan"))),
+               *identity_cells(identity), fps]
         return "| " + " | ".join(row) + " |"
 
     names = [n for n, _ in next(iter(scores.values())).sequences] if scores else []
     for k, seq in enumerate(names):
         for name, s in scores.items():
             seconds, frames = s.parts[k] if s.parts else (0.0, 0)
-            lines.append(cells(seq, name, s.sequences[k][1], seconds, frames))
+            identity = s.identities[k] if s.identities else Identity()
+            lines.append(cells(seq, name, s.sequences[k][1], identity, seconds, frames))
     for name, s in scores.items():
-        lines.append(cells("**overall**", name, s.result, s.seconds, s.frames))
+        lines.append(cells("**overall**", name, s.result, s.identity, s.seconds, s.frames))
+    lines.append(IDENTITY_NOTE)
     return "\n".join(lines)
 
 
@@ -666,7 +706,11 @@ def score_dict(s: Score) -> dict[str, object]:
     seqs: dict[str, dict[str, object]] = {n: r.to_dict() for n, r in s.sequences}
     for (n, _), (seconds, frames) in zip(s.sequences, s.parts):
         seqs[n].update(tracker_seconds=seconds, frames=frames, frames_per_s=frames / seconds if seconds > 0 else None)
-    return {"overall": s.result.to_dict(), "sequences": seqs, "tracker_seconds": s.seconds, "frames": s.frames,
+    for (n, _), identity in zip(s.sequences, s.identities):
+        seqs[n]["identity"] = identity.to_dict()
+    overall = s.result.to_dict()
+    overall["identity"] = {k: v for k, v in s.identity.to_dict().items() if k not in ("coverage", "events")}
+    return {"overall": overall, "sequences": seqs, "tracker_seconds": s.seconds, "frames": s.frames,
             "frames_per_s": s.fps}
 
 

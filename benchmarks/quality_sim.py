@@ -45,7 +45,7 @@ from services.tracker.convert import descriptors_for, positions_of
 from services.tracker.core.view import FieldOfView
 from services.tracker.offline import Detections, Row
 from tools.evaluation.evaluate import evaluate_tables
-from tools.evaluation.metrics import ClearMot
+from tools.evaluation.metrics import ClearMot, FrameEvents
 from tools.evaluation.readers import TrackTable
 
 __all__ = ["CHAIN_PROFILE", "Capture", "SIM_FPS", "SIM_SECONDS", "capture", "chain_tracker_key", "detections",
@@ -316,12 +316,15 @@ def detections(cap: Capture) -> Detections:
     return Detections(frames, stamps, cap.positions, cap.scores, cap.descriptors)
 
 
-def judge_demo(cap: Capture, rows: list[Row]) -> ClearMot:
-    """The demo's Table II judge (``score_rows``): counted people, full (x, y, z) distance < 1 m."""
+def judge_demo(cap: Capture, rows: list[Row], on_frame: Callable[[int, FrameEvents], None] | None = None) -> ClearMot:
+    """The demo's Table II judge (``score_rows``): counted people, full (x, y, z) distance < 1 m.
+
+    ``on_frame``: passed on to ``evaluate_tables`` (e.g. an ``IdentityCollector``).
+    """
     gt = TrackTable.from_arrays(cap.gt_seq, cap.gt_id, cap.gt_pos)
     if rows:
         arr = np.asarray([r[:6] for r in rows], np.float64)
         hyp = TrackTable.from_arrays(arr[:, 0].astype(np.int64), arr[:, 2].astype(np.int64), arr[:, 3:6])
     else:
         hyp = TrackTable.from_arrays(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
-    return evaluate_tables(gt, hyp)
+    return evaluate_tables(gt, hyp, on_frame=on_frame)

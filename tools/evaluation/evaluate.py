@@ -15,11 +15,12 @@ from typing import Callable
 import numpy as np
 
 from tools.evaluation.distances import distance_similarity, euclidean_distances, iou_distances, iou_similarity
+from tools.evaluation.identity import DEFAULT_GAP, DEFAULT_MIN_FRAMES, Identity, IdentityCollector
 from tools.evaluation.metrics import ClearMot, ClearMotAccumulator, FrameEvents, HotaAccumulator
 from tools.evaluation.readers import EvaluationInputError, TrackTable, read_table
 
 __all__ = ["FORMATS", "Report", "SequenceFiles", "default_threshold", "evaluate_sequences", "evaluate_tables",
-           "find_sequences", "format_table", "hota_zero_distance", "make_report", "pair_sequences"]
+           "find_sequences", "format_identity", "format_table", "hota_zero_distance", "make_report", "pair_sequences"]
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +48,7 @@ class Report:
     sequences: list[tuple[str, ClearMot]]
     overall: ClearMot
     ignore: bool = False
+    identity: list[tuple[str, Identity]] | None = None  # per sequence, with --identity
 
     @property
     def inclusive(self) -> bool:
@@ -81,7 +83,16 @@ class Report:
             "dims": self.dims if self.fmt == "tracks" else 2,
             "sequences": {name: result.to_dict() for name, result in self.sequences},
             "overall": self.overall.to_dict(),
+            **({"identity": self.identity_dict()} if self.identity is not None else {}),
         }
+
+    def identity_dict(self) -> dict[str, object]:
+        """The identity measures: settings, per sequence (coverage and events), overall totals."""
+        parts = self.identity or []
+        total = Identity.combine(i for _, i in parts).to_dict()
+        for key in ("coverage", "events"):
+            total.pop(key)
+        return {"sequences": {name: i.to_dict() for name, i in parts}, "overall": total}
 
 
 def hota_zero_distance(threshold: float) -> float:
@@ -247,10 +258,13 @@ def pair_sequences(gt: Path, tracks: Path) -> list[tuple[str, Path, Path]]:
 
 
 def evaluate_sequences(gt: Path | str, tracks: Path | str, fmt: str = "tracks", threshold: float | None = None,
-                       dims: int = 2, ignore: Path | str | None = None) -> Report:
+                       dims: int = 2, ignore: Path | str | None = None, identity: bool = False,
+                       gap: int = DEFAULT_GAP, min_frames: int = DEFAULT_MIN_FRAMES) -> Report:
     """Evaluate files or directories of sequences; raises :class:`EvaluationInputError` on bad input.
 
     ``ignore``: a file or directory of ignore regions (tracks format only), see :func:`find_sequences`.
+    ``identity``: also the identity measures per person (:mod:`tools.evaluation.identity`), a
+    return being an appearance after ``gap`` frames out of the ground truth.
     """
     if fmt not in FORMATS:
         raise ValueError(f"unknown format {fmt!r}; expected one of {', '.join(FORMATS)}")
@@ -260,12 +274,18 @@ def evaluate_sequences(gt: Path | str, tracks: Path | str, fmt: str = "tracks", 
     if not np.isfinite(threshold) or threshold <= 0:
         raise ValueError(f"threshold must be a positive number, got {threshold}")
     results: list[tuple[str, ClearMot]] = []
+    identities: list[tuple[str, Identity]] = []
     for seq in find_sequences(Path(gt), Path(tracks), None if ignore is None else Path(ignore)):
         gt_table = read_table(seq.gt, fmt, ground_truth=True, dims=dims)
         hyp_table = read_table(seq.tracks, fmt, ground_truth=False, dims=dims)
         ignore_table = read_table(seq.ignore, fmt, ground_truth=True, dims=dims) if seq.ignore is not None else None
-        results.append((seq.name, evaluate_tables(gt_table, hyp_table, fmt, threshold, ignore=ignore_table)))
-    return make_report(results, fmt, threshold, dims, ignore=ignore is not None)
+        collect = IdentityCollector() if identity else None
+        results.append((seq.name, evaluate_tables(gt_table, hyp_table, fmt, threshold, ignore=ignore_table,
+                                                  on_frame=collect)))
+        if collect is not None:
+            identities.append((seq.name, collect.result(gt_table.frames, gt_table.ids, gap, min_frames)))
+    report = make_report(results, fmt, threshold, dims, ignore=ignore is not None)
+    return replace(report, identity=identities) if identity else report
 
 
 def make_report(results: list[tuple[str, ClearMot]], fmt: str = "tracks", threshold: float | None = None,
@@ -324,15 +344,47 @@ def format_table(report: Report, width: int | None = None) -> str:
                       _wrap(hota_title, width), _render(hota_head, hota, width)])
 
 
+def format_identity(report: Report, width: int | None = 80) -> str:
+    """The identity measures of ``report`` (run with ``identity=True``): totals per sequence,
+    then per sequence the people of each track ID and the returns and false recoveries."""
+    parts = report.identity or []
+    if not parts:
+        return "identity: not computed"
+    gap, min_frames = parts[0][1].gap, parts[0][1].min_frames
+    rows = list(parts)
+    if len(rows) > 1:
+        rows.append(("overall", Identity.combine(i for _, i in parts)))
+    head = ["sequence", "returns", "true", "missed", "unmatched", "false", "newcomers", "shared IDs"]
+    table = [[name, *(str(getattr(i, k)) for k in ("returns", "true_recoveries", "missed_recoveries",
+                                                     "unmatched_returns", "false_recoveries", "false_newcomers",
+                                                     "shared_tracks"))] for name, i in rows]
+    title = (f"Identity per person (a return: back after >= {gap} frames out of the ground truth; false "
+             f"recoveries include newcomers given another person's ID; shared IDs: a track ID matched "
+             f">= {min_frames} frames to each of two or more people)")
+    out = [_wrap(title, width), _render(head, table, width, left_last=False)]
+    for name, i in parts:
+        out += ["", f"{name}: people per track ID (person: matched frames; * shared)"]
+        shared = i.shared()
+        for t, people in i.coverage.items():
+            text = f"  {t}{'*' if t in shared else ''}: " + ", ".join(f"{p}: {n}" for p, n in people.items())
+            out.append(_wrap(text, width).replace("\n  ", "\n      "))
+        if i.events:
+            ev = [[str(e.person), str(e.start), "return" if e.returning else "first", e.outcome,
+                   "-" if e.track is None else str(e.track), " ".join(map(str, e.previous)) or "-",
+                   " ".join(map(str, e.owners)) or "-"] for e in i.events]
+            out += ["", _render(["person", "from frame", "", "outcome", "ID", "own IDs", "ID's others"], ev, width)]
+    return "\n".join(out)
+
+
 def _wrap(text: str, width: int | None) -> str:
     return text if width is None or len(text) <= width else textwrap.fill(text, width, subsequent_indent="  ")
 
 
-def _render(head: list[str], rows: list[list[str]], width: int | None = None) -> str:
+def _render(head: list[str], rows: list[list[str]], width: int | None = None, left_last: bool = True) -> str:
     """The table, or with ``width`` as many tables as it takes (columns split, the first kept in each)."""
     widths = [max(len(c) for c in col) for col in zip(head, *rows)]
     if width is None or sum(widths) + 2 * (len(widths) - 1) <= width:
-        return _render_one(head, rows)
+        return _render_one(head, rows, left_last)
     parts: list[list[int]] = [[]]
     used = widths[0]
     for k in range(1, len(widths)):
@@ -343,7 +395,7 @@ def _render(head: list[str], rows: list[list[str]], width: int | None = None) ->
         used += 2 + widths[k]
     last = len(widths) - 1
     return "\n\n".join(_render_one([head[0], *(head[k] for k in ks)], [[r[0], *(r[k] for k in ks)] for r in rows],
-                                   left_last=ks[-1] == last)
+                                   left_last=left_last and ks[-1] == last)
                        for ks in parts)
 
 

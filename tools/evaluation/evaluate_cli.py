@@ -9,7 +9,8 @@ from pathlib import Path
 
 from common.runtime.cli_util import CliError
 from tools.evaluation.evaluate import (FORMATS, default_threshold, evaluate_sequences, evaluate_tables, find_sequences,
-                                      format_table)
+                                      format_identity, format_table)
+from tools.evaluation.identity import DEFAULT_GAP, DEFAULT_MIN_FRAMES
 from tools.evaluation.readers import EvaluationInputError, read_table
 
 DESCRIPTION = """\
@@ -45,6 +46,13 @@ alpha = 0.05..0.95 of a per-alpha score). HOTA's similarity is IoU for motchalle
 max(0, 1 - d / (2 * threshold)) for tracks (TrackEval's for points: 2 m for the 1 m
 gate, so alpha = 0.5 is the gate). A recall error is an ID switch to a hypothesis ID
 that had earlier been matched to a different ground-truth person.
+
+--identity adds, per sequence, the people each track ID was matched to (frames each), and
+for each person back after --gap frames (default 10) out of the ground truth whether
+their first match on return had their own earlier ID (true recovery), an ID new to them
+and unused (missed recovery) or an ID matched earlier to another person (false
+recovery); a newcomer first matched with another person's earlier ID is a false
+recovery too. Shared IDs: track IDs matched >= --min-frames (default 5) to two or more people.
 """
 
 
@@ -61,6 +69,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dims", type=int, choices=(2, 3), default=None,
                         help="tracks format: 2 = ground plane (x, y) (default), 3 = (x, y, z)")
     parser.add_argument("--json", action="store_true", help="print every figure as JSON instead of tables")
+    parser.add_argument("--identity", action="store_true",
+                        help="also the identity per person: each track ID's people, recoveries on return, "
+                             "newcomers given another person's ID, shared track IDs")
+    parser.add_argument("--gap", type=int, default=DEFAULT_GAP, metavar="N",
+                        help=f"--identity: frames out of the ground truth that make a return (default {DEFAULT_GAP})")
+    parser.add_argument("--min-frames", type=int, default=DEFAULT_MIN_FRAMES, metavar="N",
+                        help="--identity: matched frames a person needs for a track ID to count as covering them "
+                             f"(default {DEFAULT_MIN_FRAMES})")
     parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
                         help="also draw the tracks against the ground truth, one top-down panel per sequence, "
                              "with ID switches, misses and false positives marked and Table II in each title "
@@ -74,15 +90,20 @@ def main(args: argparse.Namespace) -> int:
         raise CliError("--gt-ignore applies to --format tracks only (MOTChallenge GT rows with conf < 1 are dropped)")
     if args.threshold is not None and not args.threshold > 0:
         raise CliError(f"--threshold must be a positive number, got {args.threshold}")
+    if args.gap < 1 or args.min_frames < 1:
+        raise CliError(f"--gap and --min-frames must be >= 1, got {args.gap} and {args.min_frames}")
     try:
         report = evaluate_sequences(args.gt, args.tracks, fmt=args.fmt, threshold=args.threshold,
-                                    dims=args.dims or 2, ignore=args.gt_ignore)
+                                    dims=args.dims or 2, ignore=args.gt_ignore, identity=args.identity,
+                                    gap=args.gap, min_frames=args.min_frames)
     except EvaluationInputError as exc:
         raise CliError(str(exc)) from exc
     if args.json:
         print(json.dumps(report.to_dict(), indent=2, allow_nan=False))
     else:
         print(format_table(report))
+        if args.identity:
+            print("\n" + format_identity(report))
     if args.plot is not None:
         _plot(args, args.plot)
     return 0

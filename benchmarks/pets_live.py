@@ -193,7 +193,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=400)
     ap.add_argument("--data", type=Path, default=ROOT.parent / "shared" / "data")
-    ap.add_argument("--cache-dir", type=Path, default=ROOT / "benchmarks" / "results" / "cache")
+    ap.add_argument("--cache-dir", type=Path, default=ROOT / "benchmarks" / ".cache",
+                    help="quality.py's cache of the offline chain's detections (git-ignored)")
     args = ap.parse_args()
     root = args.data / "pets09_dev"
     if not root.is_dir():

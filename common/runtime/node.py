@@ -45,7 +45,8 @@ from common.runtime.config import ConfigError, load_config
 from common.messages.keys import Delivery, Keys
 from common.runtime.service import Counters, ServiceRuntime, Shutdown
 from common.messages.schemas import Message
-from common.transport.base import Publisher, QueryHandler, RawPublisher, RawSubscription, Subscription, Transport, wait_any
+from common.transport.base import (BasePublisher, BaseSubscription, Publisher, QueryHandler, RawPublisher,
+                                   RawSubscription, Subscription, Transport, wait_any)
 from common.transport.zenoh_config import add_zenoh_arguments
 from common.transport.zenoh import open_transport_from_args
 
@@ -65,8 +66,8 @@ class NodeIO:
 
     def __init__(self, transport: Transport) -> None:
         self.transport = transport
-        self.subscriptions: list[Subscription[Any]] = []
-        self.publishers: list[Publisher[Any]] = []
+        self.subscriptions: list[BaseSubscription] = []
+        self.publishers: list[BasePublisher] = []
         self._undeclare: list[Callable[[], None]] = []
 
     def subscribe(self, key: str, model: type[M] | None, delivery: Delivery) -> Subscription[M]:
@@ -93,10 +94,10 @@ class NodeIO:
     def serve(self, key: str, handler: QueryHandler) -> None:
         self._undeclare.append(self.transport.serve(key, handler))
 
-    def add(self, *items: Subscription[Any] | Publisher[Any]) -> None:
+    def add(self, *items: BaseSubscription | BasePublisher) -> None:
         """Declare subscriptions or publishers made elsewhere (tools that build their own)."""
         for item in items:
-            (self.subscriptions if isinstance(item, Subscription) else self.publishers).append(item)
+            (self.subscriptions if isinstance(item, BaseSubscription) else self.publishers).append(item)
 
     def wait(self, timeout: float) -> bool:
         """Sleep until any subscription has input or ``timeout`` s pass."""

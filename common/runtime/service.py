@@ -15,7 +15,7 @@ from typing import Any
 
 from common.messages.keys import STATUS, Keys
 from common.messages.schemas import Header, ServiceStatus
-from common.transport.base import Publisher, Subscription, Transport
+from common.transport.base import BasePublisher, BaseSubscription, Transport
 
 __all__ = ["Counters", "ServiceRuntime", "Shutdown", "instance_id", "package_version"]
 
@@ -130,17 +130,17 @@ class ServiceRuntime:
         self.keys = keys
         self.period_s = period_s
         self.counters = counters if counters is not None else Counters()
-        self.subscriptions: list[Subscription[Any]] = io.subscriptions if io is not None else []
-        self.publishers: list[Publisher[Any]] = io.publishers if io is not None else []
+        self.subscriptions: list[BaseSubscription] = io.subscriptions if io is not None else []
+        self.publishers: list[BasePublisher] = io.publishers if io is not None else []
         self._started = time.monotonic()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._version = package_version()
         self._host = socket.gethostname()
 
-    def watch(self, *items: Subscription[Any] | Publisher[Any]) -> None:
+    def watch(self, *items: BaseSubscription | BasePublisher) -> None:
         for item in items:
-            (self.subscriptions if isinstance(item, Subscription) else self.publishers).append(item)
+            (self.subscriptions if isinstance(item, BaseSubscription) else self.publishers).append(item)
 
     def status(self) -> ServiceStatus:
         c = self.counters

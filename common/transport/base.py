@@ -20,6 +20,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+import uuid
 from abc import ABC, abstractmethod
 from collections import deque
 from dataclasses import dataclass, field
@@ -30,7 +31,7 @@ from common.messages.keys import Delivery
 from common.runtime.ratelog import RateLimitedLog
 from common.messages.schemas import Message
 
-__all__ = ["Closer", "Inbox", "Publisher", "QueryHandler", "RawPublisher", "RawSample", "RawSubscription", "Received",
+__all__ = ["BasePublisher", "BaseSubscription", "Closer", "Inbox", "Publisher", "QueryHandler", "RawPublisher", "RawSample", "RawSubscription", "Received",
            "Subscription", "SubscriptionStats", "Transport", "wait_any"]
 
 log = logging.getLogger(__name__)
@@ -87,19 +88,19 @@ class Inbox:
         return len(self._items)
 
 
-class Subscription(Generic[M]):
-    """A typed subscription. ``recv`` returns the next decodable message or ``None``."""
+def _bytes(payload: Any) -> bytes | bytearray:
+    """The payload of what an inbox holds: bytes (the in-memory transport) or a ``zenoh.Sample``."""
+    return payload if isinstance(payload, (bytes, bytearray)) else payload.payload.to_bytes()
 
-    def __init__(self, key: str, model: type[M] | None, inbox: Inbox, notify: threading.Condition,
-                 undeclare: Callable[[], None], max_bytes: int | None = None) -> None:
+
+class BaseSubscription:
+    """What every subscription has: its key, its inbox's counts, waiting and closing."""
+
+    def __init__(self, key: str, inbox: Inbox, notify: threading.Condition, undeclare: Callable[[], None]) -> None:
         self.key = key
-        self.model = model
         self._inbox = inbox
         self._cond = notify
         self._undeclare = undeclare
-        self._max_bytes = max_bytes
-        self._log = RateLimitedLog(log)
-        self.last_error: DecodeError | None = None
         self.closed = False
 
     @property
@@ -109,6 +110,25 @@ class Subscription(Generic[M]):
     def pending(self) -> int:
         return len(self._inbox)
 
+    def close(self) -> None:
+        if not self.closed:
+            self.closed = True
+            self._undeclare()
+            with self._cond:
+                self._cond.notify_all()
+
+
+class Subscription(BaseSubscription, Generic[M]):
+    """A typed subscription. ``recv`` returns the next decodable message or ``None``."""
+
+    def __init__(self, key: str, model: type[M] | None, inbox: Inbox, notify: threading.Condition,
+                 undeclare: Callable[[], None], max_bytes: int | None = None) -> None:
+        super().__init__(key, inbox, notify, undeclare)
+        self.model = model
+        self._max_bytes = max_bytes
+        self._log = RateLimitedLog(log)
+        self.last_error: DecodeError | None = None
+
     def try_recv(self) -> Received[M] | None:
         """The next message if one is waiting (invalid payloads are counted and skipped)."""
         while (item := self._inbox.pop()) is not None:
@@ -117,7 +137,7 @@ class Subscription(Generic[M]):
         return None
 
     def _decode(self, key: str, payload: Any, recv_ns: int) -> Received[M] | None:
-        data = payload if isinstance(payload, (bytes, bytearray)) else payload.payload.to_bytes()
+        data = _bytes(payload)
         try:
             msg = decode(self.model, data, max_bytes=self._max_bytes) if self.model else decode_any(data, max_bytes=self._max_bytes)
         except DecodeError as exc:
@@ -156,8 +176,7 @@ class Subscription(Generic[M]):
         if item is None:
             return None
         key, payload, recv_ns = item
-        data = payload if isinstance(payload, (bytes, bytearray)) else payload.payload.to_bytes()
-        return key, bytes(data), recv_ns
+        return key, bytes(_bytes(payload)), recv_ns
 
     def recv(self, timeout: float | None = None) -> Received[M] | None:
         """Wait up to ``timeout`` seconds (forever if None) for the next message."""
@@ -174,29 +193,19 @@ class Subscription(Generic[M]):
                     return None
                 self._cond.wait(remaining if remaining is not None else 0.5)
 
-    def close(self) -> None:
-        if not self.closed:
-            self.closed = True
-            self._undeclare()
-            with self._cond:
-                self._cond.notify_all()
 
-
-def wait_any(subs: Iterable[Subscription[Any] | RawSubscription], notify: threading.Condition, timeout: float) -> bool:
+def wait_any(subs: Iterable[BaseSubscription], notify: threading.Condition, timeout: float) -> bool:
     """Wait until any of ``subs`` has a pending payload, or ``timeout`` seconds pass."""
     subs = list(subs)
     with notify:
         return notify.wait_for(lambda: any(s.pending() for s in subs), timeout)
 
 
-class Publisher(Generic[M]):
-    """Publishes messages of one type on one key."""
+class BasePublisher:
+    """What every publisher has: its key, its counts, its subscribers' presence and closing."""
 
-    def __init__(self, key: str, model: type[M], send: Callable[[bytes], None], matching: Callable[[], bool],
-                 undeclare: Callable[[], None]) -> None:
+    def __init__(self, key: str, matching: Callable[[], bool], undeclare: Callable[[], None]) -> None:
         self.key = key
-        self.model = model
-        self._send = send
         self._matching = matching
         self._undeclare = undeclare
         self.published = 0
@@ -204,13 +213,34 @@ class Publisher(Generic[M]):
         self.unmatched = 0
         self.closed = False
 
+    def _sent(self) -> None:
+        self.published += 1
+        if not self._matching():
+            self.unmatched += 1
+
+    def has_subscribers(self) -> bool:
+        return self._matching()
+
+    def close(self) -> None:
+        if not self.closed:
+            self.closed = True
+            self._undeclare()
+
+
+class Publisher(BasePublisher, Generic[M]):
+    """Publishes messages of one type on one key."""
+
+    def __init__(self, key: str, model: type[M], send: Callable[[bytes], None], matching: Callable[[], bool],
+                 undeclare: Callable[[], None]) -> None:
+        super().__init__(key, matching, undeclare)
+        self.model = model
+        self._send = send
+
     def put(self, msg: M) -> None:
         if not isinstance(msg, self.model):
             raise TypeError(f"publisher on {self.key} takes {self.model.__name__}, got {type(msg).__name__}")
         self._send(encode(msg))
-        self.published += 1
-        if not self._matching():
-            self.unmatched += 1
+        self._sent()
 
     def put_encoded(self, data: bytes) -> None:
         """Publish a payload that is already an encoded message of this publisher's type.
@@ -221,9 +251,6 @@ class Publisher(Generic[M]):
         self._send(data)
         self.published += 1
 
-    def has_subscribers(self) -> bool:
-        return self._matching()
-
     def wait_for_subscribers(self, timeout: float) -> bool:
         """Wait until at least one subscriber matches, up to ``timeout`` s."""
         deadline = time.monotonic() + timeout
@@ -232,11 +259,6 @@ class Publisher(Generic[M]):
                 return False
             time.sleep(0.01)
         return True
-
-    def close(self) -> None:
-        if not self.closed:
-            self.closed = True
-            self._undeclare()
 
 
 @dataclass(frozen=True)
@@ -249,23 +271,9 @@ class RawSample:
     recv_ns: int
 
 
-class RawSubscription:
+class RawSubscription(BaseSubscription):
     """Undecoded samples with their attachments: for bridges to other middlewares on the same
     Zenoh (ROS 2's rmw_zenoh), whose payloads are not this project's messages."""
-
-    def __init__(self, key: str, inbox: Inbox, notify: threading.Condition, undeclare: Callable[[], None]) -> None:
-        self.key = key
-        self._inbox = inbox
-        self._cond = notify
-        self._undeclare = undeclare
-        self.closed = False
-
-    @property
-    def stats(self) -> SubscriptionStats:
-        return self._inbox.stats
-
-    def pending(self) -> int:
-        return len(self._inbox)
 
     def try_recv(self) -> RawSample | None:
         item = self._inbox.pop()
@@ -279,40 +287,18 @@ class RawSubscription:
             attachment = payload.attachment.to_bytes() if payload.attachment is not None else None
         return RawSample(key, bytes(data), attachment, recv_ns)
 
-    def close(self) -> None:
-        if not self.closed:
-            self.closed = True
-            self._undeclare()
-            with self._cond:
-                self._cond.notify_all()
 
-
-class RawPublisher:
+class RawPublisher(BasePublisher):
     """Publishes payloads of a foreign format, each with an attachment, on one key."""
 
     def __init__(self, key: str, send: Callable[[bytes, bytes | None], None], matching: Callable[[], bool],
                  undeclare: Callable[[], None]) -> None:
-        self.key = key
+        super().__init__(key, matching, undeclare)
         self._send = send
-        self._matching = matching
-        self._undeclare = undeclare
-        self.published = 0
-        self.unmatched = 0
-        self.closed = False
 
     def put(self, payload: bytes, attachment: bytes | None = None) -> None:
         self._send(payload, attachment)
-        self.published += 1
-        if not self._matching():
-            self.unmatched += 1
-
-    def has_subscribers(self) -> bool:
-        return self._matching()
-
-    def close(self) -> None:
-        if not self.closed:
-            self.closed = True
-            self._undeclare()
+        self._sent()
 
 
 class Closer:
@@ -347,6 +333,8 @@ class Transport(ABC):
         self.notify = threading.Condition()
         self._closeables: list[Any] = []
         self.closed = False
+        #: What :meth:`session_id` says for a transport without a Zenoh session (the in-memory one).
+        self._session_id = uuid.uuid4().hex
 
     @abstractmethod
     def publisher(self, key: str, model: type[M], delivery: Delivery) -> Publisher[M]: ...
@@ -365,10 +353,6 @@ class Transport(ABC):
 
     def session_id(self) -> str:
         """This participant's id as text (Zenoh's session id, in hex): unique on the network."""
-        if not hasattr(self, "_session_id"):
-            import uuid
-
-            self._session_id = uuid.uuid4().hex
         return self._session_id
 
     def raw_publisher(self, key: str, delivery: Delivery, *, cache: int = 0) -> RawPublisher:

@@ -71,6 +71,8 @@ class CameraService(Node):
         self._t0: float | None = None  # monotonic time of the file's first frame
         self._loops = 0
         self._frames_per_loop = 0
+        self._last_index = 0  # a file's last frame number read (its length, at the end)
+        self._published_in_run = 0  # frames published since the file started (real-time pacing)
         self._seq = 0
         self._waiting_since: float | None = None  # max: when the last frame went out unanswered
         self._last_stamp = 0
@@ -174,8 +176,6 @@ class CameraService(Node):
         log.info("reopened %s", self.source.name)
         return True
 
-    _published_in_run = 0
-
     def poll(self, now: float) -> list[Any]:
         if self.finished:
             return []
@@ -214,8 +214,6 @@ class CameraService(Node):
         if self._max:
             self._waiting_since = now
         return [frame]
-
-    _last_index = 0
 
     def deadline(self, now: float) -> float | None:
         if self.finished:

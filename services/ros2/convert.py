@@ -14,10 +14,7 @@ __all__ = ["camera_info_message", "header_message", "image_message", "tf_message
 
 
 def header_message(types: RosTypes, header: Header, frame_id: str | None = None) -> Any:
-    time_cls = types.cls("builtin_interfaces/msg/Time")
-    return types.cls("std_msgs/msg/Header")(
-        stamp=time_cls(sec=header.stamp_ns // 1_000_000_000, nanosec=header.stamp_ns % 1_000_000_000),
-        frame_id=header.frame_id if frame_id is None else frame_id)
+    return types.header(header.stamp_ns, header.frame_id if frame_id is None else frame_id)
 
 
 def image_message(types: RosTypes, frame: RGBDFrame, depth: bool = False) -> Any:

@@ -49,7 +49,7 @@ class _Topic:
 
     topic: str
     type_name: str
-    handle: Callable[[Any, RawSample], None]
+    handle: Callable[[Any], None]
     sub: RawSubscription
 
 
@@ -73,10 +73,10 @@ class Ros2Service(Node):
         self._static: dict[str, Any] = {}
         self._static_sent = -1e9
         # an RGB-only camera: each colour image goes out at once
-        self.pairer: Pairer[Pixels, Pixels] = Pairer(slop_s=config.slop_s,
+        # colour items carry the image's frame id along with its pixels
+        self.pairer: Pairer[tuple[str, Pixels], Pixels] = Pairer(slop_s=config.slop_s,
                                                      wait_s=config.pair_wait_s if config.depth_topic else 0.0,
-                                                     queue=config.image_queue, require_depth=config.require_depth)
-        self._colour_header: dict[int, str] = {}
+                                                     queue=config.image_queue)
         if config.camera_in:
             self.frames_pub = self.io.publisher(keys.frames(config.camera), RGBDFrame, FRAMES)
             colour_type = "sensor_msgs/msg/CompressedImage" if config.colour_compressed else "sensor_msgs/msg/Image"
@@ -96,7 +96,7 @@ class Ros2Service(Node):
             self.writer = PeopleWriter(self.types, prefix=config.body_prefix, namespace=config.humans_namespace,
                                        markers_topic=config.markers_topic, marker_lifetime_s=config.marker_lifetime_s)
 
-    def _read(self, topic: str, type_name: str, handle: Callable[[Any, RawSample], None], qos: Qos,
+    def _read(self, topic: str, type_name: str, handle: Callable[[Any], None], qos: Qos,
               history: int = 0) -> None:
         sub = self.ros.subscription(topic, type_name, qos, history=history)
         self._topics.append(_Topic(topic, type_name, handle, sub))
@@ -140,34 +140,32 @@ class Ros2Service(Node):
             self._bad("cdr", f"{t.topic}: {exc}")
             return
         try:
-            t.handle(msg, sample)
+            t.handle(msg)
         except ImageError as exc:
             self._bad(exc.reason, f"{t.topic}: {exc}")
         except (ValueError, TypeError, AttributeError) as exc:
             self._bad("message", f"{t.topic}: {type(exc).__name__}: {exc}")
 
-    def _on_camera_info(self, msg: Any, sample: RawSample) -> None:
+    def _on_camera_info(self, msg: Any) -> None:
         self._camera_info = intrinsics(msg)
 
     def _pixels(self, msg: Any, compressed: bool, depth: bool) -> Pixels:
         return compressed_pixels(msg, depth=depth) if compressed else raw_pixels(msg, depth=depth)
 
-    def _on_colour(self, msg: Any, sample: RawSample) -> None:
+    def _on_colour(self, msg: Any) -> None:
         pixels = self._pixels(msg, self.config.colour_compressed, depth=False)
-        stamp = _stamp_ns(msg.header.stamp)
-        self._colour_header[stamp] = str(msg.header.frame_id)
-        self.pairer.add_colour(stamp, pixels, self._now)
+        self.pairer.add_colour(_stamp_ns(msg.header.stamp), (str(msg.header.frame_id), pixels), self._now)
 
-    def _on_depth(self, msg: Any, sample: RawSample) -> None:
+    def _on_depth(self, msg: Any) -> None:
         self.pairer.add_depth(_stamp_ns(msg.header.stamp), self._pixels(msg, self.config.depth_compressed, depth=True))
 
-    def _on_tf(self, msg: Any, sample: RawSample) -> None:
+    def _on_tf(self, msg: Any) -> None:
         transforms = [transform_from_ros(t) for t in msg.transforms]
         if transforms:
             self.tf_pub.put(TransformBatch(header=Header(stamp_ns=max(t.stamp_ns for t in transforms), source="ros2"),
                                            transforms=transforms))
 
-    def _on_tf_static(self, msg: Any, sample: RawSample) -> None:
+    def _on_tf_static(self, msg: Any) -> None:
         for t in msg.transforms:
             tr = transform_from_ros(t, static=True)
             self._static[tr.child_frame] = tr
@@ -185,7 +183,7 @@ class Ros2Service(Node):
     def _frames(self, now: float) -> list[RGBDFrame]:
         out = []
         for pair in self.pairer.ready(now):
-            frame_id = self._colour_header.pop(pair.stamp_ns, "")
+            frame_id, colour = pair.colour
             if pair.depth is None and (self.config.require_depth and self.config.depth_topic):
                 self.counters.drop(f"colour_{pair.why}")
                 self._log.warning(pair.why, "a colour image at %.3f s has no depth image within %.0f ms on %s (%s): "
@@ -198,13 +196,11 @@ class Ros2Service(Node):
                                   self.config.camera_info_topic)
                 continue
             try:
-                out.append(self._frame(pair.stamp_ns, frame_id, pair.colour, pair.depth))
+                out.append(self._frame(pair.stamp_ns, frame_id, colour, pair.depth))
             except ImageError as exc:
                 self._bad(exc.reason, f"{self.config.colour_topic}: {exc}")
             except ValueError as exc:
                 self._bad("frame", f"{self.config.colour_topic}: {exc}")
-        for stamp in [s for s in self._colour_header if s < (out[-1].header.stamp_ns if out else 0)]:
-            del self._colour_header[stamp]
         return out
 
     def _frame(self, stamp_ns: int, frame_id: str, colour: Pixels, depth: Pixels | None) -> RGBDFrame:

@@ -35,7 +35,6 @@ class Pairer(Generic[C, D]):
     slop_s: float = 0.05
     wait_s: float = 0.5
     queue: int = 8
-    require_depth: bool = True
     _colour: deque[tuple[int, float, C]] = field(default_factory=deque)
     _depth: deque[tuple[int, D]] = field(default_factory=deque)
     #: Depth images dropped because no colour image was near them.
@@ -58,8 +57,8 @@ class Pairer(Generic[C, D]):
     def ready(self, now: float) -> list[Pair[C, D]]:
         """Everything that can be released at ``now`` (arrival clock, seconds), oldest first.
 
-        A pair with ``depth`` None and ``why`` other than "paired" is unpaired colour: released
-        as such only when depth is not required; otherwise the caller counts it as dropped.
+        A pair with ``depth`` None and ``why`` other than "paired" is unpaired colour: the caller
+        publishes it alone (an RGB-only camera) or counts it as dropped (depth required).
         """
         out: list[Pair[C, D]] = []
         slop = int(self.slop_s * 1e9)

@@ -82,11 +82,8 @@ class PeopleWriter:
         self._shown: set[int] = set()
 
     # --- message parts
-    def _stamp(self, stamp_ns: int) -> Any:
-        return self.t.cls("builtin_interfaces/msg/Time")(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
-
-    def _header(self, stamp_ns: int, frame: str | None = None) -> Any:
-        return self.t.cls("std_msgs/msg/Header")(stamp=self._stamp(stamp_ns), frame_id=frame or self.frame)
+    def _header(self, stamp_ns: int) -> Any:
+        return self.t.header(stamp_ns, self.frame)
 
     def _vec(self, v: tuple[float, float, float]) -> Any:
         return self.t.cls("geometry_msgs/msg/Vector3")(x=float(v[0]), y=float(v[1]), z=float(v[2]))

@@ -61,6 +61,11 @@ class RosTypes:
         """The topic's data key, as rmw_zenoh builds it."""
         return data_key(domain_id, topic, ros_to_dds(type_name), self.hash(type_name))
 
+    def header(self, stamp_ns: int, frame_id: str) -> Any:
+        """A ``std_msgs/msg/Header`` of a stamp in ns since the epoch."""
+        stamp = self.cls("builtin_interfaces/msg/Time")(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
+        return self.cls("std_msgs/msg/Header")(stamp=stamp, frame_id=frame_id)
+
     def definition(self, type_name: str) -> str:
         """The message definition text (with its dependencies), as a ROS 2 tool would show it."""
         return self.store.generate_msgdef(type_name, ros_version=2)[0]

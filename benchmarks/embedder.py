@@ -111,6 +111,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeats", type=int, default=30)
     parser.add_argument("--threads", type=int, default=0, help="onnxruntime intra-op threads (0: default)")
+    parser.add_argument("--providers", default=None, metavar="P1,P2",
+                        help="onnxruntime execution providers for the onnx rows (default: TensorRT, CUDA, CPU as "
+                             "available); rows on CPU alone are added beside them when these are not CPU")
+    parser.add_argument("--model", default=None, metavar="FILE.onnx",
+                        help="also time this Re-ID model (input (N, 3, 256, 128))")
     parser.add_argument("--reid", action="store_true", help="Re-ID accuracy instead of speed")
     parser.add_argument("--pets-step", type=int, default=5, help="--reid: every n-th pets09_dev frame")
     parser.add_argument("--sim-seconds", type=float, default=90.0, help="--reid: seconds per simulated scenario")
@@ -123,25 +128,31 @@ def main() -> None:
     from services.embedder.export_cli import default_model_path
 
     backends: list[tuple[str, Backend]] = [(f"colour ({ColourDescriptor.card.dim}-D)", ColourDescriptor())]
+    chosen = tuple(x.strip() for x in args.providers.split(",") if x.strip()) if args.providers else None
+    runs = [chosen] if chosen in (None, ("CPUExecutionProvider",)) else [chosen, ("CPUExecutionProvider",)]
+
+    def onnx_rows(name: str, **params: object) -> None:
+        for providers in runs:
+            backends.append((name, OnnxEmbedder(OnnxParams(**params, providers=providers,  # type: ignore[arg-type]
+                                                           intra_op_threads=args.threads))))
+
     tmp = tempfile.TemporaryDirectory()
     try:
         from tests.fixtures.embedder_onnx_models import conv_model
 
-        path = conv_model(Path(tmp.name) / "reid_like.onnx")
-        backends.append(("onnx conv net 256x128, 512-D", OnnxEmbedder(OnnxParams(path=str(path),
-                                                                                  intra_op_threads=args.threads))))
+        onnx_rows("onnx conv net 256x128, 512-D", path=str(conv_model(Path(tmp.name) / "reid_like.onnx")))
     except ImportError:
         print("(onnx package missing: the test-built graph is skipped; pip install -e '.[test]')")
+    if args.model:
+        onnx_rows(f"onnx {Path(args.model).name}", path=args.model)
     exported = default_model_path()
     if exported.is_file():
         o = with_sidecar(OnnxConfig(path=str(exported)))
-        backends.append((f"onnx MobileNetV2 {o.input_size[0]}x{o.input_size[1]}, 1280-D",
-                         OnnxEmbedder(OnnxParams(path=o.path, name=o.name, input_size=o.input_size,
-                                                 intra_op_threads=args.threads))))
+        onnx_rows(f"onnx MobileNetV2 {o.input_size[0]}x{o.input_size[1]}, 1280-D", path=o.path, name=o.name,
+                  input_size=o.input_size)
     else:
         print(f"(exported MobileNetV2 not found at {exported}: run 'perception export-embedder')")
     rng = np.random.default_rng(0)
-    providers = {name: getattr(b, "providers", ["numpy/cv2"])[0] for name, b in backends}
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.processor() or platform.platform()}")
     print("\n| backend | provider | crops/frame | ms/frame median | ms/frame p95 | descriptors/s |")
     print("|---|---|---|---|---|---|")
@@ -149,8 +160,8 @@ def main() -> None:
         for name, backend in backends:
             for n in CROPS_PER_FRAME:
                 med, p95 = measure(backend, n, args.repeats, rng, bar)
-                print(f"| {name} | {providers[name]} | {n} | {med:.2f} | {p95:.2f} | {n / med * 1e3:.0f} |",
-                      flush=True)
+                provider = getattr(backend, "providers", ["numpy/cv2"])[0]
+                print(f"| {name} | {provider} | {n} | {med:.2f} | {p95:.2f} | {n / med * 1e3:.0f} |", flush=True)
     tmp.cleanup()
 
 

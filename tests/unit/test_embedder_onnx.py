@@ -119,3 +119,15 @@ def test_output_that_is_not_n_by_d(tmp_path: Path) -> None:
     path = _save(graph, tmp_path / "map.onnx")
     with pytest.raises(EmbedderError, match=r"expected \(1, D\)"):
         OnnxEmbedder(OnnxParams(path=str(path), input_size=(H, W)))
+
+
+def test_an_accelerator_that_did_not_start_is_named() -> None:
+    """onnxruntime drops a provider whose libraries do not load and says so only in its log."""
+    from services.embedder.core.onnx_model import _check_fallback
+
+    cuda, cpu = "CUDAExecutionProvider", "CPUExecutionProvider"
+    _check_fallback([cuda, cpu], [cuda, cpu], requested=True)  # came up: nothing to say
+    with pytest.raises(EmbedderError, match=r"could not start \['CUDAExecutionProvider'\].*runs on \['CPU"):
+        _check_fallback([cuda, cpu], [cpu], requested=True)
+    _check_fallback([cuda, cpu], [cpu], requested=False)  # picked by preference: a warning, not an error
+    _check_fallback(["TensorrtExecutionProvider", cuda, cpu], [cuda, cpu], requested=True)  # CUDA stands in

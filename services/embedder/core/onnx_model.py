@@ -63,6 +63,21 @@ def choose_providers(requested: tuple[str, ...] | None, available: list[str]) ->
     return chosen or list(available)
 
 
+def _check_fallback(chosen: list[str], got: list[str], requested: bool) -> None:
+    """onnxruntime drops an accelerator whose libraries do not load (CUDA, cuDNN, TensorRT) with
+    a log line only and runs on what is left. Accelerators asked for by name none of which
+    came up are an error; otherwise a lost one is a warning that names what is used."""
+    lost = [name for name in chosen if name not in got and name != "CPUExecutionProvider"]
+    if not lost:
+        return
+    hint = (f"onnxruntime could not start {lost} (their libraries did not load: CUDA 12/13 runtime and cuDNN 9 "
+            f"for CUDA, libnvinfer for TensorRT; see onnxruntime's log above) and runs on {got}")
+    if requested and not [name for name in got if name != "CPUExecutionProvider"]:
+        raise EmbedderError(f"{hint}; install the libraries (pip install 'onnxruntime-gpu[cuda,cudnn]') or "
+                            "leave out --providers to take what is available")
+    log.warning("%s", hint)
+
+
 class OnnxEmbedder:
     """Runs an ONNX Re-ID model on batches of crops; see :class:`OnnxParams`."""
 
@@ -79,6 +94,13 @@ class OnnxEmbedder:
         if len(p.mean) != 3 or len(p.std) != 3 or min(p.std) <= 0:
             raise EmbedderError(f"mean and std need 3 values each, std positive; got {p.mean}, {p.std}")
         providers = choose_providers(p.providers, ort.get_available_providers())
+        if any(name in providers for name in PROVIDER_PREFERENCE[:2]) and hasattr(ort, "preload_dlls"):
+            # CUDA and cuDNN from pip (onnxruntime-gpu[cuda,cudnn], or PyTorch's) are not on the
+            # loader's path: onnxruntime finds and loads them here (1.21 and later)
+            try:
+                ort.preload_dlls()
+            except Exception as exc:  # a library it did not find: the provider check below names the outcome
+                log.debug("onnxruntime.preload_dlls: %s", exc)
         options = ort.SessionOptions()
         options.intra_op_num_threads = p.intra_op_threads
         provider_args = [(name, p.provider_options.get(name, {})) for name in providers]
@@ -106,6 +128,7 @@ class OnnxEmbedder:
         self.input_name = inputs[0].name
         self.output_name = outputs[0].name
         self.providers = self.session.get_providers()
+        _check_fallback(providers, self.providers, requested=bool(p.providers))
         self._mean = (np.asarray(p.mean, np.float32) / np.float32(p.scale)).reshape(1, 1, 1, 3)
         self._inv_std = (np.float32(p.scale) / np.asarray(p.std, np.float32)).reshape(1, 1, 1, 3)
         probe = self._run(np.zeros((1, p.input_size[0], p.input_size[1], 3), np.uint8))

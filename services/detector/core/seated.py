@@ -108,10 +108,25 @@ def floor_coordinates(points: np.ndarray, normal: np.ndarray) -> np.ndarray:
     return points @ np.column_stack([e1, np.cross(normal, e1)])
 
 
-def _peaks(uv: np.ndarray, height: np.ndarray, floor: float, separation: float) -> list[int]:
-    """Indices of the height map's peaks among the points at or above ``floor``: greedily the
-    highest left, then none within ``separation`` of it on the floor."""
-    order = np.flatnonzero(height >= floor)
+def _peaks(uv: np.ndarray, height: np.ndarray, low: float, high: float, separation: float,
+           cell: float) -> list[int]:
+    """Indices of the height map's peaks between ``low`` and ``high``: the points highest on a
+    floor grid of ``cell`` m within ``separation`` around them (a square of cells; Basso/Munaro's
+    height map), then greedily the highest left with no other within ``separation`` on the floor."""
+    ij = np.floor((uv - uv.min(axis=0)) / cell).astype(np.int64)
+    shape = tuple(ij.max(axis=0) + 1)
+    top = np.full(shape, -np.inf)
+    np.maximum.at(top, (ij[:, 0], ij[:, 1]), height)
+    r = int(np.ceil(separation / cell))
+    rows = np.pad(top, ((r, r), (0, 0)), constant_values=-np.inf)
+    around = rows[: shape[0]].copy()  # the highest within r cells, along one axis then the other
+    for k in range(1, 2 * r + 1):
+        np.maximum(around, rows[k:k + shape[0]], out=around)
+    cols = np.pad(around, ((0, 0), (r, r)), constant_values=-np.inf)
+    around = cols[:, : shape[1]].copy()
+    for k in range(1, 2 * r + 1):
+        np.maximum(around, cols[:, k:k + shape[1]], out=around)
+    order = np.flatnonzero((height >= low) & (height <= high) & (height >= around[ij[:, 0], ij[:, 1]]))
     order = order[np.argsort(-height[order], kind="stable")]
     peaks = []
     while len(order):
@@ -211,15 +226,24 @@ def find_seated(points: np.ndarray, height: np.ndarray, normal: np.ndarray, labe
     out: list[Seated] = []
     if not p.enabled or not free.any():
         return out
-    candidates = free & (height >= p.min_height_m) & (height <= p.max_height_m)
-    for label in np.unique(labels[candidates]):
-        idx = np.flatnonzero(free & (labels == label))
+    upper = free & (height >= p.min_height_m)  # what can be a head, or stand higher than one
+    labelled = np.unique(labels[upper & (height <= p.max_height_m)])
+    if len(labelled) == 0:
+        return out
+    floor_uv = floor_coordinates(points, normal)
+    for label in labelled:
+        mine = labels == label
+        idx = np.flatnonzero(free & mine)
         if len(idx) < min_points:
             continue
-        uv = floor_coordinates(points[idx], normal)
-        h = height[idx]
-        for peak in _peaks(uv, h, p.min_height_m, p.head_separation_m):
-            ok, lowest = seated_at(peak, uv, h, p)
+        top = np.flatnonzero(upper & mine)
+        peaks = _peaks(floor_uv[top], height[top], p.min_height_m, p.max_height_m, p.head_separation_m,
+                       p.head_separation_m / 2)
+        if not peaks:
+            continue
+        uv, h = floor_uv[idx], height[idx]
+        for peak in np.searchsorted(idx, top[peaks]):
+            ok, lowest = seated_at(int(peak), uv, h, p)
             if not ok:
                 continue
             if lowest is not None and hidden_below(points[idx[lowest]], K, depth, voxel_m, step_px,

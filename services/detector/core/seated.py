@@ -52,7 +52,7 @@ class SeatedParams:
     #: A seated person's head top, above the floor (m): 1.1-1.4 m for adults on a 0.4-0.5 m seat.
     min_height_m: float = 1.0
     max_height_m: float = 1.6
-    #: A peak of the height map: nothing higher within this on the floor (m).
+    #: A peak of the height map: nothing higher within this on the floor (m; on a grid of half this).
     head_separation_m: float = 0.4
     #: The head: the points within this below the top (m) ...
     head_depth_m: float = 0.2

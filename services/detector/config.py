@@ -10,6 +10,7 @@ unavailable onnxruntime provider).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Literal
 
@@ -83,7 +84,7 @@ class DepthConfig(_Section):
     cluster_tolerance_m: float = Field(default=_DEPTH.cluster_tolerance_m, gt=0.0, le=1.0)
     min_cluster_points: int = Field(default=_DEPTH.min_cluster_points, ge=1)
     min_height_m: float = Field(default=_DEPTH.min_height_m, gt=0.0,
-                                description="lower it (e.g. 1.0) to keep sitting people")
+                                description="a standing person's top (seated people: seated_*)")
     max_height_m: float = Field(default=_DEPTH.max_height_m, gt=0.0)
     max_width_m: float = Field(default=_DEPTH.max_width_m, gt=0.0)
     min_thickness_m: float = Field(default=_DEPTH.min_thickness_m, ge=0.0, le=0.5,
@@ -112,6 +113,12 @@ class DepthConfig(_Section):
                                              "far at most (deg)")
     floor_max_m: float = Field(default=_DEPTH.floor_max_m, gt=0.0, le=1.0,
                                description="... and this far in height (m)")
+    seated: bool = Field(default=_DEPTH.seated.enabled,
+                         description="also find people sitting on a chair or sofa: a head, a torso and a seat or lap")
+    seated_min_height_m: float = Field(default=_DEPTH.seated.min_height_m, gt=0.0,
+                                       description="a seated person's head top, lowest (m)")
+    seated_max_height_m: float = Field(default=_DEPTH.seated.max_height_m, gt=0.0,
+                                       description="... and highest (m)")
     hog_confirm: bool = Field(default=_DEPTH.hog_confirm, description="score each cluster box with HOG and drop weak ones")
     hog_min_score: float = Field(default=_DEPTH.hog_min_score, ge=0.0, le=1.0)
 
@@ -121,14 +128,21 @@ class DepthConfig(_Section):
             raise ValueError(f"min_height_m ({self.min_height_m}) must be below max_height_m ({self.max_height_m})")
         if self.min_depth_m >= self.max_depth_m:
             raise ValueError(f"min_depth_m ({self.min_depth_m}) must be below max_depth_m ({self.max_depth_m})")
+        if not _DEPTH.seated.seat_band_m[1] < self.seated_min_height_m < self.seated_max_height_m:
+            raise ValueError(f"need {_DEPTH.seated.seat_band_m[1]} < seated_min_height_m ({self.seated_min_height_m}) "
+                             f"< seated_max_height_m ({self.seated_max_height_m})")
         return self
 
     def params(self) -> DepthParams:
-        """The core's parameters (the ``plane_*`` and ``ransac_iterations`` settings are its ``ground``)."""
+        """The core's parameters (the ``plane_*`` and ``ransac_iterations`` settings are its ``ground``,
+        the ``seated*`` ones its ``seated``)."""
         ground = GroundParams(window_m=self.plane_window_m, inlier_m=self.plane_inlier_m,
                               iterations=self.ransac_iterations, max_step_deg=self.plane_max_step_deg)
-        skip = {"plane_window_m", "plane_inlier_m", "ransac_iterations", "plane_max_step_deg"}
-        return DepthParams(ground=ground, **{k: v for k, v in self.model_dump().items() if k not in skip})
+        seated = replace(_DEPTH.seated, enabled=self.seated, min_height_m=self.seated_min_height_m,
+                         max_height_m=self.seated_max_height_m)
+        skip = {"plane_window_m", "plane_inlier_m", "ransac_iterations", "plane_max_step_deg", "seated",
+                "seated_min_height_m", "seated_max_height_m"}
+        return DepthParams(ground=ground, seated=seated, **{k: v for k, v in self.model_dump().items() if k not in skip})
 
 
 class YoloOnnxConfig(_Section):

@@ -4,7 +4,8 @@ Per frame: back-project the (sub-sampled) depth image, average it on a voxel gri
 update the ground plane (RANSAC then least squares, started from the previous
 estimate, see :mod:`ground`), drop the floor, split the rest into Euclidean clusters,
 keep the clusters of person height and project each one to an image box from its top
-down to its foot point on the floor. HOG can optionally confirm each box. No model
+down to its foot point on the floor. What is left is searched for seated people (a head,
+a torso and a seat or lap, :mod:`seated`). HOG can optionally confirm each box. No model
 file, no GPU: this is the detector a CPU-only robot runs at frame rate.
 """
 
@@ -23,6 +24,7 @@ from services.detector.core.boxes import DetectorError, as_rgb, clip_boxes, empt
 from services.detector.core.depth_params import DepthParams
 from services.detector.core.ground import Plane, acquire_plane, initial_plane, refine_plane
 from services.detector.core.hog import HogDetector
+from services.detector.core.seated import find_seated
 
 __all__ = ["DepthClusterDetector", "DepthParams", "backproject", "cluster_points", "voxel_grid"]
 
@@ -83,8 +85,9 @@ class DepthClusterDetector:
     ``detect(rgb, depth, camera)``: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32
     metres registered to it (NaN invalid), ``camera`` (3, 3) K. Returns boxes (N, 4)
     float32 xyxy and scores (N,) float32: the HOG score when ``hog_confirm`` is on,
-    otherwise the height plausibility (1 in the middle of the height range, 0.5 at its
-    ends). The ground plane is state carried from frame to frame (``plane``).
+    otherwise the height plausibility (1 in the middle of the posture's height range, 0.5
+    at its ends). The ground plane is state carried from frame to frame (``plane``);
+    ``heights`` and ``postures`` ("standing" or "sitting") describe the last detections.
     """
 
     name = "depth"
@@ -99,6 +102,7 @@ class DepthClusterDetector:
         #: When the transforms' floor has no support in the depth: the floor the depth shows (or None).
         self.depth_floor: Plane | None = None
         self.heights = np.zeros(0)
+        self.postures: list[str] = []
         self._hog = hog if hog is not None else (HogDetector() if self.params.hog_confirm else None)
         self._rng = np.random.default_rng(seed)
 
@@ -145,31 +149,35 @@ class DepthClusterDetector:
         cut_low = self._at_lower_edge(points, K, depth.shape[0])
         hidden = self._hidden_below(points, K, depth)
         count, labels = cluster_points(points, p.cluster_tolerance_m)
-        boxes, scores, heights = [], [], []
-        for member in self._people(points, height, cut_low, hidden, count, labels):
+        boxes, scores, heights, postures = [], [], [], []
+        for member, posture, to_floor in self._postured(points, height, cut_low, hidden, count, labels, K, depth):
             top = float(height[member].max())
             cluster = points[member]
-            feet = self.plane.project(cluster)
-            box = self._project(np.vstack([cluster, feet.mean(axis=0, keepdims=True)]), K)
+            if to_floor:  # down to the foot point; a seated person with a hidden lap: what is seen of them
+                cluster = np.vstack([cluster, self.plane.project(cluster).mean(axis=0, keepdims=True)])
+            box = self._project(cluster, K)
             if box is None:
                 continue
             boxes.append(box)
             heights.append(top)
-            mid, half = (p.min_height_m + p.max_height_m) / 2, (p.max_height_m - p.min_height_m) / 2
-            scores.append(1.0 - 0.5 * min(abs(top - mid) / half, 1.0))
+            postures.append(posture)
+            low, high = (p.min_height_m, p.max_height_m) if posture == "standing" else \
+                (p.seated.min_height_m, p.seated.max_height_m)
+            scores.append(1.0 - 0.5 * min(abs(top - (low + high) / 2) / ((high - low) / 2), 1.0))
         if not boxes:
-            self.heights = np.zeros(0)
+            self.heights, self.postures = np.zeros(0), []
             return empty_result()
         h, w = image.shape[:2]
         out_boxes = clip_boxes(np.array(boxes), w, h)
         out_scores = np.array(scores)
-        heights_arr = np.array(heights)
+        heights_arr, postures_arr = np.array(heights), np.array(postures)
         if self._hog is not None and p.hog_confirm:
             hog_scores = np.array([self._hog.score_window(image, b) for b in out_boxes])
             keep = hog_scores >= p.hog_min_score
             out_boxes, out_scores, heights_arr = out_boxes[keep], hog_scores[keep], heights_arr[keep]
+            postures_arr = postures_arr[keep]
         order = np.argsort(-out_scores, kind="stable")
-        self.heights = heights_arr[order]
+        self.heights, self.postures = heights_arr[order], [str(x) for x in postures_arr[order]]
         return out_boxes[order], out_scores[order].astype(np.float32)
 
     def _at_lower_edge(self, points: np.ndarray, K: np.ndarray, rows: int) -> np.ndarray:
@@ -233,6 +241,25 @@ class DepthClusterDetector:
             return 0.0
         spreads = np.linalg.eigvalsh(np.cov((feet - feet.mean(axis=0)).T))
         return float(np.sqrt(max(float(spreads[1]), 0.0)))
+
+    def _postured(self, points: np.ndarray, height: np.ndarray, cut_low: np.ndarray, hidden: np.ndarray,
+                  count: int, labels: np.ndarray, K: np.ndarray, depth: np.ndarray) -> list[tuple[np.ndarray, str, bool]]:
+        """(member (N,) bool, posture, whether the box goes down to the floor) per person: the
+        standing people of :meth:`_people`, then the seated people among the points left."""
+        p = self.params
+        people = [(member, "standing", True) for member in self._people(points, height, cut_low, hidden, count, labels)]
+        if not p.seated.enabled:
+            return people
+        free = np.ones(len(points), bool)
+        for member, _, _ in people:
+            free &= ~member
+        for s in find_seated(points, height, self.plane.normal, labels, free, K, depth, p.seated,
+                             p.min_cluster_points, p.voxel_m, p.pixel_step):
+            if s.hidden or self._grounded(s.member, height, cut_low, hidden):
+                feet = self.plane.project(points[s.member])
+                if np.ptp(feet, axis=0).max() <= p.max_width_m and self._thickness(feet) >= p.min_thickness_m:
+                    people.append((s.member, "sitting", not s.hidden))
+        return people
 
     def _people(self, points: np.ndarray, height: np.ndarray, cut_low: np.ndarray, hidden: np.ndarray, count: int,
                 labels: np.ndarray) -> list[np.ndarray]:

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 from services.detector.core.boxes import DetectorError
 from services.detector.core.ground import GroundParams
+from services.detector.core.seated import SeatedParams
 
 __all__ = ["DepthParams"]
 
@@ -59,6 +60,8 @@ class DepthParams:
     #: this far (deg, m); a refinement that strays further is dropped for the given floor.
     floor_max_deg: float = 3.0
     floor_max_m: float = 0.1
+    #: Seated people among what the standing rule leaves (:mod:`services.detector.core.seated`).
+    seated: SeatedParams = field(default_factory=SeatedParams)
     hog_confirm: bool = False
     hog_min_score: float = 0.5
 

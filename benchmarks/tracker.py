@@ -3,10 +3,11 @@
 Run: ``.venv/bin/python benchmarks/tracker.py`` (about a minute on a 2-core VM;
 ``--reps`` trades precision for time). Prints median and p95 in milliseconds.
 
-Each case starts a tracker with ``people`` Confirmed tracks whose galleries are already
-full (``gallery`` descriptors of dimension 128), then times updates in which every
-person is detected again with a fresh descriptor, i.e. steady state: Algorithm 1 over a
-full cost matrix, one Kalman update per track and one gallery insertion with pruning.
+Each case starts a tracker with ``people`` Confirmed tracks and fills their galleries
+(``gallery`` descriptors of dimension 128) by as many updates, then times updates in which
+every person is detected again with a fresh descriptor, i.e. steady state: the association
+over full galleries, one Kalman update per track and one gallery insertion with pruning.
+The tracker is driven through its interface only (``TrackerCore``), as the service drives it.
 """
 
 from __future__ import annotations
@@ -29,7 +30,6 @@ import numpy as np  # noqa: E402
 
 from common.runtime.progress import Bar, progress_bar  # noqa: E402
 from services.tracker.config import PROFILES, TrackerConfig  # noqa: E402
-from services.tracker.core import Gallery  # noqa: E402
 from services.tracker.offline import read_detections, track, write_tracks  # noqa: E402
 
 DIM = 128
@@ -55,19 +55,15 @@ def observe(looks: np.ndarray, pos: np.ndarray, rng: np.random.Generator) -> tup
 def bench_update(people: int, gallery: int, reps: int, config: TrackerConfig) -> tuple[float, float]:
     """(median, p95) in ms of one update with ``people`` tracks holding full galleries."""
     rng = np.random.default_rng(people * 1000 + gallery)
-    sized = config.model_copy(update={"gallery_size": gallery,
-                                      "robust": config.robust.model_copy(update={"gallery_size": gallery})})
+    sized = config.model_copy(update={"robust": config.robust.model_copy(update={"gallery_size": gallery}),
+                                      "thesis": config.thesis.model_copy(update={"gallery_size": gallery})})
     tracker = sized.build_tracker(config.thresholds("colour"))
     looks, pos = make_people(people, rng)
     t = 0.0
-    for _ in range(tracker.params.n_init):
+    # confirm every person, then fill every gallery to capacity with views of its person
+    for _ in range(sized.profile_config.n_init + gallery):
         tracker.update(t, *observe(looks, pos, rng))
         t += 1 / FPS
-    for track_ in tracker.tracks:  # fill every gallery to capacity with views of its person
-        i = int(np.argmin(np.linalg.norm(pos[:, :2] - track_.mean[:2], axis=1)))
-        views = looks[i] + rng.normal(scale=0.01, size=(gallery, DIM))
-        prune = track_.gallery.prune if track_.gallery is not None else "closest_pair"  # each profile's own policy
-        track_.gallery = Gallery.from_descriptors(views / np.linalg.norm(views, axis=1, keepdims=True), gallery, prune)
     times = []
     for _ in range(reps):
         frame = observe(looks, pos, rng)
@@ -75,7 +71,7 @@ def bench_update(people: int, gallery: int, reps: int, config: TrackerConfig) ->
         tracker.update(t, *frame)
         times.append(time.perf_counter() - start)
         t += 1 / FPS
-    assert len(tracker.tracks) == people, "benchmark scenario lost tracks"
+    assert len(tracker.live_ids()) == people, "benchmark scenario lost tracks"
     ms = np.array(times) * 1e3
     return float(np.median(ms)), float(np.percentile(ms, 95))
 

@@ -1,35 +1,44 @@
-"""TrackerConfig: the tracker's settings, with the thesis's values as defaults (the core's
-:class:`TrackerParams` defaults, written there only).
+"""TrackerConfig: the tracker's settings. Each profile has its section, ``robust:`` and
+``thesis:``, with the core's defaults (:class:`RobustParams`, :class:`TrackerParams`,
+written there only); the service's settings and the ID memory's are at the top.
 
 Appearance thresholds depend on the embedding model's distance scale, so they live under
 the model's name in ``appearance``. :data:`DEFAULT_APPEARANCE` below is the one place the
 shipped per-model values are written.
+
+The thesis profile's settings used to sit at the top (``n_init: 3``); such files still load:
+those keys are moved under ``thesis:``, with a warning that names the new place.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from services.tracker.core import AppearanceGate, TrackerParams
-from services.tracker.core.classifier import ClassifierParams
-from services.tracker.core.identity import IdentityMemory
-from services.tracker.core.posture import PostureParams
-from services.tracker.core.robust import (
+from services.tracker.core import (
+    AppearanceGate,
     AppearanceModel,
     RobustParams,
     RobustTracker,
     ScoreModel,
+    Tracker,
+    TrackerCore,
+    TrackerParams,
 )
-from services.tracker.core.tracker import Tracker
+from services.tracker.core.classifier import ClassifierParams
+from services.tracker.core.identity import IdentityMemory
+from services.tracker.core.posture import PostureParams
 
 __all__ = ["DEFAULT_APPEARANCE", "DEFAULT_EMBEDDING_MODEL", "PROFILES", "SEVERAL_CAMERAS", "AppearanceConfig",
-           "RobustConfig", "ScoreConfig", "TrackerConfig", "default_memory_path"]
+           "RobustConfig", "ScoreConfig", "ThesisConfig", "TrackerConfig", "default_memory_path"]
+
+log = logging.getLogger(__name__)
 
 #: The tracker's profiles: ``robust`` (the default, built from Pinto's thesis, the TU Ilmenau
 #: framework, Basso/Munaro and Ban et al.) and ``thesis`` (Pinto's thesis exactly, for
@@ -48,7 +57,7 @@ class AppearanceConfig(BaseModel):
     t_lower: float = Field(ge=0.0, description="below: appearance alone admits a pair")
     t_upper: float = Field(gt=0.0, description="at or above: the pair is never admitted")
     t_recover: float = Field(gt=0.0, description="Algorithm 2: reuse a remembered ID closer than this")
-    s_max: float | None = Field(default=None, ge=0.0, description="per-model S_max; None uses TrackerConfig.s_max")
+    s_max: float | None = Field(default=None, ge=0.0, description="per-model S_max (thesis profile); None uses thesis.s_max")
     metric: Literal["euclidean", "cosine"] | None = Field(
         default=None, description="how the model's descriptors compare; None: as its model card says (euclidean if none)")
 
@@ -86,7 +95,6 @@ def _default_appearance() -> dict[str, AppearanceConfig]:
 #: The core's defaults: every default below that the core also has is taken from here,
 #: so it is written once, in the core (tests/unit/test_config_defaults.py checks they agree).
 _D = TrackerParams()
-_S_MAX = next(f.default for f in dataclasses.fields(AppearanceGate) if f.name == "s_max")
 _R = RobustParams()
 _SC = ScoreModel()
 
@@ -221,18 +229,26 @@ class RobustConfig(BaseModel):
         return RobustParams(**fields, appearance=appearance, scores=self.scores.model(), memory_size=memory_size,
                             classifier=self.classifier.params(), posture=self.posture.params())
 
+    def build(self, appearance: AppearanceModel | None, memory: IdentityMemory | None, memory_size: int) -> TrackerCore:
+        return RobustTracker(self.params(appearance, memory_size), memory)
 
-class TrackerConfig(BaseModel):
-    """Everything ``perception tracker`` and ``perception track`` can be told."""
+    def score_models(self) -> dict[str, ScoreModel]:
+        """The score models of the detectors that have their own, by name."""
+        return {name: sc.model() for name, sc in self.detector_scores.items()}
+
+    @property
+    def covariance_fallback(self) -> np.ndarray:
+        """(3, 3): what stands for an unusable detection covariance: zero (R is ``sigma_r^2``
+        plus the covariance)."""
+        return np.zeros((3, 3))
+
+
+class ThesisConfig(BaseModel):
+    """The ``thesis`` profile's settings: Pinto's thesis (services/tracker/README.md, *Parameters*)."""
 
     model_config = ConfigDict(extra="forbid")
 
-    profile: Literal["robust", "thesis"] = Field(
-        default="robust",
-        description="'robust' (default): cue fusion, staged association, life cycle in seconds; "
-                    "'thesis': Pinto's thesis exactly")
-    robust: RobustConfig = Field(default_factory=RobustConfig, description="the robust profile's settings")
-    # --- thesis profile: Kalman filter (Pinto's thesis, III-C)
+    # --- Kalman filter (Pinto's thesis, III-C)
     sigma0: tuple[float, float, float, float, float, float] = Field(
         default=_D.sigma0, description="initial std of (x, y, z, vx, vy, vz); P0 = diag(sigma0^2)")
     sigma_q: tuple[float, float, float, float, float, float] = Field(
@@ -244,11 +260,8 @@ class TrackerConfig(BaseModel):
         default=_D.time_step, description="'time': dt from stamps; 'frame': dt = 1 per frame, as the thesis")
     frame_period_s: float = Field(default=_D.frame_period_s, gt=0.0, le=10.0,
                                   description="nominal frame period: Q and miss counts are per this period")
-    # --- association (Algorithm 1) and ID memory (Algorithm 2)
-    embedding_model: str | None = Field(
-        default=None, min_length=1, description="accept descriptors of this model only; None: the first model seen")
-    appearance: dict[str, AppearanceConfig] = Field(default_factory=_default_appearance)
-    s_max: float = Field(default=_S_MAX, ge=0.0,
+    # --- association (Algorithm 1)
+    s_max: float = Field(default=_D.s_max, ge=0.0,
                          description="S_max: max squared Mahalanobis (x, y) in the ambiguous band")
     infinite_cost: float = Field(default=_D.inf, gt=0.0, description="cost of an inadmissible pair")
     position_gate_probability: float = Field(default=_D.position_gate_probability, gt=0.0, lt=1.0,
@@ -256,9 +269,68 @@ class TrackerConfig(BaseModel):
     # --- life cycle (Pinto's thesis, III-E)
     n_init: int = Field(default=_D.n_init, ge=1, le=100, description="consecutive associated frames to confirm")
     max_misses: int = Field(default=_D.max_misses, ge=1, le=1000, description="frames without association to delete")
-    # --- bounded memory (the TU Ilmenau framework)
     gallery_size: int = Field(default=_D.gallery_size, ge=1, le=100_000,
                               description="max descriptors per track gallery")
+
+    @field_validator("sigma0", "sigma_q", "sigma_r")
+    @classmethod
+    def _positive(cls, v: tuple[float, ...]) -> tuple[float, ...]:
+        if any(not (s > 0) for s in v):
+            raise ValueError(f"every standard deviation must be positive, got {v}")
+        return v
+
+    def params(self, appearance: AppearanceModel | None, memory_size: int) -> TrackerParams:
+        """The core's parameters; ``appearance`` None means position-only association.
+
+        ``gate`` and ``t_recover`` come from the embedding model's thresholds, not from the
+        core's defaults (the core's ``t_recover`` 400 is TriNet's): position-only, there is
+        no gate and ``t_recover`` is 0 (unused: no descriptor is ever compared).
+        """
+        params = TrackerParams(
+            sigma0=self.sigma0, sigma_q=self.sigma_q, sigma_r=self.sigma_r, gate=None, t_recover=0.0,
+            n_init=self.n_init, max_misses=self.max_misses, time_step=self.time_step,
+            frame_period_s=self.frame_period_s, gallery_size=self.gallery_size, memory_size=memory_size,
+            position_gate_probability=self.position_gate_probability, inf=self.infinite_cost, s_max=self.s_max,
+        )
+        if appearance is None:
+            return params
+        s_max = self.s_max if appearance.s_max is None else appearance.s_max
+        gate = AppearanceGate(appearance.t_lower, appearance.t_upper, s_max, self.infinite_cost)
+        return dataclasses.replace(params, gate=gate, t_recover=appearance.t_recover)
+
+    def build(self, appearance: AppearanceModel | None, memory: IdentityMemory | None, memory_size: int) -> TrackerCore:
+        return Tracker(self.params(appearance, memory_size), memory)
+
+    def score_models(self) -> dict[str, ScoreModel]:
+        """The thesis reads no detector scores."""
+        return {}
+
+    @property
+    def covariance_fallback(self) -> np.ndarray:
+        """(3, 3): what stands for an unusable detection covariance: ``diag(sigma_r^2)`` (R is the covariance)."""
+        return np.diag(np.asarray(self.sigma_r, float) ** 2)
+
+
+#: The thesis profile's settings that used to sit at the top of the tracker's settings.
+_OLD_THESIS_KEYS = tuple(ThesisConfig.model_fields)
+
+
+class TrackerConfig(BaseModel):
+    """Everything ``perception tracker`` and ``perception track`` can be told."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    profile: Literal["robust", "thesis"] = Field(
+        default="robust",
+        description="'robust' (default): cue fusion, staged association, life cycle in seconds; "
+                    "'thesis': Pinto's thesis exactly")
+    robust: RobustConfig = Field(default_factory=RobustConfig, description="the robust profile's settings")
+    thesis: ThesisConfig = Field(default_factory=ThesisConfig, description="the thesis profile's settings")
+    # --- appearance (both profiles) and the ID memory (Algorithm 2)
+    embedding_model: str | None = Field(
+        default=None, min_length=1, description="accept descriptors of this model only; None: the first model seen")
+    appearance: dict[str, AppearanceConfig] = Field(default_factory=_default_appearance)
+    # --- bounded memory (the TU Ilmenau framework)
     memory_size: int = Field(default=_D.memory_size, ge=1, le=100_000, description="max descriptors per remembered ID")
     max_remembered_ids: int = Field(default=10_000, ge=1, le=1_000_000,
                                     description="max IDs remembered; one more forgets the one archived longest ago")
@@ -290,12 +362,30 @@ class TrackerConfig(BaseModel):
     memory_save_period_s: float = Field(default=2.0, gt=0.0, le=3600.0,
                                         description="how often live tracks' galleries are also written")
 
-    @field_validator("sigma0", "sigma_q", "sigma_r")
+    @model_validator(mode="before")
     @classmethod
-    def _positive(cls, v: tuple[float, ...]) -> tuple[float, ...]:
-        if any(not (s > 0) for s in v):
-            raise ValueError(f"every standard deviation must be positive, got {v}")
-        return v
+    def _old_thesis_keys(cls, data: Any) -> Any:
+        """Files written before the profiles had a section each: the thesis's keys at the top
+        move under ``thesis:`` (a key given in both places is refused)."""
+        if not isinstance(data, dict):
+            return data
+        old = [k for k in _OLD_THESIS_KEYS if k in data]
+        if not old:
+            return data
+        data = dict(data)
+        section = data.get("thesis") or {}
+        if isinstance(section, ThesisConfig):
+            section = section.model_dump(exclude_unset=True)
+        if not isinstance(section, dict):
+            return data  # the section's own validation says what is wrong with it
+        twice = [k for k in old if k in section]
+        if twice:
+            raise ValueError(f"{', '.join(twice)} given both at the top and under 'thesis:'; the thesis profile's "
+                             "settings belong under 'thesis:' only")
+        log.warning("tracker settings %s at the top are the thesis profile's: write them under 'thesis:' "
+                    "(e.g. thesis: {%s: ...}); read as such this time", ", ".join(old), old[0])
+        data["thesis"] = {**section, **{k: data.pop(k) for k in old}}
+        return data
 
     @model_validator(mode="after")
     def _clock_jump_beyond_window(self) -> TrackerConfig:
@@ -323,25 +413,6 @@ class TrackerConfig(BaseModel):
         """The configured thresholds of ``model``, or None."""
         return self.appearance.get(model)
 
-    def gate(self, th: AppearanceConfig) -> AppearanceGate:
-        return AppearanceGate(th.t_lower, th.t_upper, self.s_max if th.s_max is None else th.s_max, self.infinite_cost)
-
-    def params(self, thresholds: AppearanceConfig | None) -> TrackerParams:
-        """The core's parameters; ``thresholds`` None means position-only association.
-
-        ``gate`` and ``t_recover`` come from the embedding model's thresholds, not from the
-        core's defaults (the core's ``t_recover`` 400 is TriNet's): position-only, there is
-        no gate and ``t_recover`` is 0 (unused: no descriptor is ever compared).
-        """
-        return TrackerParams(
-            sigma0=self.sigma0, sigma_q=self.sigma_q, sigma_r=self.sigma_r,
-            gate=self.gate(thresholds) if thresholds is not None else None,
-            t_recover=thresholds.t_recover if thresholds is not None else 0.0,
-            n_init=self.n_init, max_misses=self.max_misses, time_step=self.time_step,
-            frame_period_s=self.frame_period_s, gallery_size=self.gallery_size, memory_size=self.memory_size,
-            position_gate_probability=self.position_gate_probability, inf=self.infinite_cost,
-        )
-
     def appearance_model(self, thresholds: AppearanceConfig | None, metric: str | None = None) -> AppearanceModel | None:
         """The robust profile's view of a model's thresholds; ``metric`` from its model card."""
         if thresholds is None:
@@ -349,41 +420,35 @@ class TrackerConfig(BaseModel):
         chosen = thresholds.metric or metric or "euclidean"
         if chosen not in ("euclidean", "cosine"):
             raise ValueError(f"unknown descriptor metric {chosen!r}; the tracker knows euclidean and cosine")
-        return AppearanceModel(thresholds.t_lower, thresholds.t_upper, thresholds.t_recover, chosen)  # type: ignore[arg-type]
+        return AppearanceModel(thresholds.t_lower, thresholds.t_upper, thresholds.t_recover, chosen,  # type: ignore[arg-type]
+                               thresholds.s_max)
+
+    @property
+    def profile_config(self) -> RobustConfig | ThesisConfig:
+        """The settings section of the configured profile."""
+        return {"robust": self.robust, "thesis": self.thesis}[self.profile]
 
     def score_models(self) -> dict[str, ScoreModel]:
-        """The score models of the detectors that have their own (robust profile), by name."""
-        return {name: sc.model() for name, sc in self.robust.detector_scores.items()}
+        """The score models of the detectors that have their own (the robust profile's), by name."""
+        return self.profile_config.score_models()
 
     def build_tracker(self, thresholds: AppearanceConfig | None, memory: IdentityMemory | None = None,
-                      metric: str | None = None) -> Tracker | RobustTracker:
+                      metric: str | None = None) -> TrackerCore:
         """The core tracker of the configured profile."""
-        tracker: Tracker | RobustTracker
-        if self.profile == "thesis":
-            tracker = Tracker(self.params(thresholds), memory)
-        else:
-            tracker = RobustTracker(self.robust.params(self.appearance_model(thresholds, metric), self.memory_size),
-                                    memory)
+        tracker = self.profile_config.build(self.appearance_model(thresholds, metric), memory, self.memory_size)
         tracker.memory.max_ids = self.max_remembered_ids
         return tracker
 
-    def apply_thresholds(self, tracker: Tracker | RobustTracker, thresholds: AppearanceConfig,
-                         metric: str | None = None) -> None:
+    def apply_thresholds(self, tracker: TrackerCore, thresholds: AppearanceConfig, metric: str | None = None) -> None:
         """Give ``tracker`` a model's thresholds (e.g. once its model card is known)."""
-        if isinstance(tracker, RobustTracker):
-            tracker.set_gate(self.appearance_model(thresholds, metric))
-        else:
-            tracker.set_gate(self.gate(thresholds), thresholds.t_recover)
+        tracker.set_appearance(self.appearance_model(thresholds, metric))
 
     @property
     def uses_detection_covariance(self) -> bool:
-        return self.robust.use_detection_covariance if self.profile == "robust" else self.use_detection_covariance
+        return self.profile_config.use_detection_covariance
 
     @property
     def covariance_fallback(self) -> np.ndarray:
         """(3, 3): what replaces an unusable detection covariance, so that the profile's R is its
-        fixed one: ``diag(sigma_r^2)`` for thesis (R is the covariance), zero for robust (R is
-        its ``sigma_r^2`` plus the covariance)."""
-        if self.profile == "robust":
-            return np.zeros((3, 3))
-        return np.diag(np.asarray(self.sigma_r, float) ** 2)
+        fixed one (:attr:`RobustConfig.covariance_fallback`, :attr:`ThesisConfig.covariance_fallback`)."""
+        return self.profile_config.covariance_fallback

@@ -57,7 +57,7 @@ from services.tracker.convert import (
     tracks_message,
     usable_covariances,
 )
-from services.tracker.core.tracker import FrameResult, TrackerState, TrackStatus, TrackView
+from services.tracker.core import FrameResult, TrackStatus, TrackView
 from services.tracker.core.view import FieldOfView, Views
 from services.tracker.memory_file import (
     descriptor_dim,
@@ -120,10 +120,10 @@ class TrackerService(Node):
                                                       f"{self._dim} (move the file away if the model changed)")
         th = config.thresholds(self.model) if self.model else None
         self.tracker = config.build_tracker(th, memory)
-        if hasattr(self.tracker, "classifiers") and config.memory_path is not None and config.memory_path.exists():
-            # the robust profile's remembered classifiers (a bad block costs them, not the memory)
+        if config.memory_path is not None and config.memory_path.exists():
+            # the remembered classifiers, for a profile that has them (a bad block costs them, not the memory)
             try:
-                self.tracker.classifiers = read_classifiers(config.memory_path)
+                self.tracker.load_classifiers(read_classifiers(config.memory_path))
             except ValueError as exc:
                 log.warning("%s; starting without remembered classifiers", exc)
         self._have_thresholds = th is not None
@@ -144,7 +144,7 @@ class TrackerService(Node):
         self._dirty = False
         self._log = RateLimitedLog(log, clock=clock)
         self._clock_jumps = ClockJumps(int(config.clock_jump_s * 1e9))
-        self.buffer: ReorderBuffer[_Frame, TrackerState, FrameResult] = ReorderBuffer(
+        self.buffer: ReorderBuffer[_Frame, object, FrameResult] = ReorderBuffer(
             apply=self._update, snapshot=self.tracker.snapshot, restore=self.tracker.restore,
             window_ns=int(config.reorder_window_s * 1e9))
         self.loc_sub = self.io.subscribe(keys.localized(config.camera), LocalizedDetections, RELIABLE)
@@ -481,7 +481,7 @@ class TrackerService(Node):
             return
         try:
             save_memory(path, self.tracker.memory, self.model or "", extra=self.tracker.live_galleries(),
-                        classifiers=self._classifiers(), last_seen=self._seen)
+                        classifiers=self.tracker.kept_classifiers(), last_seen=self._seen)
         except (OSError, ValueError) as exc:
             self.counters.count("memory_save_errors")
             log.error("could not write the ID memory to %s: %s", path, exc)
@@ -489,13 +489,6 @@ class TrackerService(Node):
         self._saved_version = self.tracker.memory.version
         self._last_save, self._dirty = now, False
         self.counters.count("memory_saves")
-
-    def _classifiers(self) -> dict[int, np.ndarray]:
-        """The robust profile's classifiers to keep: the remembered ones and the live tracks'."""
-        live = getattr(self.tracker, "live_classifiers", None)
-        if live is None:
-            return {}
-        return {**self.tracker.classifiers, **live()}  # type: ignore[attr-defined]
 
     # ------------------------------------------------------------- forgetting
     def forget(self, track_id: int | None) -> ForgetReply:

@@ -65,66 +65,14 @@ from services.tracker.core.gallery import Gallery
 from services.tracker.core import posture as pose
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.posture import PostureParams
-from services.tracker.core.tracker import FrameResult, TrackStatus, TrackView
+from services.tracker.core.protocol import TrackerCore
+from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, ScoreModel, TrackStatus, TrackView
 from services.tracker.core.view import FieldOfView, Views
 
 __all__ = ["AppearanceModel", "RobustParams", "RobustTracker", "RobustTrackerState", "ScoreModel"]
 
 _F3 = tuple[float, float, float]
 _LOG_2PI = math.log(2.0 * math.pi)
-
-
-@dataclass(frozen=True)
-class AppearanceModel:
-    """An embedding model's calibrated distances: 0.9 same-person probability at
-    ``t_lower``, 0.1 at ``t_upper``; ``t_recover`` for the ID memory. ``metric`` says how
-    descriptors compare (``euclidean``, or ``cosine``: 1 - cos on unit vectors)."""
-
-    t_lower: float
-    t_upper: float
-    t_recover: float
-    metric: Literal["euclidean", "cosine"] = "euclidean"
-
-    def __post_init__(self) -> None:
-        if not 0 <= self.t_lower < self.t_upper:
-            raise ValueError(f"need 0 <= t_lower < t_upper, got {self.t_lower}, {self.t_upper}")
-
-    def log_odds(self, distance: np.ndarray) -> np.ndarray:
-        """Log-odds that a pair at ``distance`` is the same person (0 where ``nan``)."""
-        mid = 0.5 * (self.t_lower + self.t_upper)
-        # logistic through (t_lower, 0.9) and (t_upper, 0.1): slope ln(9) / half-width
-        slope = math.log(9.0) / (0.5 * (self.t_upper - self.t_lower))
-        out = slope * (mid - distance)
-        return np.where(np.isnan(out), 0.0, out)
-
-    def from_euclidean(self, d: np.ndarray) -> np.ndarray:
-        """The model's distance from the Euclidean distance of unit vectors."""
-        return 0.5 * d * d if self.metric == "cosine" else d
-
-
-@dataclass(frozen=True)
-class ScoreModel:
-    """Detector score -> P(true person): ``sigmoid((score - center) / scale)``.
-
-    ``center`` None means the scores carry no calibrated meaning: every detection is
-    confident with probability ``default_p``. ``birth_score``: detections below it may
-    update tracks but never start one (None: every detection may).
-    """
-
-    center: float | None = None
-    scale: float = 1.0
-    default_p: float = 0.7
-    birth_score: float | None = None
-
-    def probability(self, scores: np.ndarray) -> np.ndarray:
-        if self.center is None:
-            return np.full(len(scores), self.default_p)
-        return 1.0 / (1.0 + np.exp(-(np.asarray(scores, float) - self.center) / self.scale))
-
-    def confident(self, scores: np.ndarray) -> np.ndarray:
-        if self.birth_score is None:
-            return np.ones(len(scores), bool)
-        return np.asarray(scores, float) >= self.birth_score
 
 
 @dataclass(frozen=True)
@@ -238,8 +186,8 @@ def _logit(p: np.ndarray | float) -> np.ndarray:
     return np.log(p / (1.0 - p))
 
 
-class RobustTracker:
-    """The robust profile; same ``update`` contract as :class:`~services.tracker.core.tracker.Tracker`."""
+class RobustTracker(TrackerCore):
+    """The robust profile (:class:`~services.tracker.core.protocol.TrackerCore`)."""
 
     def __init__(self, params: RobustParams, memory: IdentityMemory | None = None) -> None:
         self.params = params
@@ -261,9 +209,9 @@ class RobustTracker:
         self._pose_dt, self._pose_m = -1.0, (np.eye(3), np.eye(pose.ORIENTATION_BINS))  # drift matrices of the last dt
 
     # ------------------------------------------------------------------ helpers
-    def set_gate(self, appearance: AppearanceModel | None) -> None:
+    def set_appearance(self, model: AppearanceModel | None) -> None:
         """Set the embedding model's calibration (e.g. once its model card is known)."""
-        self.params = replace(self.params, appearance=appearance)
+        self.params = replace(self.params, appearance=model)
 
     def _q(self, dt: float) -> np.ndarray:
         if dt == self._q_dt:
@@ -282,44 +230,31 @@ class RobustTracker:
         return {t.id for t in self.tracks if t.id}
 
     # ------------------------------------------------------------------ update
-    def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
-               measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
-               view: FieldOfView | Views | None = None, aspects: np.ndarray | None = None,
-               orientations: np.ndarray | None = None, score_model: ScoreModel | None = None,
-               camera: str = "") -> FrameResult:
-        """Process one frame: ``stamp`` in seconds, ``positions`` (N, 3), ``descriptors``
-        (N, D) or None (a NaN row: no descriptor), ``measurement_cov`` (N, 3, 3) or None,
-        ``scores`` (N,) or None (the detector's confidences), ``view`` what the camera could
-        see (None: unknown): a coasting track out of view is kept but not reported; ``aspects``
-        (N,) each detection's box height / width (None: no boxes; posture is then not
-        estimated, since the positions' z need not be a height above the floor either);
-        ``orientations`` (N, 8) an orientation classifier's probabilities per detection in the
-        tracking frame's bins (NaN rows: none), used while the person is too slow for the
-        walking direction to tell. ``score_model``: how this frame's detector's scores read
-        as P(true person), when several detectors feed the tracker (None: ``params.scores``).
-        ``camera``: which camera the frame comes from, when several feed the tracker: a hand-over
-        by motion (``handover_gate_sq``) joins a track last seen by one camera to a new track
-        born in another's view only."""
+    def step(self, stamp: float, frame: FrameInput) -> FrameResult:
+        """Process one frame (see :class:`FrameInput`): ``stamp`` in seconds. A coasting track
+        out of ``frame.view`` is kept but not reported; without ``frame.aspects`` posture is not
+        estimated (the positions' z need not be a height above the floor either);
+        ``frame.orientations`` are used while the person is too slow for the walking direction
+        to tell; ``frame.score_model`` (None: ``params.scores``) reads this frame's detector's
+        scores, when several detectors feed the tracker; ``frame.camera``: a hand-over by motion
+        (``handover_gate_sq``) joins a track last seen by one camera to a new track born in
+        another's view only."""
         p = self.params
-        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        positions, descriptors = frame.positions, frame.descriptors
+        aspects, orientations, view, camera = frame.aspects, frame.orientations, frame.view, frame.camera
         n = len(positions)
         if n == 0 and not self.tracks and (self.last_stamp is None or stamp >= self.last_stamp):
             self.last_stamp = stamp  # nothing to track, nothing to predict
-            return FrameResult(stamp=stamp, appearance_available=descriptors is not None and p.appearance is not None
-                               and np.ndim(descriptors) == 2 and np.shape(descriptors)[1] > 0)
-        if descriptors is not None:
-            descriptors = np.asarray(descriptors, dtype=np.float32)
-            if descriptors.ndim != 2 or len(descriptors) != n:
-                raise ValueError(f"descriptors must be (N, D) with N = {n} detections, got shape {descriptors.shape}")
+            return FrameResult(stamp=stamp, appearance_available=frame.has_descriptors and p.appearance is not None)
         if self.last_stamp is not None and stamp < self.last_stamp:
             raise ValueError(f"stamp {stamp} is older than the last update {self.last_stamp}; apply frames in order")
-        scores = np.zeros(n) if scores is None else np.asarray(scores, float).reshape(n)
-        r = self._measurement_cov(measurement_cov, n)
+        scores = np.zeros(n) if frame.scores is None else frame.scores
+        r = self._measurement_cov(frame.measurement_cov, frame.cov_usable, n)
         self._predict(stamp)
         previous, self.last_stamp = self.last_stamp, stamp
         appearance = descriptors is not None and p.appearance is not None and descriptors.shape[1] > 0
         has_desc = np.all(np.isfinite(descriptors), axis=1) if appearance else np.zeros(n, bool)  # type: ignore[arg-type]
-        score_model = p.scores if score_model is None else score_model
+        score_model = p.scores if frame.score_model is None else frame.score_model
         p_det = score_model.probability(scores)
         confident = score_model.confident(scores)
         self._d2: dict[tuple[int, int], np.ndarray] = {}
@@ -342,21 +277,16 @@ class RobustTracker:
                     result.tracks[k] = replace(result.tracks[k], in_view=t.in_view)
         return result
 
-    def _measurement_cov(self, cov: np.ndarray | None, n: int) -> np.ndarray:
-        """Each detection's R: its own covariance when usable, else ``sigma_r``. A covariance
-        that is not finite, not symmetric or not positive definite is replaced (and counted
-        in ``bad_covariances``)."""
-        if cov is None:
+    def _measurement_cov(self, cov: np.ndarray | None, good: np.ndarray | None, n: int) -> np.ndarray:
+        """Each detection's R: its own covariance when usable (``good``), else ``sigma_r``. A
+        covariance that is not finite, not symmetric or not positive definite is replaced (and
+        counted in ``bad_covariances``)."""
+        if cov is None or good is None:
             r = self._r_cache.get(n)
             if r is None:
                 r = self._r_cache[n] = np.broadcast_to(self._r, (n, 3, 3))
             return r
-        cov = np.asarray(cov, float).reshape(n, 3, 3)
         sym = 0.5 * (cov + np.swapaxes(cov, 1, 2))
-        ok = np.all(np.isfinite(cov), axis=(1, 2)) & np.all(np.abs(cov - sym) <= 1e-9 + 1e-6 * np.abs(sym), axis=(1, 2))
-        good = np.zeros(n, bool)
-        if ok.any():
-            good[ok] = np.all(np.linalg.eigvalsh(np.where(ok[:, None, None], sym, np.eye(3))[ok]) > 0, axis=1)
         # Basso/Munaro's sigma^2 = sigma_v^2 + sigma_d^2: a fixed part (here the body's extent
         # around the point the sensor saw) plus the sensor's own, which grows with distance^2
         out = np.where(good[:, None, None], sym + self._r, self._r)
@@ -749,6 +679,14 @@ class RobustTracker:
     def live_classifiers(self) -> dict[int, np.ndarray]:
         """ID -> weights of every confirmed live track's trained classifier."""
         return {t.id: t.clf for t in self.tracks if t.id and t.clf_steps and t.clf is not None}
+
+    def kept_classifiers(self) -> dict[int, np.ndarray]:
+        """The classifiers to keep: the remembered people's and the live tracks'."""
+        return {**self.classifiers, **self.live_classifiers()}
+
+    def load_classifiers(self, weights: dict[int, np.ndarray]) -> None:
+        """The remembered people's classifiers (from the ID memory's file)."""
+        self.classifiers = dict(weights)
 
     def live_galleries(self) -> list[tuple[int, np.ndarray]]:
         return [(t.id, t.gallery.descriptors) for t in self.tracks if t.id and t.gallery is not None and len(t.gallery)]

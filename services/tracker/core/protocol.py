@@ -87,10 +87,9 @@ class TrackerCore(Protocol):
         ...
 
     def kept_classifiers(self) -> dict[int, np.ndarray]:
-        """ID -> trained appearance classifier to keep beside the memory ({} for a profile without)."""
-        ...
+        """ID -> trained appearance classifier to keep beside the memory (none: a profile without)."""
+        return {}
 
     def load_classifiers(self, weights: dict[int, np.ndarray]) -> None:
-        """The remembered people's classifiers, as :meth:`kept_classifiers` gave them (ignored by
-        a profile without)."""
-        ...
+        """The remembered people's classifiers, as :meth:`kept_classifiers` gave them (a profile
+        without ignores them)."""

@@ -146,11 +146,11 @@ class Tracker(TrackerCore):
         """Algorithm 1's and 2's thresholds from the embedding model's (e.g. once it is known);
         None: position-only. The thesis compares Euclidean distances whatever the metric."""
         if model is None:
-            self.params = _replace(self.params, gate=None, t_recover=0.0)
+            self.params = replace(self.params, gate=None, t_recover=0.0)
             return
         s_max = self.params.s_max if model.s_max is None else model.s_max
         gate = AppearanceGate(model.t_lower, model.t_upper, s_max, self.params.inf)
-        self.params = _replace(self.params, gate=gate, t_recover=model.t_recover)
+        self.params = replace(self.params, gate=gate, t_recover=model.t_recover)
 
     # ------------------------------------------------------------------ update
     def step(self, stamp: float, frame: FrameInput) -> FrameResult:
@@ -380,13 +380,6 @@ class Tracker(TrackerCore):
         """The tracker's output for ``result``: the Confirmed tracks (as in the thesis)."""
         return result.confirmed
 
-    def kept_classifiers(self) -> dict[int, np.ndarray]:
-        """The thesis has no appearance classifiers."""
-        return {}
-
-    def load_classifiers(self, weights: dict[int, np.ndarray]) -> None:
-        """The thesis has no appearance classifiers: nothing to load."""
-
     def live_galleries(self) -> list[tuple[int, np.ndarray]]:
         """(ID, descriptors (M, D)) of every live track and every pending archive."""
         out = [(t.id, t.gallery.descriptors) for t in self.tracks if t.gallery is not None and len(t.gallery)]
@@ -397,10 +390,6 @@ def _view(t: Track, stamp: float) -> TrackView:
     return TrackView(t.id, t.status, t.mean.copy(), t.cov.copy(), t.total_hits, t.misses,
                      max(0.0, stamp - t.first_stamp), t.last_update, len(t.gallery) if t.gallery else 0,
                      t.ever_confirmed)
-
-
-def _replace(params: TrackerParams, **changes: object) -> TrackerParams:
-    return replace(params, **changes)  # type: ignore[arg-type]
 
 
 def _with_descriptor(descriptors: np.ndarray | None, n: int) -> np.ndarray:

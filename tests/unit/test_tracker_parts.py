@@ -90,9 +90,11 @@ def test_one_covariance_test_counts_and_replaces() -> None:
     usable = cues.usable_covariances(covs)
     assert usable.tolist() == [True, False, False, False]
     frame = FrameInput.of(np.zeros((4, 3)), measurement_cov=covs)
-    assert frame.cov_usable is not None and frame.cov_usable.tolist() == usable.tolist()
+    assert frame.cov_usable is None  # not checked yet: the core checks it
     r, bad = cues.measurement_covariance(frame.measurement_cov, frame.cov_usable, np.eye(3), 4)
     assert bad == 3 and np.allclose(r[0], np.eye(3) + good) and np.allclose(r[1:], np.eye(3))
+    told = cues.measurement_covariance(covs, np.array([True, False, False, False]), np.eye(3), 4)
+    assert told[1] == 3 and np.array_equal(told[0], r)  # checked once (the service): not again
 
 
 def test_the_process_noise_is_one_function() -> None:

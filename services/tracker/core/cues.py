@@ -44,11 +44,14 @@ def usable_covariances(covs: np.ndarray) -> np.ndarray:
 def measurement_covariance(cov: np.ndarray | None, usable: np.ndarray | None, r: np.ndarray,
                            n: int) -> tuple[np.ndarray, int]:
     """Each detection's R (N, 3, 3) and how many covariances were unusable: with its own
-    covariance ``cov`` where ``usable``, ``r + cov`` (Basso/Munaro's sigma^2 = sigma_v^2 +
-    sigma_d^2: a fixed part, here the body's extent around the point the sensor saw, plus the
-    sensor's own, which grows with distance^2); elsewhere, or without covariances, ``r``."""
-    if cov is None or usable is None:
+    covariance ``cov`` where ``usable`` (None: :func:`usable_covariances` tells), ``r + cov``
+    (Basso/Munaro's sigma^2 = sigma_v^2 + sigma_d^2: a fixed part, here the body's extent
+    around the point the sensor saw, plus the sensor's own, which grows with distance^2);
+    elsewhere, or without covariances, ``r``."""
+    if cov is None:
         return np.broadcast_to(r, (n, 3, 3)), 0
+    if usable is None:
+        usable = usable_covariances(cov)
     sym = 0.5 * (cov + np.swapaxes(cov, 1, 2))
     return np.where(usable[:, None, None], sym + r, r), int(n - usable.sum())
 

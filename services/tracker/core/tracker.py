@@ -37,6 +37,7 @@ from services.tracker.core.association import (
     match,
     spatial_distance,
 )
+from services.tracker.core.cues import usable_covariances
 from services.tracker.core.gallery import Gallery
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.protocol import TrackerCore
@@ -156,18 +157,17 @@ class Tracker(TrackerCore):
     def step(self, stamp: float, frame: FrameInput) -> FrameResult:
         """Process one frame (see :class:`FrameInput`): ``stamp`` in seconds (sensor time).
 
-        The thesis uses the positions, the descriptors and, when given, each detection's
-        usable covariance as its ``R`` (an unusable one: the fixed ``R``); the scores, the
-        view, the boxes' aspects, orientations, score model and camera are the robust
-        profile's and unused here: the thesis reports Confirmed tracks only and estimates
-        no posture.
-        """
+        The thesis uses the positions, the descriptors and each detection's usable covariance
+        as its ``R`` (an unusable one: the fixed ``R``); the rest is the robust profile's: the
+        thesis reports Confirmed tracks only and estimates no posture."""
         positions, descriptors = frame.positions, frame.descriptors
         appearance = descriptors is not None and self.params.gate is not None
         used = descriptors if appearance else None  # descriptors without thresholds are ignored
         measurement_cov = frame.measurement_cov
-        if measurement_cov is not None and frame.cov_usable is not None and not frame.cov_usable.all():
-            measurement_cov = np.where(frame.cov_usable[:, None, None], measurement_cov, self._r)
+        if measurement_cov is not None:  # an unusable covariance: the fixed R
+            usable = usable_covariances(measurement_cov) if frame.cov_usable is None else frame.cov_usable
+            if not usable.all():
+                measurement_cov = np.where(usable[:, None, None], measurement_cov, self._r)
         dt, q_scale, frames = self._step(stamp)
         self.last_stamp = stamp
         if appearance:

@@ -15,8 +15,6 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from services.tracker.core.cues import usable_covariances
-
 if TYPE_CHECKING:
     from services.tracker.core.view import FieldOfView, Views
 
@@ -141,8 +139,8 @@ class FrameInput:
     ``positions`` (N, 3) float64 in the tracking frame. ``descriptors`` (N, D) float32 or
     None for a position-only frame; a row of NaN marks a detection without a descriptor.
     ``measurement_cov`` (N, 3, 3) each detection's covariance or None, and ``cov_usable``
-    (N,) which of them are finite, symmetric and positive definite (the one test,
-    :func:`~services.tracker.core.cues.usable_covariances`). ``scores`` (N,) the detector's
+    (N,) which of them are finite, symmetric and positive definite when that is known (the
+    one test, :func:`~services.tracker.core.cues.usable_covariances`; None: the core checks). ``scores`` (N,) the detector's
     confidences (zeros when it gave none). ``view``: what the cameras could see (None:
     unknown). ``aspects`` (N,) the boxes' height / width (None: no boxes). ``orientations``
     (N, 8) an orientation classifier's probabilities per detection in the tracking frame's
@@ -167,19 +165,17 @@ class FrameInput:
            view: FieldOfView | Views | None = None, aspects: np.ndarray | None = None,
            orientations: np.ndarray | None = None, score_model: ScoreModel | None = None,
            camera: str = "") -> FrameInput:
-        """Convert and check one frame's arrays (ValueError for descriptors of the wrong shape)."""
+        """Convert one frame's arrays (ValueError for descriptors of the wrong shape)."""
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         n = len(positions)
         if descriptors is not None:
             descriptors = np.asarray(descriptors, dtype=np.float32)
             if descriptors.ndim != 2 or len(descriptors) != n:
                 raise ValueError(f"descriptors must be (N, D) with N = {n} detections, got shape {descriptors.shape}")
-        usable = None
         if measurement_cov is not None:
             measurement_cov = np.asarray(measurement_cov, dtype=np.float64).reshape(n, 3, 3)
-            usable = usable_covariances(measurement_cov)
         scores = np.zeros(n) if scores is None else np.asarray(scores, dtype=np.float64).reshape(n)
-        return cls(positions, descriptors, measurement_cov, usable, scores, view, aspects, orientations, score_model,
+        return cls(positions, descriptors, measurement_cov, None, scores, view, aspects, orientations, score_model,
                    camera)
 
     def __len__(self) -> int:

@@ -82,19 +82,20 @@ def position_log_odds(positions: np.ndarray, r: np.ndarray, means_xy: np.ndarray
 @dataclass(frozen=True)
 class PairDistances:
     """The squared descriptor distances of the pairs :func:`appearance_log_odds` compared:
-    ``row[d, t]`` the row of ``d2`` (P, capacity) for detection d and track t, -1 where the
-    pair was not compared."""
+    ``d2[k]`` (capacity,) for the pair (``dets[k]``, ``tracks[k]``)."""
 
-    row: np.ndarray
+    dets: list[int]
+    tracks: list[int]
     d2: np.ndarray
 
     def get(self, d: np.ndarray, t: np.ndarray) -> np.ndarray | None:
         """The rows of pairs (``d[k]``, ``t[k]``), or None if one of them was not compared."""
-        rows = self.row[d, t]
-        return None if np.any(rows < 0) else self.d2[rows]
+        index = dict(zip(zip(self.dets, self.tracks), range(len(self.dets))))
+        rows = [index.get(pair) for pair in zip(d.tolist(), t.tolist())]
+        return None if None in rows else self.d2[rows]
 
 
-def appearance_log_odds(model: AppearanceModel, bank: GalleryBank, slots: np.ndarray, descriptors: np.ndarray,
+def appearance_log_odds(model: AppearanceModel, bank: GalleryBank, slots: list[int], descriptors: np.ndarray,
                         pairs: np.ndarray) -> tuple[np.ndarray, PairDistances]:
     """(N, T) log-odds that detection d is track t by appearance: the model's distance from
     the detection's descriptor (``descriptors`` (N, D)) to the nearest descriptor of the
@@ -102,23 +103,20 @@ def appearance_log_odds(model: AppearanceModel, bank: GalleryBank, slots: np.nda
     the model's calibrated thresholds. Only the ``pairs`` (N, T) bool are compared (0
     elsewhere: no information), in one batched product; their squared distances come back
     for the insertion that follows a match."""
-    n, nt = pairs.shape
     d_idx, t_idx = np.nonzero(pairs & (bank.sizes(slots) > 0)[None, :])
-    d2 = bank.pair_sq_distances(slots[t_idx], descriptors[d_idx])
-    dist = np.full((n, nt), np.nan)
+    d2 = bank.pair_sq_distances(np.asarray(slots, np.int64)[t_idx], descriptors[d_idx])
+    dist = np.full(pairs.shape, np.nan)
     dist[d_idx, t_idx] = model.from_euclidean(np.sqrt(d2.min(axis=1)))
-    row = np.full((n, nt), -1, np.int64)
-    row[d_idx, t_idx] = np.arange(len(d_idx))
-    return model.log_odds(dist), PairDistances(row, d2)
+    return model.log_odds(dist), PairDistances(d_idx.tolist(), t_idx.tolist(), d2)
 
 
-def classifier_log_odds(weights: np.ndarray | None, trained: np.ndarray, u: np.ndarray, has_desc: np.ndarray,
+def classifier_log_odds(weights: np.ndarray | None, steps: list[int], u: np.ndarray, has_desc: np.ndarray,
                         clip: float) -> np.ndarray:
     """(N, T) the tracks' online classifiers' log-odds (Basso/Munaro) of the unit descriptors
-    ``u`` (one row per detection with ``has_desc``): 0 for an untrained classifier
-    (``trained`` (T,) False) or a detection without a descriptor."""
-    out = np.zeros((len(has_desc), len(trained)))
-    cols = np.flatnonzero(trained)
+    ``u`` (one row per detection with ``has_desc``): 0 for an untrained classifier (``steps``
+    0: no training step yet) or a detection without a descriptor."""
+    out = np.zeros((len(has_desc), len(steps)))
+    cols = [j for j, k in enumerate(steps) if k]
     if len(cols) and weights is not None:
         out[np.ix_(np.flatnonzero(has_desc), cols)] = clf.scores(weights[cols], u, clip)
     return out

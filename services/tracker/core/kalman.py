@@ -11,6 +11,8 @@ dimensions are allowed: ``mean`` (..., 6), ``cov`` (..., 6, 6), ``z`` (..., 3),
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 __all__ = ["H", "initiate", "predict", "process_noise", "project", "transition", "update", "white_acceleration"]
@@ -19,12 +21,15 @@ __all__ = ["H", "initiate", "predict", "process_noise", "project", "transition",
 H = np.hstack([np.eye(3), np.zeros((3, 3))])
 
 
+@lru_cache(maxsize=16)
 def transition(dt: float) -> np.ndarray:
-    """The (6, 6) transition matrix ``A`` for a step of ``dt`` (seconds, or 1 per frame)."""
+    """The (6, 6) transition matrix ``A`` for a step of ``dt`` (seconds, or 1 per frame);
+    read-only (the steps of a stream repeat: each is built once)."""
     a = np.eye(6)
     a[0, 3] = dt
     a[1, 4] = dt
     a[5, 5] = 0.0  # z is a random walk: vz is reset by every predict
+    a.flags.writeable = False
     return a
 
 

@@ -26,46 +26,58 @@ import numpy as np
 
 from services.tracker.core import classifier as clf
 from services.tracker.core.robust_params import RobustParams
-from services.tracker.core.tracks import COASTING, CONFIRMED, IN, OUT, TENTATIVE, UNKNOWN, RobustTrackerState
-from services.tracker.core.types import FrameResult
+from services.tracker.core.tracks import RobustTrackerState
+from services.tracker.core.types import FrameResult, TrackStatus
 from services.tracker.core.view import FieldOfView, Views
+
+_TENTATIVE, _CONFIRMED, _COASTING = TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.COASTING
 
 __all__ = ["age", "archive", "birth", "births", "bayes", "confirm", "handover", "identity", "recover_by_classifier"]
 
 
-def bayes(p: np.ndarray | float, q: np.ndarray | float) -> np.ndarray:
-    """Binary Bayes update of ``p`` with evidence ``q`` (probabilities, element by element)."""
-    num = np.multiply(p, q)
-    return num / (num + (1 - np.asarray(p)) * (1 - np.asarray(q)))
+def bayes(p: float, q: float) -> float:
+    """Binary Bayes update of ``p`` with evidence ``q`` (both probabilities)."""
+    num = p * q
+    return num / (num + (1 - p) * (1 - q))
 
 
 def age(state: RobustTrackerState, p: RobustParams, stamp: float, previous: float | None,
-        view: FieldOfView | Views | None) -> tuple[np.ndarray, np.ndarray]:
+        view: FieldOfView | Views | None) -> tuple[list[int], list[bool]]:
     """Coasting, the tracks' view flags and the end of tracks at ``stamp`` (``previous``: the
-    last frame's stamp). Returns the rows to delete (in order) and the rows to keep (T,) bool
-    (neither: tentative tracks that did not go on, clutter)."""
+    last frame's stamp). Returns the rows to delete (in order) and the rows to keep (neither:
+    tentative tracks that did not go on, clutter)."""
     t = state.tracks
-    gap = stamp - t.last_update
-    t.status[(gap > 0) & (t.status == CONFIRMED)] = COASTING
-    coasting = t.status == COASTING
-    t.in_view[~coasting] = UNKNOWN
-    if view is not None and coasting.any():
-        rows = np.flatnonzero(coasting)
-        seen = view.contains(t.mean[rows, :3], p.view_margin)
+    coasting = []
+    for j, last in enumerate(t.last_update):
+        if stamp - last > 0 and t.status[j] is _CONFIRMED:
+            t.status[j] = _COASTING
+        if t.status[j] is _COASTING:
+            coasting.append(j)
+        else:
+            t.in_view[j] = None
+    if view is not None and coasting:
+        seen = view.contains(t.mean[coasting, :3], p.view_margin)
         before = previous if previous is not None else stamp
-        was_out = rows[t.in_view[rows] == OUT]  # out of view since the last frame
-        t.unseen_s[was_out] += np.maximum(0.0, stamp - np.maximum(before, t.last_update[was_out]))
-        t.in_view[rows] = np.where(seen, IN, OUT)
+        for j, s in zip(coasting, seen.tolist()):
+            if t.in_view[j] is False:  # out of view since the last frame
+                t.unseen_s[j] += max(0.0, stamp - max(before, t.last_update[j]))
+            t.in_view[j] = s
     # in view, a track is dropped on the usual limits; the time out of every view does not count
     # towards max_coast_s, and a track that has been out of view has the wider variance bound
     # (it may come back into a view far from its prediction)
-    var = t.cov[:, 0, 0] + t.cov[:, 1, 1]
-    tentative = t.status == TENTATIVE
-    dropped = tentative & (gap > p.tentative_timeout_s)
-    ended = ~tentative & ((gap - t.unseen_s > p.max_coast_s) | (gap > p.max_coast_unseen_s)
-                          | (var > p.max_position_var_unseen)
-                          | ((t.unseen_s == 0.0) & (t.in_view != OUT) & (var > p.max_position_var)))
-    return np.flatnonzero(ended), ~(dropped | ended)
+    var = (t.cov[:, 0, 0] + t.cov[:, 1, 1]).tolist()
+    ended, keep = [], []
+    for j, last in enumerate(t.last_update):
+        gap, unseen = stamp - last, t.unseen_s[j]
+        if t.status[j] is _TENTATIVE:
+            keep.append(not gap > p.tentative_timeout_s)  # a birth candidate that did not go on: clutter
+        elif (gap - unseen > p.max_coast_s or gap > p.max_coast_unseen_s or var[j] > p.max_position_var_unseen
+              or (unseen == 0.0 and t.in_view[j] is not False and var[j] > p.max_position_var)):
+            ended.append(j)
+            keep.append(False)
+        else:
+            keep.append(True)
+    return ended, keep
 
 
 def archive(state: RobustTrackerState, j: int) -> None:
@@ -73,11 +85,10 @@ def archive(state: RobustTrackerState, j: int) -> None:
     t = state.tracks
     if t.forgotten[j]:
         return
-    track_id, slot = int(t.id[j]), int(t.slot[j])
-    if state.bank.size(slot):
-        state.memory.archive(track_id, state.bank.descriptors(slot))
+    if state.bank.size(t.slot[j]):
+        state.memory.archive(t.id[j], state.bank.descriptors(t.slot[j]))
     if t.clf_steps[j] and t.clf is not None:
-        state.classifiers[track_id] = t.clf[j].copy()
+        state.classifiers[t.id[j]] = t.clf[j].copy()
     if len(state.classifiers) > len(state.memory):  # follow the memory's evictions and forgetting
         state.classifiers = {i: w for i, w in state.classifiers.items() if i in state.memory}
 
@@ -104,27 +115,27 @@ def birth(state: RobustTrackerState, dets: list[int], positions: np.ndarray, des
         return
     t = state.tracks
     d = np.asarray(dets)
-    dim = t.mean.shape[1]
-    mean = np.concatenate([positions[d], np.zeros((len(d), dim - 3))], axis=1)
+    mean = np.concatenate([positions[d], np.zeros((len(d), t.mean.shape[1] - 3))], axis=1)
     first = len(t)
-    t.append(mean, p0, stamp, bayes(0.5, p_det[d]), camera)
+    t.append(mean, p0, stamp, [bayes(0.5, q) for q in p_det[d].tolist()], camera)
     if descriptors is None:
         return
-    with_desc = has_desc[d]
-    rows = first + np.flatnonzero(with_desc)
-    if len(rows):
-        t.slot[rows] = [state.bank.allocate(descriptors.shape[1]) for _ in range(len(rows))]
-        state.bank.add_many(t.slot[rows], descriptors[d[with_desc]], None)
+    rows = [first + k for k, det in enumerate(dets) if has_desc[det]]
+    if rows:
+        for j in rows:
+            t.slot[j] = state.bank.allocate(descriptors.shape[1])
+        state.bank.add_many(np.array([t.slot[j] for j in rows]), descriptors[d[has_desc[d]]], None)
 
 
-def confirm(state: RobustTrackerState, p: RobustParams, result: FrameResult) -> np.ndarray:
+def confirm(state: RobustTrackerState, p: RobustParams, result: FrameResult) -> set[int]:
     """Confirm the birth candidates that have earned it and give them their IDs; returns the
-    rows a hand-over replaced (T,) bool, to remove."""
+    rows a hand-over replaced, to remove."""
     t = state.tracks
-    removed = np.zeros(len(t), bool)
-    ready = (t.status == TENTATIVE) & (t.confident_hits >= p.n_init) & (t.is_person >= p.confirm_is_person)
-    for j in np.flatnonzero(ready).tolist():
-        t.status[j], t.ever_confirmed[j] = CONFIRMED, True
+    removed: set[int] = set()
+    for j, status in enumerate(t.status):
+        if status is not _TENTATIVE or t.confident_hits[j] < p.n_init or t.is_person[j] < p.confirm_is_person:
+            continue
+        t.status[j], t.ever_confirmed[j] = _CONFIRMED, True
         handed = handover(state, j, removed, p.handover_gate_sq)
         if handed is not None:
             t.id[j] = handed
@@ -139,19 +150,20 @@ def confirm(state: RobustTrackerState, p: RobustParams, result: FrameResult) -> 
     return removed
 
 
-def handover(state: RobustTrackerState, j: int, removed: np.ndarray, gate: float | None) -> int | None:
+def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float | None) -> int | None:
     """Hand-over by motion: the ID of the track coasting out of view, last seen by another
     camera than the one track ``j`` was born in, whose prediction the newly confirmed ``j``
     is nearest (squared Mahalanobis distance on (x, y) within ``gate``), which ``j`` replaces
-    (it takes its gallery and classifier too; ``removed`` marks it); None when there is none.
+    (it takes its gallery and classifier too; ``removed`` gets it); None when there is none.
     A person leaving one camera's view and coming back into it is left to appearance."""
     if gate is None:
         return None
     t, bank = state.tracks, state.bank
     best, best_d2 = -1, gate
-    candidates = ((t.status == COASTING) & (t.in_view == OUT) & (t.id != 0) & ~t.forgotten & ~removed
-                  & (t.camera != "") & (t.camera != t.camera[j]))  # the same camera: re-identification's job
-    for c in np.flatnonzero(candidates).tolist():
+    for c, status in enumerate(t.status):
+        if (status is not _COASTING or t.in_view[c] is not False or not t.id[c] or t.forgotten[c] or c in removed
+                or not t.camera[c] or t.camera[c] == t.camera[j]):  # the same camera: re-identification's job
+            continue
         s = t.cov[c, :2, :2] + t.cov[j, :2, :2]
         diff = t.mean[j, :2] - t.mean[c, :2]
         d2 = float(diff @ np.linalg.solve(s, diff))
@@ -159,23 +171,23 @@ def handover(state: RobustTrackerState, j: int, removed: np.ndarray, gate: float
             best, best_d2 = c, d2
     if best < 0:
         return None
-    if bank.size(int(t.slot[best])):
+    if bank.size(t.slot[best]):
         if t.slot[j] < 0:
             t.slot[j], t.slot[best] = t.slot[best], -1
         else:
-            for desc in bank.descriptors(int(t.slot[best])):
-                bank.add(int(t.slot[j]), desc)
+            for desc in bank.descriptors(t.slot[best]):
+                bank.add(t.slot[j], desc)
     if t.clf_steps[best] and t.clf_steps[j] == 0 and t.clf is not None:
         t.clf[j], t.clf_steps[j] = t.clf[best], t.clf_steps[best]
-    removed[best] = True
-    return int(t.id[best])
+    removed.add(best)
+    return t.id[best]
 
 
-def identity(state: RobustTrackerState, j: int, removed: np.ndarray, p: RobustParams) -> tuple[int, bool]:
+def identity(state: RobustTrackerState, j: int, removed: set[int], p: RobustParams) -> tuple[int, bool]:
     """Algorithm 2 through the calibrated model: a remembered person nearer than ``t_recover``
     to the mean of track ``j``'s gallery, else one whose classifier recognises it, else a new ID."""
     model, memory = p.appearance, state.memory
-    slot = int(state.tracks.slot[j])
+    slot = state.tracks.slot[j]
     if model is None or not state.bank.size(slot) or not memory.entries:
         return memory.new_id(), False
     live = state.live_ids(removed)

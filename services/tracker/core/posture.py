@@ -73,8 +73,12 @@ def posture_evidences(height_m: np.ndarray, aspect: np.ndarray | None) -> np.nda
 def orientation_evidence(velocity_xy: np.ndarray, params: PostureParams) -> np.ndarray | None:
     """Likelihood (8,) of each orientation bin from the walking velocity, or None when the
     person is too slow for the walking direction to mean anything."""
-    lik, walking = orientation_evidences(np.asarray(velocity_xy, float).reshape(1, 2), params)
-    return lik[0] if walking[0] else None
+    vx, vy = float(velocity_xy[0]), float(velocity_xy[1])
+    speed = math.hypot(vx, vy)
+    if not math.isfinite(speed) or speed < params.min_speed:
+        return None
+    kappa = min(params.max_kappa, params.kappa_per_mps * speed)
+    return np.exp(kappa * np.cos(_BIN_CENTRES - math.atan2(vy, vx)))
 
 
 def orientation_evidences(velocity_xy: np.ndarray, params: PostureParams) -> tuple[np.ndarray, np.ndarray]:
@@ -82,9 +86,11 @@ def orientation_evidences(velocity_xy: np.ndarray, params: PostureParams) -> tup
     likelihoods (M, 8) and which rows have one (M,) (walking fast enough)."""
     v = np.asarray(velocity_xy, float).tolist()
     # math's hypot and atan2, as for one track: numpy's may differ in the last bit
-    speed = np.array([math.hypot(vx, vy) for vx, vy in v]).reshape(-1)
+    speed = [math.hypot(vx, vy) for vx, vy in v]
+    walking = np.array([math.isfinite(s) and s >= params.min_speed for s in speed], bool)
+    if not walking.any():
+        return np.ones((len(v), ORIENTATION_BINS)), walking
     heading = np.array([math.atan2(vy, vx) for vx, vy in v]).reshape(-1)
-    walking = np.isfinite(speed) & (speed >= params.min_speed)
     kappa = np.minimum(params.max_kappa, params.kappa_per_mps * np.where(walking, speed, 0.0))
     return np.exp(kappa[:, None] * np.cos(_BIN_CENTRES[None, :] - heading[:, None])), walking
 
@@ -93,7 +99,9 @@ def update(prior: np.ndarray, likelihood: np.ndarray | None) -> np.ndarray:
     """The Bayes update ``prior * likelihood``, normalised (the prior when there is none)."""
     if likelihood is None:
         return prior
-    return updates(prior[None], likelihood[None])[0]
+    post = prior * likelihood
+    total = post.sum()
+    return post / total if total > 0 and np.isfinite(total) else prior
 
 
 def updates(prior: np.ndarray, likelihood: np.ndarray) -> np.ndarray:
@@ -101,8 +109,7 @@ def updates(prior: np.ndarray, likelihood: np.ndarray) -> np.ndarray:
     normalise keeps its prior."""
     post = prior * likelihood
     total = post.sum(axis=1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where((total > 0) & np.isfinite(total), post / total, prior)
+    return np.divide(post, total, out=prior.copy(), where=(total > 0) & np.isfinite(total))
 
 
 def transition(n: int, dt: float, tau_s: float, circular: bool = False) -> np.ndarray:
@@ -132,20 +139,28 @@ def drift(p: np.ndarray, dt: float, tau_s: float, circular: bool = False) -> np.
 
 def observe(posture: np.ndarray, orientation: np.ndarray, rows: np.ndarray, height_m: np.ndarray,
             aspect: np.ndarray | None, velocity_xy: np.ndarray, young: np.ndarray, classified: np.ndarray | None,
-            params: PostureParams) -> tuple[np.ndarray, np.ndarray]:
+            params: PostureParams, fresh: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Tracks ``rows`` (M,) of ``posture`` (T, 3) and ``orientation`` (T, 8) after one detection
     each: posture from the height and the box's aspect (None: no boxes, no posture evidence);
     orientation from the walking ``velocity_xy`` (M, 2) or, too slow for that, from an
     orientation classifier's probabilities ``classified`` (M, 8; NaN rows: none); a ``young``
-    (M,) track's velocity is its prior and says nothing. Returns new arrays (the given ones
-    are left as they are)."""
+    (M,) track's velocity is its prior and says nothing. Returns new arrays, the given ones
+    left as they are, unless they are ``fresh`` (nobody else holds them): then updated in place."""
     if aspect is not None:
-        posture = posture.copy()
+        posture = posture if fresh else posture.copy()
         posture[rows] = updates(posture[rows], posture_evidences(height_m, aspect))
-    old = ~young
-    rows, velocity_xy = rows[old], velocity_xy[old]
-    if not len(rows):
+    old = np.flatnonzero(~young)
+    if len(old) <= _FEW:  # a few tracks: one at a time is quicker than the arrays
+        own = fresh
+        for k in old.tolist():
+            lik = orientation_evidence(velocity_xy[k], params)
+            if lik is None and classified is not None and np.all(np.isfinite(classified[k])):
+                lik = np.asarray(classified[k], float) + 1e-3
+            if lik is not None:
+                orientation, own = (orientation if own else orientation.copy()), True
+                orientation[rows[k]] = update(orientation[rows[k]], lik)
         return posture, orientation
+    rows, velocity_xy = rows[old], velocity_xy[old]
     lik, use = orientation_evidences(velocity_xy, params)
     if classified is not None:
         classified = classified[old]
@@ -153,6 +168,10 @@ def observe(posture: np.ndarray, orientation: np.ndarray, rows: np.ndarray, heig
         lik[seen] = np.asarray(classified[seen], float) + 1e-3
         use |= seen
     if use.any():
-        orientation = orientation.copy()
+        orientation = orientation if fresh else orientation.copy()
         orientation[rows[use]] = updates(orientation[rows[use]], lik[use])
     return posture, orientation
+
+
+#: up to this many tracks, :func:`observe` updates orientations one at a time
+_FEW = 4

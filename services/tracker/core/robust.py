@@ -25,10 +25,9 @@ the TU Ilmenau framework, Basso/Munaro's RGB-D tracker and Ban et al.'s robotic 
    A detection may also be explained as **clutter or a new person** (Ban et al.'s clutter
    class), at log-odds 0: a pair is only accepted when its combined log-odds are positive.
 3. **Associate in stages** (ByteTrack's second stage, Basso/Munaro's confirmation):
-   confident detections with the confirmed and coasting tracks (Hungarian on the
-   log-odds), then low-score detections with the confirmed tracks still free (they may
-   keep a track alive, never start one), then the remaining confident detections with
-   the tentative tracks.
+   confident detections x confirmed and coasting tracks (Hungarian on the log-odds), then
+   low-score detections x the confirmed tracks left (they keep a track alive, never start
+   one), then the remaining confident detections x the tentative tracks.
 4. **Update** the matched tracks with each detection's own covariance when it has one
    (the localizer's, which grows with distance^2 as in Basso/Munaro's tracker), else ``sigma_r``.
 5. **Life cycle, in time** (:mod:`~services.tracker.core.lifecycle`): birth candidates
@@ -57,18 +56,8 @@ from services.tracker.core.association import match_log_odds
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.protocol import TrackerCore
 from services.tracker.core.robust_params import RobustParams
-from services.tracker.core.tracks import (
-    COASTING,
-    CONFIRMED,
-    TENTATIVE,
-    GalleryBank,
-    RobustTrackerState,
-    TrackRow,
-    TrackTable,
-    track_rows,
-    track_view,
-    track_views,
-)
+from services.tracker.core.tracks import GalleryBank, RobustTrackerState, TrackRow, TrackTable, track_rows
+from services.tracker.core.tracks import row_view, track_view, track_views
 from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, ScoreModel, TrackStatus, TrackView
 from services.tracker.core.view import FieldOfView, Views
 
@@ -88,9 +77,9 @@ class RobustTracker(TrackerCore):
         self._p0 = np.diag([params.sigma0_position ** 2] * 3 + [params.sigma0_velocity ** 2] * 2 + [0.0])
         if self._ukf:
             self._p0 = ukf.initiate(np.zeros(3), params.sigma0_position, params.sigma0_velocity, params.sigma0_turn)[1]
-        #: detections whose covariance was unusable (NaN, asymmetric, not positive definite)
-        self.bad_covariances = 0
+        self.bad_covariances = 0  #: detections whose covariance was unusable
         self._q_dt, self._q_last = -1.0, np.zeros((6, 6))  # the last step's process noise
+        self._r_n: dict[int, np.ndarray] = {}  # the fixed R broadcast to n detections
         self._pose_dt, self._pose_m = -1.0, (np.eye(3), np.eye(pose.ORIENTATION_BINS))  # drift matrices of the last dt
 
     # ------------------------------------------------------------ the state
@@ -102,10 +91,6 @@ class RobustTracker(TrackerCore):
     def classifiers(self) -> dict[int, np.ndarray]:
         """The trained classifiers of remembered (deleted) people, by ID."""
         return self.state.classifiers
-
-    @property
-    def last_stamp(self) -> float | None:
-        return self.state.last_stamp
 
     @property
     def tracks(self) -> list[TrackRow]:
@@ -139,28 +124,34 @@ class RobustTracker(TrackerCore):
         n = len(positions)
         if n == 0 and not len(state.tracks) and (state.last_stamp is None or stamp >= state.last_stamp):
             state.last_stamp = stamp  # nothing to track, nothing to predict
-            return FrameResult(stamp=stamp, appearance_available=frame.has_descriptors and p.appearance is not None)
+            return FrameResult(stamp, descriptors is not None and p.appearance is not None and descriptors.shape[1] > 0)
         if state.last_stamp is not None and stamp < state.last_stamp:
             raise ValueError(f"stamp {stamp} is older than the last update {state.last_stamp}; apply frames in order")
         appearance = descriptors is not None and p.appearance is not None and descriptors.shape[1] > 0
         has_desc = np.all(np.isfinite(descriptors), axis=1) if appearance else np.zeros(n, bool)  # type: ignore[arg-type]
-        if has_desc.any():
+        any_desc = bool(has_desc.any())
+        if any_desc:
             state.bank.check_dim(descriptors.shape[1])  # type: ignore[union-attr]
         scores = np.zeros(n) if frame.scores is None else frame.scores
-        r, bad = cues.measurement_covariance(frame.measurement_cov, frame.cov_usable, self._r, n)
+        if frame.measurement_cov is None:  # the fixed R for every detection, one array per frame size
+            r, bad = self._r_n.get(n), 0
+            if r is None:
+                r = self._r_n[n] = cues.measurement_covariance(None, None, self._r, n)[0]
+        else:
+            r, bad = cues.measurement_covariance(frame.measurement_cov, frame.cov_usable, self._r, n)
         self.bad_covariances += bad
-        self._predict(stamp)
+        moved = self._predict(stamp)  # new state arrays: the views of the last frame keep theirs
         previous, state.last_stamp = state.last_stamp, stamp
         score_model = p.scores if frame.score_model is None else frame.score_model
         p_det = score_model.probability(scores)
         confident = score_model.confident(scores)
-        u = clf.normalise(descriptors[has_desc]) if has_desc.any() else None  # type: ignore[index]
+        u = clf.normalise(descriptors[has_desc]) if any_desc else None  # type: ignore[index]
         log_odds, pairs = self._pair_log_odds(positions, r, descriptors if appearance else None, has_desc, u, p_det)
         result = FrameResult(stamp=stamp, appearance_available=appearance)
         matches = self._associate(log_odds, confident)
         self._update_matched(matches, positions, r, descriptors, has_desc, p_det, confident, stamp, frame.camera,
-                             pairs)
-        self._update_pose(matches, positions, frame.aspects, frame.orientations)
+                             pairs, moved)
+        self._update_pose(matches, positions, frame.aspects, frame.orientations, moved)
         self._train_classifiers(matches, u, has_desc, confident)
         matched_d = {d for d, _ in matches}
         self._age(stamp, result, frame.view, previous)
@@ -172,19 +163,20 @@ class RobustTracker(TrackerCore):
         result.tracks = track_views(self.state, stamp, frame.view is not None, self._ukf, p.posture is not None)
         return result
 
-    def _predict(self, stamp: float) -> None:
+    def _predict(self, stamp: float) -> bool:
+        """Move every track to ``stamp``; whether their state is in new arrays."""
         t = self.state.tracks
         if not len(t) or self.state.last_stamp is None:
-            return
+            return False
         dt = stamp - self.state.last_stamp
         if dt <= 0:
-            return
+            return False
         if self._ukf:
             t.mean, t.cov = ukf.predict(t.mean, t.cov, dt, self.params.q_accel, self.params.q_z, self.params.q_turn)
         else:
             t.mean, t.cov = kalman.predict(t.mean, t.cov, dt, self._q(dt))
         fade = math.exp(-dt / self.params.is_person_tau_s)  # IsPerson drifts back to "unknown"
-        t.is_person = 0.5 + (t.is_person - 0.5) * fade
+        t.is_person = [0.5 + (q - 0.5) * fade for q in t.is_person]
         pp = self.params.posture
         if pp is not None:  # every track's posture and orientation drift in two products
             step = round(dt, 3)  # to the millisecond: the matrices are rebuilt only when the rate changes
@@ -193,6 +185,8 @@ class RobustTracker(TrackerCore):
                 self._pose_m = (pose.transition(3, step, pp.posture_tau_s),
                                 pose.transition(pose.ORIENTATION_BINS, step, pp.orientation_tau_s, circular=True))
             t.posture, t.orientation = t.posture @ self._pose_m[0], t.orientation @ self._pose_m[1]
+        return True
+
 
     def _pair_log_odds(self, positions: np.ndarray, r: np.ndarray, descriptors: np.ndarray | None,
                        has_desc: np.ndarray, u: np.ndarray | None,
@@ -211,7 +205,7 @@ class RobustTracker(TrackerCore):
                                                   has_desc[:, None] & gated)
             total = total + p.appearance_weight * app
             if p.classifier is not None and p.classifier.weight > 0:
-                total = total + p.classifier.weight * cues.classifier_log_odds(t.clf, t.clf_steps > 0, u, has_desc,
+                total = total + p.classifier.weight * cues.classifier_log_odds(t.clf, t.clf_steps, u, has_desc,
                                                                                p.classifier.clip)
         total = total + cues.logit(p_det)[:, None]
         return np.where(gated, total, -np.inf), pairs
@@ -219,10 +213,14 @@ class RobustTracker(TrackerCore):
     def _associate(self, log_odds: np.ndarray, confident: np.ndarray) -> list[tuple[int, int]]:
         """Stages: confident detections x established tracks, low-score detections x the
         established tracks left, remaining confident detections x tentative tracks."""
-        tentative = self.state.tracks.status == TENTATIVE
-        established, birth = np.flatnonzero(~tentative).tolist(), np.flatnonzero(tentative).tolist()
-        high = np.flatnonzero(confident).tolist()
-        low = np.flatnonzero(~confident).tolist()
+        if not log_odds.size:
+            return []
+        status = self.state.tracks.status
+        established = [j for j, s in enumerate(status) if s is not TrackStatus.TENTATIVE]
+        birth = [j for j, s in enumerate(status) if s is TrackStatus.TENTATIVE]
+        sure = confident.tolist()
+        high = [d for d, c in enumerate(sure) if c]
+        low = [d for d, c in enumerate(sure) if not c]
         matches = match_log_odds(log_odds, high, established)
         taken_d, taken_t = {d for d, _ in matches}, {j for _, j in matches}
         matches += match_log_odds(log_odds, low, [j for j in established if j not in taken_t])
@@ -231,34 +229,40 @@ class RobustTracker(TrackerCore):
 
     def _update_matched(self, matches: list[tuple[int, int]], positions: np.ndarray, r: np.ndarray,
                         descriptors: np.ndarray | None, has_desc: np.ndarray, p_det: np.ndarray,
-                        confident: np.ndarray, stamp: float, camera: str, pairs: cues.PairDistances | None) -> None:
+                        confident: np.ndarray, stamp: float, camera: str, pairs: cues.PairDistances | None,
+                        moved: bool) -> None:
         if not matches:
             return
         t = self.state.tracks
         d_idx = np.array([d for d, _ in matches])
         t_idx = np.array([j for _, j in matches])
         new_means, new_covs = kalman.update(t.mean[t_idx], t.cov[t_idx], positions[d_idx], r[d_idx])
-        t.mean, t.cov = t.mean.copy(), t.cov.copy()  # a view of the last frame keeps its arrays
+        if not moved:  # a view of the last frame keeps its arrays
+            t.mean, t.cov = t.mean.copy(), t.cov.copy()
         t.mean[t_idx], t.cov[t_idx] = new_means, new_covs
-        t.last_update[t_idx] = stamp
-        t.unseen_s[t_idx] = 0.0
-        t.camera[t_idx] = camera
-        t.total_hits[t_idx] += 1
-        t.is_person[t_idx] = lifecycle.bayes(t.is_person[t_idx], p_det[d_idx])
-        t.confident_hits[t_idx] += confident[d_idx]
-        t.status[t_idx[t.status[t_idx] == COASTING]] = CONFIRMED
-        if descriptors is None:
-            return
-        learn = has_desc[d_idx] & confident[d_idx] & ~t.forgotten[t_idx]
-        if learn.any():
-            d_new, t_new = d_idx[learn], t_idx[learn]
-            fresh = t_new[t.slot[t_new] < 0]
-            t.slot[fresh] = [self.state.bank.allocate(descriptors.shape[1]) for _ in range(len(fresh))]
+        sure, p_true = confident.tolist(), p_det.tolist()
+        learn: list[tuple[int, int]] = []
+        with_desc = has_desc.tolist() if descriptors is not None else [False] * len(sure)
+        for d, j in matches:
+            t.last_update[j], t.unseen_s[j], t.camera[j] = stamp, 0.0, camera
+            t.total_hits[j] += 1
+            t.is_person[j] = lifecycle.bayes(t.is_person[j], p_true[d])
+            t.confident_hits[j] += sure[d]
+            if t.status[j] is TrackStatus.COASTING:
+                t.status[j] = TrackStatus.CONFIRMED
+            if with_desc[d] and sure[d] and not t.forgotten[j]:
+                learn.append((d, j))
+        if learn:
+            bank = self.state.bank
+            for _, j in learn:
+                if t.slot[j] < 0:
+                    t.slot[j] = bank.allocate(descriptors.shape[1])  # type: ignore[union-attr]
+            d_new, t_new = np.array([d for d, _ in learn]), np.array([j for _, j in learn])
             d2 = pairs.get(d_new, t_new) if pairs is not None else None
-            self.state.bank.add_many(t.slot[t_new], descriptors[d_new], d2)
+            bank.add_many(np.array([t.slot[j] for _, j in learn]), descriptors[d_new], d2)  # type: ignore[index]
 
     def _update_pose(self, matches: list[tuple[int, int]], positions: np.ndarray, aspects: np.ndarray | None,
-                     orientations: np.ndarray | None) -> None:
+                     orientations: np.ndarray | None, moved: bool) -> None:
         """TU Ilmenau: posture from the body height and box shape, orientation from walking or,
         standing still, from the crop classifier (:func:`posture.observe`)."""
         pp, t = self.params.posture, self.state.tracks
@@ -267,8 +271,8 @@ class RobustTracker(TrackerCore):
         d_idx, t_idx = np.array([d for d, _ in matches]), np.array([j for _, j in matches])
         t.posture, t.orientation = pose.observe(
             t.posture, t.orientation, t_idx, positions[d_idx, 2], None if aspects is None else aspects[d_idx],
-            t.mean[t_idx, 3:5], t.status[t_idx] == TENTATIVE, None if orientations is None else orientations[d_idx],
-            pp)
+            t.mean[t_idx, 3:5], np.array([t.status[j] is TrackStatus.TENTATIVE for j in t_idx.tolist()]),
+            None if orientations is None else orientations[d_idx], pp, fresh=moved)
 
     def _train_classifiers(self, matches: list[tuple[int, int]], u: np.ndarray | None, has_desc: np.ndarray,
                            confident: np.ndarray) -> None:
@@ -282,37 +286,34 @@ class RobustTracker(TrackerCore):
             return
         dim = u.shape[1]
         if t.clf is None or t.clf.shape[1] != dim + 1:
-            t.clf, t.clf_steps = np.zeros((len(t), dim + 1)), np.zeros(len(t), np.int64)
-        rows = np.array([j for _, j in pairs])
+            t.clf, t.clf_steps = np.zeros((len(t), dim + 1)), [0] * len(t)
+        rows = [j for _, j in pairs]
         t.clf[rows] = clf.train(t.clf[rows], u, np.array([r for r, _ in pairs]), cp)
-        t.clf_steps[rows] += 1
+        for j in rows:
+            t.clf_steps[j] += 1
 
     def _age(self, stamp: float, result: FrameResult, view: FieldOfView | Views | None, previous: float | None) -> None:
         """Coasting and deletion (:func:`lifecycle.age`); a deleted track's appearance is archived."""
         ended, keep = lifecycle.age(self.state, self.params, stamp, previous, view)
-        for j in ended.tolist():
+        for j in ended:
             result.deleted.append(track_view(self.state, j, stamp, TrackStatus.DELETED, None, self._ukf,
                                               self.params.posture is not None))
             lifecycle.archive(self.state, j)
-        if not keep.all():
-            self._remove(~keep)
+        self._remove({j for j, k in enumerate(keep) if not k})
 
-    def _remove(self, rows: np.ndarray) -> None:
-        """Drop the tracks ``rows`` (T,) bool marks, freeing their galleries."""
-        if not rows.any():
+    def _remove(self, rows: set[int]) -> None:
+        """Drop the tracks ``rows``, freeing their galleries."""
+        if not rows:
             return
         t = self.state.tracks
-        for slot in t.slot[rows & (t.slot >= 0)].tolist():
-            self.state.bank.release(slot)
-        t.keep(~rows)
+        for j in rows:
+            if t.slot[j] >= 0:
+                self.state.bank.release(t.slot[j])
+        t.drop(rows)
 
     def _view(self, t: TrackRow, stamp: float) -> TrackView:
         """The view of a track as :attr:`tracks` pictured it."""
-        mean, cov = (t.mean[:6], t.cov[:6, :6]) if self._ukf else (t.mean, t.cov)
-        on = self.params.posture is not None
-        return TrackView(t.id, t.status, mean, cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp), t.last_update,
-                         len(t.gallery) if t.gallery is not None else 0, t.ever_confirmed,
-                         posture=t.posture if on else None, orientation=t.orientation if on else None)
+        return row_view(t, stamp, self._ukf, self.params.posture is not None)
 
     def forget(self, track_id: int) -> dict[str, int | bool]:
         """Forget a person: their remembered descriptors and classifier go, and a live track
@@ -322,17 +323,16 @@ class RobustTracker(TrackerCore):
         state, t = self.state, self.state.tracks
         removed = state.memory.forget(track_id)
         had_classifier = state.classifiers.pop(track_id, None) is not None
-        rows = np.flatnonzero(t.id == track_id).tolist()
+        rows = [j for j, i in enumerate(t.id) if i == track_id]
         for j in rows:
-            slot = int(t.slot[j])
-            removed += state.bank.size(slot)
-            if slot >= 0:
-                state.bank.release(slot)
+            removed += state.bank.size(t.slot[j])
+            if t.slot[j] >= 0:
+                state.bank.release(t.slot[j])
             had_classifier = had_classifier or t.clf_steps[j] > 0
             if t.clf is not None:
                 t.clf[j] = 0.0
             t.slot[j], t.clf_steps[j], t.forgotten[j] = -1, 0, True
-        return {"descriptors": removed, "classifier": bool(had_classifier), "live_track": bool(rows)}
+        return {"descriptors": removed, "classifier": had_classifier, "live_track": bool(rows)}
 
     def forget_all(self) -> list[int]:
         """Forget everyone (:meth:`forget` for every remembered or live ID); returns the IDs."""
@@ -356,11 +356,11 @@ class RobustTracker(TrackerCore):
         the memory, so a person seen again after the jump gets their ID back; returns the
         ended IDs (tentative tracks have none and are dropped)."""
         t = self.state.tracks
-        ended = np.flatnonzero(t.id != 0).tolist()
+        ended = [j for j, i in enumerate(t.id) if i]
         for j in ended:
             lifecycle.archive(self.state, j)
-        ids = [int(t.id[j]) for j in ended]
-        self._remove(np.ones(len(t), bool))
+        ids = [t.id[j] for j in ended]
+        self._remove(set(range(len(t))))
         self.state.last_stamp = None
         return ids
 
@@ -383,7 +383,7 @@ class RobustTracker(TrackerCore):
         t = self.state.tracks
         if t.clf is None:
             return {}
-        return {int(t.id[j]): t.clf[j].copy() for j in np.flatnonzero((t.id != 0) & (t.clf_steps > 0)).tolist()}
+        return {i: t.clf[j].copy() for j, i in enumerate(t.id) if i and t.clf_steps[j]}
 
     def kept_classifiers(self) -> dict[int, np.ndarray]:
         """The classifiers to keep: the remembered people's and the live tracks'."""
@@ -395,5 +395,4 @@ class RobustTracker(TrackerCore):
 
     def live_galleries(self) -> list[tuple[int, np.ndarray]]:
         t, bank = self.state.tracks, self.state.bank
-        return [(int(t.id[j]), bank.descriptors(int(t.slot[j])))
-                for j in np.flatnonzero((t.id != 0) & (t.slot >= 0)).tolist() if bank.size(int(t.slot[j]))]
+        return [(i, bank.descriptors(t.slot[j])) for j, i in enumerate(t.id) if i and bank.size(t.slot[j])]

@@ -15,8 +15,8 @@ Pure numpy.
 from __future__ import annotations
 
 import bisect
-from collections.abc import Iterator
 from dataclasses import dataclass, field, fields
+from functools import lru_cache
 
 import numpy as np
 
@@ -24,15 +24,9 @@ from services.tracker.core import posture as pose
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.types import TrackStatus, TrackView
 
-__all__ = ["CODE", "STATUS", "GalleryBank", "RobustTrackerState", "TrackRow", "TrackTable", "track_rows", "track_view",
+__all__ = ["GalleryBank", "RobustTrackerState", "TrackRow", "TrackTable", "row_view", "track_rows", "track_view",
            "track_views"]
 
-#: Status codes of the table and back (a deleted track leaves the table).
-STATUS = (TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.COASTING)
-CODE = {s: np.int8(i) for i, s in enumerate(STATUS)}
-TENTATIVE, CONFIRMED, COASTING = (CODE[s] for s in STATUS)
-#: ``in_view``: not known (not coasting, or no view), out of every view, in some view
-UNKNOWN, OUT, IN = np.int8(-1), np.int8(0), np.int8(1)
 
 
 class GalleryBank:
@@ -109,12 +103,9 @@ class GalleryBank:
     def size(self, slot: int) -> int:
         return int(self.n[slot]) if slot >= 0 else 0
 
-    def sizes(self, slots: np.ndarray) -> np.ndarray:
+    def sizes(self, slots: list[int]) -> np.ndarray:
         """How many descriptors each of ``slots`` holds (0 for -1: no gallery)."""
-        out = np.zeros(len(slots), np.int64)
-        some = slots >= 0
-        out[some] = self.n[slots[some]]
-        return out
+        return np.array([self.n[s] if s >= 0 else 0 for s in slots], np.int64)
 
     def descriptors(self, slot: int) -> np.ndarray:
         """The descriptors of ``slot``, oldest first: (n, D) float32 (a copy)."""
@@ -136,6 +127,8 @@ class GalleryBank:
         x_sq = np.einsum("ij,ij->i", x, x)
         count = np.bincount(slots, minlength=len(self.n))
         single = count[slots] == 1
+        if len(slots) <= _FEW_PAIRS:  # a product per slot costs less than setting up the batched one
+            single[:] = False
         if single.any():
             ps = slots[single]
             hi = int(ps.max()) + 1  # slots are taken lowest first: the bank's used part
@@ -143,7 +136,7 @@ class GalleryBank:
             xs[ps, :, 0] = x[single]
             prod = np.matmul(self.data[:hi], xs)  # (hi, capacity, 1): one product per slot
             out[single] = self.sq[ps] - 2.0 * prod[ps, :, 0]
-        for slot in np.flatnonzero(count > 1).tolist():
+        for slot in np.flatnonzero(count > 1 if single.any() else count).tolist():
             rows, n = np.flatnonzero(slots == slot), int(self.n[slot])
             out[rows] = np.inf
             out[rows, :n] = (self.sq[slot, :n, None] - 2.0 * (self.data[slot, :n] @ x[rows].T)).T
@@ -160,11 +153,12 @@ class GalleryBank:
         self._own()
         n = int(self.n[slot])
         if n < self.capacity:
-            self._write(np.array([slot]), np.array([n]), x[None], np.array([xx], np.float32))
+            self._write(np.array([slot]), np.array([n]), x[None], np.array([xx], np.float32), np.array([n + 1]))
             return
         d2 = self.sq[slot] + np.float32(xx) - 2.0 * (self.data[slot] @ x)
         np.maximum(d2, 0.0, out=d2)
-        self._write(np.array([slot]), np.array([int(np.argmin(d2))]), x[None], np.array([xx], np.float32))
+        self._write(np.array([slot]), np.array([int(np.argmin(d2))]), x[None], np.array([xx], np.float32),
+                    np.array([n]))
 
     def add_many(self, slots: np.ndarray, x: np.ndarray, d2: np.ndarray | None) -> None:
         """Insert ``x[k]`` (K, D) into gallery ``slots[k]`` (distinct slots); a full one drops
@@ -176,94 +170,118 @@ class GalleryBank:
         if not np.all(np.isfinite(xx)):
             raise ValueError("descriptor has non-finite values")
         self._own()
-        cols = self.n[slots].copy()
-        full = cols >= self.capacity
+        n = self.n[slots]
+        full = n >= self.capacity
+        cols = n.copy()
         if full.any():
             if d2 is None:
                 d2 = self.pair_sq_distances(slots[full], x[full])
             else:
                 d2 = d2[full]
             cols[full] = np.argmin(d2, axis=1)
-        self._write(slots, cols, x, xx)
+        self._write(slots, cols, x, xx, np.where(full, n, n + 1))
 
-    def _write(self, slots: np.ndarray, cols: np.ndarray, x: np.ndarray, xx: np.ndarray) -> None:
+    def _write(self, slots: np.ndarray, cols: np.ndarray, x: np.ndarray, xx: np.ndarray, n: np.ndarray) -> None:
+        counter = self.counter[slots]
         self.data[slots, cols] = x
         self.sq[slots, cols] = xx
-        self.age[slots, cols] = self.counter[slots]
-        self.counter[slots] += 1
-        self.n[slots] = np.minimum(self.n[slots] + 1, self.capacity)
+        self.age[slots, cols] = counter
+        self.counter[slots] = counter + 1
+        self.n[slots] = n
 
 
 @dataclass
 class TrackTable:
-    """The tracks, one row each, in the order they were born. ``mean`` (T, S) and ``cov``
-    (T, S, S) are the filter's state; ``posture`` (T, 3) and ``orientation`` (T, 8) the
-    TU Ilmenau framework's filters; ``clf`` (T, D + 1) the online classifiers (rows of
-    zeros while untrained), None until the first one is trained; ``slot`` the gallery's
-    slot in the :class:`GalleryBank` (-1: none yet); ``id`` 0 while tentative."""
+    """The tracks, one row each, in the order they were born. The filters' state is in arrays
+    (one product moves every track): ``mean`` (T, S) and ``cov`` (T, S, S), ``posture`` (T, 3)
+    and ``orientation`` (T, 8) (the TU Ilmenau framework's filters), ``clf`` (T, D + 1) the online classifiers (rows of zeros while untrained; None until the
+    first is trained). The bookkeeping a frame reads a few entries of is in lists: ``id`` (0
+    while tentative), ``is_person`` (IsPerson, a probability), ``status``, the stamps, the hit counts, ``in_view`` (None: not known),
+    ``camera``, ``slot`` the gallery's in the :class:`GalleryBank` (-1: none yet)."""
 
-    id: np.ndarray
-    status: np.ndarray
     mean: np.ndarray
     cov: np.ndarray
-    first_stamp: np.ndarray
-    last_update: np.ndarray
-    confident_hits: np.ndarray
-    total_hits: np.ndarray
-    is_person: np.ndarray
-    ever_confirmed: np.ndarray
-    clf: np.ndarray | None
-    clf_steps: np.ndarray
-    forgotten: np.ndarray
-    in_view: np.ndarray
-    unseen_s: np.ndarray
-    camera: np.ndarray
     posture: np.ndarray
     orientation: np.ndarray
-    slot: np.ndarray
+    clf: np.ndarray | None
+    id: list[int]
+    is_person: list[float]
+    status: list[TrackStatus]
+    first_stamp: list[float]
+    last_update: list[float]
+    confident_hits: list[int]
+    total_hits: list[int]
+    ever_confirmed: list[bool]
+    clf_steps: list[int]
+    forgotten: list[bool]
+    in_view: list[bool | None]
+    unseen_s: list[float]
+    camera: list[str]
+    slot: list[int]
 
     @classmethod
     def empty(cls, state_dim: int) -> TrackTable:
-        return cls(np.zeros(0, np.int64), np.zeros(0, np.int8), np.zeros((0, state_dim)),
-                   np.zeros((0, state_dim, state_dim)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64),
-                   np.zeros(0, np.int64), np.zeros(0), np.zeros(0, bool), None, np.zeros(0, np.int64),
-                   np.zeros(0, bool), np.zeros(0, np.int8), np.zeros(0), np.zeros(0, object), np.zeros((0, 3)),
-                   np.zeros((0, pose.ORIENTATION_BINS)), np.zeros(0, np.int64))
+        return cls(np.zeros((0, state_dim)), np.zeros((0, state_dim, state_dim)), np.zeros((0, 3)),
+                   np.zeros((0, pose.ORIENTATION_BINS)), None, *([] for _ in range(_LISTS)))
 
     def __len__(self) -> int:
         return len(self.id)
 
-    def _columns(self) -> Iterator[tuple[str, np.ndarray]]:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if value is not None:
-                yield f.name, value
-
     def copy(self) -> TrackTable:
-        return TrackTable(**{f.name: None if getattr(self, f.name) is None else getattr(self, f.name).copy()
-                             for f in fields(self)})
+        return TrackTable(*(None if v is None else v.copy() if isinstance(v, np.ndarray) else list(v)
+                            for v in (getattr(self, name) for name in _FIELDS)))
 
-    def keep(self, rows: np.ndarray) -> None:
-        """Keep only the rows where ``rows`` (T,) bool is set, in their order."""
-        for name, value in self._columns():
-            setattr(self, name, value[rows])
+    def drop(self, rows: set[int]) -> None:
+        """Remove the tracks ``rows``; the others keep their order."""
+        idx = np.array([j for j in range(len(self.id)) if j not in rows], np.int64)
+        for name in _ARRAYS:
+            v = getattr(self, name)
+            if v is not None:
+                setattr(self, name, v[idx])
+        gone = sorted(rows, reverse=True)
+        for name in _FIELDS[len(_ARRAYS):]:
+            v = getattr(self, name)
+            for j in gone:
+                del v[j]
 
-    def append(self, mean: np.ndarray, cov: np.ndarray, stamp: float, is_person: np.ndarray, camera: str) -> None:
+    def append(self, mean: np.ndarray, cov: np.ndarray, stamp: float, is_person: list[float], camera: str) -> None:
         """New tentative tracks: ``mean`` (K, S) and ``cov`` (S, S), no gallery yet."""
         k = len(mean)
-        new = {"id": np.zeros(k, np.int64), "status": np.full(k, TENTATIVE), "mean": mean,
-               "cov": np.broadcast_to(cov, (k, *cov.shape)), "first_stamp": np.full(k, stamp),
-               "last_update": np.full(k, stamp), "confident_hits": np.ones(k, np.int64),
-               "total_hits": np.ones(k, np.int64), "is_person": is_person, "ever_confirmed": np.zeros(k, bool),
-               "clf_steps": np.zeros(k, np.int64), "forgotten": np.zeros(k, bool), "in_view": np.full(k, UNKNOWN),
-               "unseen_s": np.zeros(k), "camera": np.full(k, camera, object),
-               "posture": np.broadcast_to(pose.uniform(3), (k, 3)),
-               "orientation": np.broadcast_to(pose.uniform(pose.ORIENTATION_BINS), (k, pose.ORIENTATION_BINS)),
-               "slot": np.full(k, -1, np.int64)}
+        self.mean = np.concatenate([self.mean, mean])
+        self.cov = np.concatenate([self.cov, np.broadcast_to(cov, (k, *cov.shape))])
+        self.posture = np.concatenate([self.posture, _uniform_rows(k, 3)])
+        self.orientation = np.concatenate([self.orientation, _uniform_rows(k, pose.ORIENTATION_BINS)])
         if self.clf is not None:
-            new["clf"] = np.zeros((k, self.clf.shape[1]))
-        for name, value in self._columns():
-            setattr(self, name, np.concatenate([value, new[name]]))
+            self.clf = np.concatenate([self.clf, np.zeros((k, self.clf.shape[1]))])
+        self.id += [0] * k
+        self.is_person += is_person
+        self.status += [TrackStatus.TENTATIVE] * k
+        self.first_stamp += [stamp] * k
+        self.last_update += [stamp] * k
+        self.confident_hits += [1] * k
+        self.total_hits += [1] * k
+        self.ever_confirmed += [False] * k
+        self.clf_steps += [0] * k
+        self.forgotten += [False] * k
+        self.in_view += [None] * k
+        self.unseen_s += [0.0] * k
+        self.camera += [camera] * k
+        self.slot += [-1] * k
+
+
+_FIELDS = tuple(f.name for f in fields(TrackTable))
+_ARRAYS = _FIELDS[:5]  # mean, cov, posture, orientation, clf; then the lists
+_LISTS = len(_FIELDS) - len(_ARRAYS)
+#: up to this many compared pairs, :meth:`GalleryBank.pair_sq_distances` takes the galleries one by one
+_FEW_PAIRS = 2
+
+
+@lru_cache(maxsize=64)
+def _uniform_rows(k: int, n: int) -> np.ndarray:
+    """``k`` uniform distributions over ``n`` values (k, n), read-only."""
+    rows = np.tile(pose.uniform(n), (k, 1))
+    rows.flags.writeable = False
+    return rows
 
 
 @dataclass
@@ -282,17 +300,15 @@ class RobustTrackerState:
         return RobustTrackerState(self.tracks.copy(), self.bank.copy(), self.memory.copy(), self.last_stamp,
                                   dict(self.classifiers))
 
-    def live_ids(self, skip: np.ndarray | None = None) -> set[int]:
-        """The IDs of the live tracks (less the rows ``skip`` marks)."""
-        ids = self.tracks.id if skip is None else self.tracks.id[~skip]
-        return set(ids[ids != 0].tolist())
+    def live_ids(self, skip: set[int] = frozenset()) -> set[int]:  # type: ignore[assignment]
+        """The IDs of the live tracks (less the rows ``skip``)."""
+        return {i for j, i in enumerate(self.tracks.id) if i and j not in skip}
 
 
 @dataclass(frozen=True)
 class TrackRow:
-    """A read-only picture of one track of the table (for inspection and tests): the table's
-    columns, with ``status`` a :class:`TrackStatus`, ``in_view`` None/False/True, ``clf`` None
-    while untrained and ``gallery`` None without one."""
+    """A read-only picture of one track of the table (for inspection and tests): its columns,
+    ``clf`` None while untrained and ``gallery`` None without one."""
 
     id: int
     status: TrackStatus
@@ -329,16 +345,22 @@ def track_rows(table: TrackTable, bank: GalleryBank) -> list[TrackRow]:
     """Every track of ``table`` as a :class:`TrackRow` (copies)."""
     out = []
     for j in range(len(table)):
-        col = {name: value[j] for name, value in table._columns() if name not in ("clf", "slot")}
+        col = {name: getattr(table, name)[j] for name in _FIELDS if name not in ("clf", "slot")}
         col = {k: v.copy() if isinstance(v, np.ndarray) else v.item() if isinstance(v, np.generic) else v
                for k, v in col.items()}
-        col["status"] = STATUS[col["status"]]
-        col["in_view"] = None if col["in_view"] == UNKNOWN else col["in_view"] == IN
         col["clf"] = table.clf[j].copy() if table.clf is not None and col["clf_steps"] else None
-        slot = int(table.slot[j])
+        slot = table.slot[j]
         col["gallery"] = _GalleryRow(bank.descriptors(slot)) if slot >= 0 else None
         out.append(TrackRow(**col))
     return out
+
+
+def row_view(t: TrackRow, stamp: float, ukf: bool, posture: bool) -> TrackView:
+    """A :class:`TrackRow` as :func:`track_view` reports its track."""
+    mean, cov = (t.mean[:6], t.cov[:6, :6]) if ukf else (t.mean, t.cov)
+    return TrackView(t.id, t.status, mean, cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp), t.last_update,
+                     len(t.gallery) if t.gallery is not None else 0, t.ever_confirmed,
+                     posture=t.posture if posture else None, orientation=t.orientation if posture else None)
 
 
 def track_view(state: RobustTrackerState, j: int, stamp: float, status: TrackStatus, in_view: bool | None,
@@ -349,9 +371,8 @@ def track_view(state: RobustTrackerState, j: int, stamp: float, status: TrackSta
     cov, posture or orientation array it has shown, every change makes new ones."""
     t = state.tracks
     mean, cov = (t.mean[j, :6], t.cov[j, :6, :6]) if ukf else (t.mean[j], t.cov[j])
-    return TrackView(int(t.id[j]), status, mean, cov, int(t.total_hits[j]), 0,
-                     max(0.0, stamp - float(t.first_stamp[j])), float(t.last_update[j]),
-                     state.bank.size(int(t.slot[j])), bool(t.ever_confirmed[j]), in_view,
+    return TrackView(t.id[j], status, mean, cov, t.total_hits[j], 0, max(0.0, stamp - t.first_stamp[j]),
+                     t.last_update[j], state.bank.size(t.slot[j]), t.ever_confirmed[j], in_view,
                      posture=t.posture[j] if posture else None, orientation=t.orientation[j] if posture else None)
 
 
@@ -359,7 +380,13 @@ def track_views(state: RobustTrackerState, stamp: float, view_known: bool, ukf: 
     """Every live track as :func:`track_view`; a coasting one says whether it is in view when
     the frame had a view (``view_known``)."""
     t = state.tracks
-    flags = [None if v == UNKNOWN else bool(v == IN) for v in t.in_view.tolist()]
-    coasting = (t.status == COASTING).tolist()
-    return [track_view(state, j, stamp, STATUS[s], flags[j] if view_known and coasting[j] else None, ukf, posture)
-            for j, s in enumerate(t.status.tolist())]
+    if not t.id:
+        return []
+    means, covs = (t.mean[:, :6], t.cov[:, :6, :6]) if ukf else (t.mean, t.cov)
+    poses = zip(t.posture, t.orientation) if posture else ((None, None) for _ in t.id)
+    coasting = TrackStatus.COASTING
+    return [TrackView(i, s, m, c, h, 0, max(0.0, stamp - first), last, state.bank.size(slot), ever,
+                      flag if view_known and s is coasting else None, posture=pp, orientation=o)
+            for i, s, m, c, h, first, last, slot, ever, flag, (pp, o)
+            in zip(t.id, t.status, means, covs, t.total_hits, t.first_stamp, t.last_update, t.slot, t.ever_confirmed,
+                   t.in_view, poses)]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Literal, NamedTuple
 
 import numpy as np
 
@@ -132,9 +132,8 @@ class ScoreModel:
         return np.asarray(scores, float) >= self.birth_score
 
 
-@dataclass(frozen=True)
-class FrameInput:
-    """One frame as a core takes it, converted and checked once (:meth:`of`).
+class FrameInput(NamedTuple):
+    """One frame as a core takes it, converted once (:meth:`of`; a named tuple: cheap to make).
 
     ``positions`` (N, 3) float64 in the tracking frame. ``descriptors`` (N, D) float32 or
     None for a position-only frame; a row of NaN marks a detection without a descriptor.
@@ -166,7 +165,9 @@ class FrameInput:
            orientations: np.ndarray | None = None, score_model: ScoreModel | None = None,
            camera: str = "") -> FrameInput:
         """Convert one frame's arrays (ValueError for descriptors of the wrong shape)."""
-        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        positions = np.asarray(positions, dtype=np.float64)
+        if positions.ndim != 2 or positions.shape[1:] != (3,):
+            positions = positions.reshape(-1, 3)
         n = len(positions)
         if descriptors is not None:
             descriptors = np.asarray(descriptors, dtype=np.float32)
@@ -174,12 +175,14 @@ class FrameInput:
                 raise ValueError(f"descriptors must be (N, D) with N = {n} detections, got shape {descriptors.shape}")
         if measurement_cov is not None:
             measurement_cov = np.asarray(measurement_cov, dtype=np.float64).reshape(n, 3, 3)
-        scores = np.zeros(n) if scores is None else np.asarray(scores, dtype=np.float64).reshape(n)
+        if scores is None:
+            scores = np.zeros(n)
+        else:
+            scores = np.asarray(scores, dtype=np.float64)
+            if scores.shape != (n,):
+                scores = scores.reshape(n)
         return cls(positions, descriptors, measurement_cov, None, scores, view, aspects, orientations, score_model,
                    camera)
-
-    def __len__(self) -> int:
-        return len(self.positions)
 
     @property
     def has_descriptors(self) -> bool:

@@ -43,6 +43,7 @@ from common.messages.schemas import Embeddings, LocalizedDetections, Message, Pe
 from services.tracker.config import TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of
 from services.tracker.core.view import FieldOfView
+from services.tracker.intake import R_EPS
 from services.tracker.offline import Detections, Row
 from tools.evaluation.evaluate import evaluate_tables
 from tools.evaluation.metrics import ClearMot, FrameEvents
@@ -64,7 +65,6 @@ CHAIN_PROFILE = "robust"
 #: The code whose changes change what reaches the tracker.
 INPUT_CODE = ("common", "services/detector", "services/localizer", "services/embedder", "tools/simulator",
               "tools/demo/inprocess.py")
-SERVICE_COV_EPS = 1e-6  # TrackerService._update adds this to every detection covariance's diagonal
 
 
 def scenario_names() -> list[str]:
@@ -297,7 +297,7 @@ def replay(cap: Capture, config: TrackerConfig) -> list[Row]:
         else:
             desc = None
         stamp = (int(cap.stamp_ns[k]) - epoch) / 1e9
-        covs = cap.covs[a:b] + np.eye(3) * SERVICE_COV_EPS if use_cov else None
+        covs = cap.covs[a:b] + R_EPS if use_cov else None  # as the service converts them
         try:
             result = tracker.update(stamp, cap.positions[a:b], desc, covs, cap.scores[a:b], view=cap.view(k))
         except (ValueError, np.linalg.LinAlgError) as exc:  # the service counts and skips such a frame

@@ -69,19 +69,20 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
 def key_line(path: str | Path, keys: Sequence[str]) -> int | None:
     """The line number of ``keys`` (a path of mapping keys, e.g. ``("tracker", "robust", "n_init")``)
     in a YAML/JSON file: each key searched from the line of the one before, for messages that name
-    the line of a bad value; None when a key is not found."""
+    the line of a bad value; None when the last key is not found. A section the file does not
+    spell (one the settings model filled in, e.g. from keys written at an older place) is passed over."""
     try:
         lines = Path(path).read_text(encoding="utf-8").splitlines()
     except (OSError, UnicodeDecodeError):
         return None
     found = None
     start = 0
-    for key in keys:
+    for i, key in enumerate(keys):
         pattern = re.compile(rf"""(^|[{{,\s])["']?{re.escape(key)}["']?\s*:""")
         found = next((n for n in range(start, len(lines)) if pattern.search(lines[n])), None)
-        if found is None:
+        if found is None and i == len(keys) - 1:
             return None
-        start = found
+        start = start if found is None else found
     return None if found is None else found + 1
 
 

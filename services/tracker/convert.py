@@ -5,11 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from common.messages.schemas import Embeddings, Header, LocalizedDetections, TrackState, Tracks
-from services.tracker.core.tracker import FrameResult, TrackView
+from services.tracker.core.types import FrameResult, TrackView
 from services.tracker.core.view import FieldOfView
 
-__all__ = ["descriptors_for", "field_of_view", "orientations_for", "positions_of", "track_state", "tracks_message",
-           "usable_covariances"]
+__all__ = ["descriptors_for", "field_of_view", "orientations_for", "positions_of", "track_state", "tracks_message"]
 
 
 def field_of_view(loc: LocalizedDetections) -> FieldOfView | None:
@@ -26,18 +25,6 @@ def positions_of(loc: LocalizedDetections) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros((0, 3)), np.zeros((0, 3, 3))
     return (np.stack([d.position for d in loc.detections]).astype(np.float64),
             np.stack([d.cov for d in loc.detections]).astype(np.float64))
-
-
-def usable_covariances(covs: np.ndarray) -> np.ndarray:
-    """(N,) bool: which covariances (N, 3, 3) are finite, symmetric and positive definite
-    (the robust core's test, so both profiles count the same ones)."""
-    if not len(covs):
-        return np.zeros(0, bool)
-    finite = np.all(np.isfinite(covs), axis=(1, 2))
-    safe = np.where(finite[:, None, None], covs, np.eye(3))
-    sym = 0.5 * (safe + np.swapaxes(safe, 1, 2))
-    symmetric = np.all(np.abs(safe - sym) <= 1e-9 + 1e-6 * np.abs(sym), axis=(1, 2))
-    return finite & symmetric & np.all(np.linalg.eigvalsh(sym) > 0, axis=1)
 
 
 def descriptors_for(loc: LocalizedDetections, emb: Embeddings) -> np.ndarray:

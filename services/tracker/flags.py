@@ -21,7 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--embedding-model", default=None, metavar="NAME",
                    help="only use descriptors of this model (default: the first model seen)")
     g.add_argument("--time-step", choices=("time", "frame"), default=None,
-                   help="'time': dt from stamps (default); 'frame': dt = 1 per frame, as the thesis")
+                   help="thesis profile: 'time': dt from stamps (default); 'frame': dt = 1 per frame, as the thesis")
     g.add_argument("--output-rate", type=float, default=None, metavar="HZ",
                    help="publish Tracks at this rate, predicted to the publish time (default 10); 0: once per frame")
     g.add_argument("--no-embeddings", action="append", default=None, metavar="STREAM",
@@ -33,8 +33,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def overrides(args: argparse.Namespace) -> dict[str, Any]:
-    return {"camera": args.camera, "profile": args.profile, "embedding_model": args.embedding_model, "time_step": args.time_step,
-            "memory_path": args.memory, "output_rate_hz": args.output_rate, "no_embeddings": args.no_embeddings}
+    return {"camera": args.camera, "profile": args.profile, "embedding_model": args.embedding_model,
+            "thesis": {"time_step": args.time_step}, "memory_path": args.memory, "output_rate_hz": args.output_rate,
+            "no_embeddings": args.no_embeddings}
 
 
 def adjust(args: argparse.Namespace) -> Any:

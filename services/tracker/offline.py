@@ -20,8 +20,7 @@ import numpy as np
 
 from common.runtime.progress import progress
 from services.tracker.config import TrackerConfig
-from services.tracker.core import Tracker, TrackerParams
-from services.tracker.core.robust import RobustTracker
+from services.tracker.core import TrackerCore
 
 __all__ = ["Detections", "OUTPUT_HEADER", "Row", "read_detections", "track", "track_config", "write_tracks"]
 
@@ -111,16 +110,13 @@ def frame_stamps(dets: Detections) -> tuple[np.ndarray, np.ndarray]:
     return all_frames, np.interp(all_frames, known, dets.stamps[first_row])
 
 
-def track(dets: Detections, tracker: Tracker | RobustTracker | TrackerParams,
-          show_progress: bool = False) -> list[Row]:
+def track(dets: Detections, tracker: TrackerCore, show_progress: bool = False) -> list[Row]:
     """Run ``tracker`` over every frame; one row ``(frame, stamp, id, x, y, z, status)`` per
     reported track per frame (Confirmed, and for the robust profile recently coasting ones).
 
-    ``TrackerParams`` builds the thesis's tracker. Each detection's score is passed on
-    (the robust profile uses it). ``show_progress``: a bar on a terminal (``common.runtime.progress``).
+    Each detection's score is passed on (the robust profile uses it). ``show_progress``: a
+    bar on a terminal (``common.runtime.progress``).
     """
-    if isinstance(tracker, TrackerParams):
-        tracker = Tracker(tracker)
     frames, stamps = frame_stamps(dets)
     starts = np.searchsorted(dets.frames, frames, side="left")
     ends = np.searchsorted(dets.frames, frames, side="right")

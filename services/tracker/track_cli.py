@@ -51,7 +51,8 @@ def main(args: argparse.Namespace) -> int:
         raise CliError(f"--config is the Zenoh config file in every command; "
                        f"give the tracker settings as --service-config {args.old_config}")
     config = load_node_config(TrackerConfig, "tracker", args.service_config, {
-        "time_step": args.time_step, "profile": args.profile, "robust": {"scores": {"birth_score": args.birth_score}}})
+        "profile": args.profile, "thesis": {"time_step": args.time_step},
+        "robust": {"scores": {"birth_score": args.birth_score}}})
     check_input_file(args.detections, "expected a detections CSV file: frame,stamp,x,y,z,score[,e0,e1,...]")
     try:
         dets = read_detections(args.detections)

@@ -59,14 +59,14 @@ def test_tracker_defaults() -> None:
     # Exception: gate and t_recover are the embedding model's thresholds, not defaults.
     # Position-only (no thresholds) there is no gate and t_recover is 0, unused; the
     # core's t_recover default (400) is TriNet's.
-    assert differences(config.params(None), {"gate": None, "t_recover": 0.0}) == {}
+    assert differences(config.thesis.params(None, config.memory_size), {"gate": None, "t_recover": 0.0}) == {}
 
 
 def test_tracker_gate_defaults() -> None:
     config = TrackerConfig(memory_path=None)
     th = config.thresholds("colour")
     assert th is not None and th.s_max is None  # the colour model uses the config's s_max
-    params = config.params(th)
+    params = config.thesis.params(config.appearance_model(th), config.memory_size)
     assert params.gate is not None
     gate_defaults = core_defaults(AppearanceGate)
     assert (params.gate.s_max, params.gate.inf) == (gate_defaults["s_max"], gate_defaults["inf"])

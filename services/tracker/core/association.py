@@ -1,7 +1,8 @@
-"""Data association: Algorithm 1 of Pinto's thesis (III-D) and the position-only fallback.
+"""Data association: Algorithm 1 of Pinto's thesis (III-D), the position-only fallback, and
+the robust profile's assignment on log-odds (:func:`match_log_odds`).
 
 All cost matrices are (N detections, T tracks) and come from broadcasting; the only Python
-loop is over tracks' galleries, each handled with one matrix product.
+loop is over tracks' galleries (thesis), each handled with one matrix product.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ __all__ = [
     "gate_position",
     "innovation_distance",
     "match",
+    "match_log_odds",
     "spatial_distance",
 ]
 
@@ -128,3 +130,21 @@ def match(cost: np.ndarray, inf: float = 1e5) -> tuple[np.ndarray, np.ndarray, n
     free_t[matches[:, 1]] = False
     unmatched_d, unmatched_t = np.flatnonzero(free_d).astype(np.int64), np.flatnonzero(free_t).astype(np.int64)
     return matches, unmatched_d, unmatched_t
+
+
+def match_log_odds(log_odds: np.ndarray, dets: list[int], tracks: list[int]) -> list[tuple[int, int]]:
+    """The pairs (detection, track) of ``dets`` x ``tracks`` with the largest total log-odds
+    (``log_odds`` (N, T)), among the pairs with positive log-odds: a pair at or below 0 is
+    worth no more than explaining the detection as clutter or a new person (Ban et al.)."""
+    if not dets or not tracks:
+        return []
+    sub = log_odds[dets][:, tracks]
+    if len(dets) == 1 or len(tracks) == 1:  # no assignment problem: the best positive pair
+        i, j = divmod(int(np.argmax(sub)), len(tracks))
+        return [(dets[i], tracks[j])] if sub[i, j] > 0 else []
+    allowed = sub > 0
+    if not allowed.any():
+        return []
+    cost = np.where(allowed, -sub, 0.0)  # a disallowed pair is worth as much as no pair
+    rows, cols = linear_sum_assignment(cost)
+    return [(dets[i], tracks[j]) for i, j in zip(rows.tolist(), cols.tolist()) if allowed[i, j]]

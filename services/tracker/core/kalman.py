@@ -11,26 +11,45 @@ dimensions are allowed: ``mean`` (..., 6), ``cov`` (..., 6, 6), ``z`` (..., 3),
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
-__all__ = ["H", "initiate", "predict", "process_noise", "project", "transition", "update"]
+__all__ = ["H", "initiate", "predict", "process_noise", "project", "transition", "update", "white_acceleration"]
 
 #: Measurement matrix: selects (x, y, z) from the state. (3, 6)
 H = np.hstack([np.eye(3), np.zeros((3, 3))])
 
 
+@lru_cache(maxsize=16)
 def transition(dt: float) -> np.ndarray:
-    """The (6, 6) transition matrix ``A`` for a step of ``dt`` (seconds, or 1 per frame)."""
+    """The (6, 6) transition matrix ``A`` for a step of ``dt`` (seconds, or 1 per frame);
+    read-only (the steps of a stream repeat: each is built once)."""
     a = np.eye(6)
     a[0, 3] = dt
     a[1, 4] = dt
     a[5, 5] = 0.0  # z is a random walk: vz is reset by every predict
+    a.flags.writeable = False
     return a
 
 
 def process_noise(sigma: np.ndarray, scale: float = 1.0) -> np.ndarray:
     """``Q = diag(sigma**2) * scale`` (6, 6); ``scale`` is the step length in nominal frames."""
     return np.diag(np.asarray(sigma, dtype=np.float64) ** 2 * scale)
+
+
+def white_acceleration(dt: float, q_accel: float, q_z: float) -> np.ndarray:
+    """The (6, 6) process noise of a step ``dt`` in seconds when x and y follow white
+    acceleration of spectral density ``q_accel`` (m^2/s^3),
+    ``[[dt^3/3, dt^2/2], [dt^2/2, dt]] * q_accel`` on (x, vx) and (y, vy), and z is a random
+    walk of ``q_z`` (m^2/s): the robust profile's, in time rather than nominal frames."""
+    q = np.zeros((6, 6))
+    for i in (0, 1):
+        q[i, i] = q_accel * dt ** 3 / 3.0
+        q[i, i + 3] = q[i + 3, i] = q_accel * dt ** 2 / 2.0
+        q[i + 3, i + 3] = q_accel * dt
+    q[2, 2] = q_z * dt
+    return q
 
 
 def initiate(position: np.ndarray, sigma0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ORIENTATION_BINS", "POSTURES", "PostureParams", "drift", "orientation_evidence", "posture_evidence",
-           "transition", "uniform", "update"]
+__all__ = ["ORIENTATION_BINS", "POSTURES", "PostureParams", "drift", "orientation_evidence", "orientation_evidences",
+           "observe", "posture_evidence", "posture_evidences", "transition", "uniform", "update", "updates"]
 
 POSTURES = ("standing", "sitting", "lying")
 ORIENTATION_BINS = 8
@@ -55,9 +55,18 @@ def uniform(n: int) -> np.ndarray:
 def posture_evidence(height_m: float, aspect: float | None) -> np.ndarray:
     """Likelihood (3,) of standing, sitting, lying given the torso centre's height above the
     floor and the box's height/width (None: the box's shape is unknown)."""
-    lik = np.exp(-0.5 * ((height_m - _HEIGHT[:, 0]) / _HEIGHT[:, 1]) ** 2)
-    if aspect is not None and np.isfinite(aspect) and aspect > 0:
-        lik = lik * np.exp(-0.5 * ((aspect - _ASPECT[:, 0]) / _ASPECT[:, 1]) ** 2)
+    return posture_evidences(np.array([height_m]), None if aspect is None else np.array([aspect]))[0]
+
+
+def posture_evidences(height_m: np.ndarray, aspect: np.ndarray | None) -> np.ndarray:
+    """:func:`posture_evidence` of several detections at once: heights (M,), aspects (M,)
+    (a non-finite or non-positive one: unknown) -> (M, 3)."""
+    lik = np.exp(-0.5 * ((np.asarray(height_m, float)[:, None] - _HEIGHT[:, 0]) / _HEIGHT[:, 1]) ** 2)
+    if aspect is not None:
+        a = np.asarray(aspect, float)[:, None]
+        known = np.isfinite(a) & (a > 0)
+        shape = np.exp(-0.5 * ((np.where(known, a, 1.0) - _ASPECT[:, 0]) / _ASPECT[:, 1]) ** 2)
+        lik = np.where(known, lik * shape, lik)
     return lik + 1e-6  # never certain: a posture the evidence rules out can still come back
 
 
@@ -72,6 +81,20 @@ def orientation_evidence(velocity_xy: np.ndarray, params: PostureParams) -> np.n
     return np.exp(kappa * np.cos(_BIN_CENTRES - math.atan2(vy, vx)))
 
 
+def orientation_evidences(velocity_xy: np.ndarray, params: PostureParams) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`orientation_evidence` of several tracks at once: velocities (M, 2) -> the
+    likelihoods (M, 8) and which rows have one (M,) (walking fast enough)."""
+    v = np.asarray(velocity_xy, float).tolist()
+    # math's hypot and atan2, as for one track: numpy's may differ in the last bit
+    speed = [math.hypot(vx, vy) for vx, vy in v]
+    walking = np.array([math.isfinite(s) and s >= params.min_speed for s in speed], bool)
+    if not walking.any():
+        return np.ones((len(v), ORIENTATION_BINS)), walking
+    heading = np.array([math.atan2(vy, vx) for vx, vy in v]).reshape(-1)
+    kappa = np.minimum(params.max_kappa, params.kappa_per_mps * np.where(walking, speed, 0.0))
+    return np.exp(kappa[:, None] * np.cos(_BIN_CENTRES[None, :] - heading[:, None])), walking
+
+
 def update(prior: np.ndarray, likelihood: np.ndarray | None) -> np.ndarray:
     """The Bayes update ``prior * likelihood``, normalised (the prior when there is none)."""
     if likelihood is None:
@@ -79,6 +102,14 @@ def update(prior: np.ndarray, likelihood: np.ndarray | None) -> np.ndarray:
     post = prior * likelihood
     total = post.sum()
     return post / total if total > 0 and np.isfinite(total) else prior
+
+
+def updates(prior: np.ndarray, likelihood: np.ndarray) -> np.ndarray:
+    """:func:`update` of several distributions at once (M, K); a row whose product does not
+    normalise keeps its prior."""
+    post = prior * likelihood
+    total = post.sum(axis=1, keepdims=True)
+    return np.divide(post, total, out=prior.copy(), where=(total > 0) & np.isfinite(total))
 
 
 def transition(n: int, dt: float, tau_s: float, circular: bool = False) -> np.ndarray:
@@ -104,3 +135,43 @@ def drift(p: np.ndarray, dt: float, tau_s: float, circular: bool = False) -> np.
         spread = 0.25 * (1.0 - keep)
         p = (1 - 2 * spread) * p + spread * (np.roll(p, 1) + np.roll(p, -1))
     return keep * p + (1.0 - keep) / len(p)
+
+
+def observe(posture: np.ndarray, orientation: np.ndarray, rows: np.ndarray, height_m: np.ndarray,
+            aspect: np.ndarray | None, velocity_xy: np.ndarray, young: np.ndarray, classified: np.ndarray | None,
+            params: PostureParams, fresh: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Tracks ``rows`` (M,) of ``posture`` (T, 3) and ``orientation`` (T, 8) after one detection
+    each: posture from the height and the box's aspect (None: no boxes, no posture evidence);
+    orientation from the walking ``velocity_xy`` (M, 2) or, too slow for that, from an
+    orientation classifier's probabilities ``classified`` (M, 8; NaN rows: none); a ``young``
+    (M,) track's velocity is its prior and says nothing. Returns new arrays, the given ones
+    left as they are, unless they are ``fresh`` (nobody else holds them): then updated in place."""
+    if aspect is not None:
+        posture = posture if fresh else posture.copy()
+        posture[rows] = updates(posture[rows], posture_evidences(height_m, aspect))
+    old = np.flatnonzero(~young)
+    if len(old) <= _FEW:  # a few tracks: one at a time is quicker than the arrays
+        own = fresh
+        for k in old.tolist():
+            lik = orientation_evidence(velocity_xy[k], params)
+            if lik is None and classified is not None and np.all(np.isfinite(classified[k])):
+                lik = np.asarray(classified[k], float) + 1e-3
+            if lik is not None:
+                orientation, own = (orientation if own else orientation.copy()), True
+                orientation[rows[k]] = update(orientation[rows[k]], lik)
+        return posture, orientation
+    rows, velocity_xy = rows[old], velocity_xy[old]
+    lik, use = orientation_evidences(velocity_xy, params)
+    if classified is not None:
+        classified = classified[old]
+        seen = ~use & np.all(np.isfinite(classified), axis=1)
+        lik[seen] = np.asarray(classified[seen], float) + 1e-3
+        use |= seen
+    if use.any():
+        orientation = orientation if fresh else orientation.copy()
+        orientation[rows[use]] = updates(orientation[rows[use]], lik[use])
+    return posture, orientation
+
+
+#: up to this many tracks, :func:`observe` updates orientations one at a time
+_FEW = 4

@@ -21,8 +21,7 @@ Time step (``TrackerParams.time_step``):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-from enum import Enum
+from dataclasses import dataclass, fields, replace
 from typing import Literal
 
 import numpy as np
@@ -38,20 +37,18 @@ from services.tracker.core.association import (
     match,
     spatial_distance,
 )
+from services.tracker.core.cues import usable_covariances
 from services.tracker.core.gallery import Gallery
 from services.tracker.core.identity import IdentityMemory
+from services.tracker.core.protocol import TrackerCore
+from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, TrackStatus, TrackView
 
 __all__ = ["FrameResult", "Track", "TrackStatus", "TrackView", "Tracker", "TrackerParams", "TrackerState"]
 
 _F6 = tuple[float, float, float, float, float, float]
 _F3 = tuple[float, float, float]
-
-
-class TrackStatus(str, Enum):
-    TENTATIVE = "tentative"
-    CONFIRMED = "confirmed"
-    COASTING = "coasting"  # confirmed, missed lately: reported with its prediction (robust profile)
-    DELETED = "deleted"
+#: Algorithm 1's S_max when the embedding model names none (Pinto's thesis, eq. 17)
+_S_MAX = next(f.default for f in fields(AppearanceGate) if f.name == "s_max")
 
 
 @dataclass(frozen=True)
@@ -71,6 +68,8 @@ class TrackerParams:
     memory_size: int = 500
     position_gate_probability: float = 0.95
     inf: float = 1e5
+    #: S_max of the gate :meth:`Tracker.set_appearance` builds for a model that names none
+    s_max: float = _S_MAX
 
     def __post_init__(self) -> None:
         if self.n_init < 1 or self.max_misses < 1:
@@ -103,58 +102,6 @@ class Track:
                      self.ever_confirmed)
 
 
-@dataclass(frozen=True)
-class TrackView:
-    """A read-only picture of a track after an update."""
-
-    id: int
-    status: TrackStatus
-    mean: np.ndarray
-    cov: np.ndarray
-    hits: int
-    misses: int
-    age_s: float
-    last_update: float
-    gallery_size: int
-    ever_confirmed: bool = False
-    #: whether the camera could see the track's position at this update (None: not known)
-    in_view: bool | None = None
-    #: P(standing, sitting, lying) (3,) and P(orientation bin) (8,); None: not estimated
-    posture: np.ndarray | None = None
-    orientation: np.ndarray | None = None
-
-    @property
-    def position(self) -> np.ndarray:
-        return self.mean[:3]
-
-    @property
-    def velocity(self) -> np.ndarray:
-        return self.mean[3:]
-
-    @classmethod
-    def of(cls, t: Track, stamp: float) -> TrackView:
-        return cls(t.id, t.status, t.mean.copy(), t.cov.copy(), t.total_hits, t.misses, max(0.0, stamp - t.first_stamp),
-                   t.last_update, len(t.gallery) if t.gallery else 0, t.ever_confirmed)
-
-
-@dataclass
-class FrameResult:
-    """What one update did."""
-
-    stamp: float
-    appearance_available: bool
-    tracks: list[TrackView] = field(default_factory=list)  # live tracks (tentative and confirmed)
-    deleted: list[TrackView] = field(default_factory=list)
-    new_ids: list[int] = field(default_factory=list)
-    recovered_ids: list[int] = field(default_factory=list)
-    matches: int = 0
-
-    @property
-    def confirmed(self) -> list[TrackView]:
-        """The tracker's output: Confirmed tracks only."""
-        return [t for t in self.tracks if t.status is TrackStatus.CONFIRMED]
-
-
 @dataclass
 class TrackerState:
     """A snapshot for rewinding (see :meth:`Tracker.snapshot`)."""
@@ -165,7 +112,7 @@ class TrackerState:
     last_stamp: float | None
 
 
-class Tracker:
+class Tracker(TrackerCore):
     """The thesis's tracker. ``params.gate`` None means there are no appearance thresholds:
     every frame is then associated position-only."""
 
@@ -196,30 +143,31 @@ class Tracker:
     def live_ids(self) -> set[int]:
         return {t.id for t in self.tracks}
 
-    def set_gate(self, gate: AppearanceGate | None, t_recover: float) -> None:
-        """Change the appearance thresholds (e.g. once the embedding model is known)."""
-        self.params = _replace(self.params, gate=gate, t_recover=t_recover)
+    def set_appearance(self, model: AppearanceModel | None) -> None:
+        """Algorithm 1's and 2's thresholds from the embedding model's (e.g. once it is known);
+        None: position-only. The thesis compares Euclidean distances whatever the metric."""
+        if model is None:
+            self.params = replace(self.params, gate=None, t_recover=0.0)
+            return
+        s_max = self.params.s_max if model.s_max is None else model.s_max
+        gate = AppearanceGate(model.t_lower, model.t_upper, s_max, self.params.inf)
+        self.params = replace(self.params, gate=gate, t_recover=model.t_recover)
 
     # ------------------------------------------------------------------ update
-    def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
-               measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
-               view: object | None = None, aspects: np.ndarray | None = None,
-               orientations: np.ndarray | None = None, score_model: object | None = None,
-               camera: str = "") -> FrameResult:
-        """Process one frame.
+    def step(self, stamp: float, frame: FrameInput) -> FrameResult:
+        """Process one frame (see :class:`FrameInput`): ``stamp`` in seconds (sensor time).
 
-        ``stamp`` in seconds (sensor time). ``positions`` (N, 3) in the tracking frame.
-        ``descriptors`` (N, D) or None for a position-only frame; a row of NaN marks a
-        detection without a descriptor. ``measurement_cov`` (N, 3, 3) replaces the
-        thesis's fixed ``R`` per detection when given. ``scores`` are accepted for the
-        robust profile's interface and unused: the thesis has no detector confidence;
-        ``view`` (the camera's field of view), ``aspects`` and ``orientations`` (for posture
-        and orientation), ``score_model`` and ``camera`` likewise: the thesis reports Confirmed tracks only and estimates no
-        posture.
-        """
-        positions, descriptors = _checked_inputs(positions, descriptors)
+        The thesis uses the positions, the descriptors and each detection's usable covariance
+        as its ``R`` (an unusable one: the fixed ``R``); the rest is the robust profile's: the
+        thesis reports Confirmed tracks only and estimates no posture."""
+        positions, descriptors = frame.positions, frame.descriptors
         appearance = descriptors is not None and self.params.gate is not None
         used = descriptors if appearance else None  # descriptors without thresholds are ignored
+        measurement_cov = frame.measurement_cov
+        if measurement_cov is not None:  # an unusable covariance: the fixed R
+            usable = usable_covariances(measurement_cov) if frame.cov_usable is None else frame.cov_usable
+            if not usable.all():
+                measurement_cov = np.where(usable[:, None, None], measurement_cov, self._r)
         dt, q_scale, frames = self._step(stamp)
         self.last_stamp = stamp
         if appearance:
@@ -232,7 +180,7 @@ class Tracker:
         self._update_matched(matches, means, covs, positions, used, has_desc, measurement_cov, stamp)
         result.deleted = self._age_missed(unmatched_t, frames, appearance, stamp)
         result.new_ids, result.recovered_ids = self._birth(unmatched_d, positions, used, has_desc, stamp)
-        result.tracks = [TrackView.of(t, stamp) for t in self.tracks]
+        result.tracks = [_view(t, stamp) for t in self.tracks]
         return result
 
     def _predict(self, dt: float, q_scale: float) -> tuple[np.ndarray, np.ndarray]:
@@ -298,7 +246,7 @@ class Tracker:
             self._miss(t, frames)
             if t.status is TrackStatus.DELETED:
                 deleted_idx.add(ti)
-                deleted.append(TrackView.of(t, stamp))
+                deleted.append(_view(t, stamp))
                 self._archive(t, appearance)
         if deleted_idx:
             self.tracks = [t for i, t in enumerate(self.tracks) if i not in deleted_idx]
@@ -438,19 +386,10 @@ class Tracker:
         return out + [(i, g.descriptors) for i, g in self._pending]
 
 
-def _replace(params: TrackerParams, **changes: object) -> TrackerParams:
-    return replace(params, **changes)  # type: ignore[arg-type]
-
-
-def _checked_inputs(positions: np.ndarray, descriptors: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
-    """``positions`` as (N, 3) float64 and ``descriptors`` as (N, D) float32 (or None)."""
-    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-    n = len(positions)
-    if descriptors is not None:
-        descriptors = np.asarray(descriptors, dtype=np.float32)
-        if descriptors.ndim != 2 or len(descriptors) != n:
-            raise ValueError(f"descriptors must be (N, D) with N = {n} detections, got shape {descriptors.shape}")
-    return positions, descriptors
+def _view(t: Track, stamp: float) -> TrackView:
+    return TrackView(t.id, t.status, t.mean.copy(), t.cov.copy(), t.total_hits, t.misses,
+                     max(0.0, stamp - t.first_stamp), t.last_update, len(t.gallery) if t.gallery else 0,
+                     t.ever_confirmed)
 
 
 def _with_descriptor(descriptors: np.ndarray | None, n: int) -> np.ndarray:

@@ -47,6 +47,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from services.tracker.core import kalman
+
 __all__ = ["DIM", "initiate", "motion", "predict", "process_noise", "sigma_weights", "to_cv"]
 
 #: Length of the state ``(x, y, z, vx, vy, vz, omega)``.
@@ -81,16 +83,12 @@ def initiate(position: np.ndarray, sigma0_position: float, sigma0_velocity: floa
 def process_noise(dt: float, q_accel: float, q_z: float, q_turn: float) -> np.ndarray:
     """The (7, 7) process noise of a step ``dt``.
 
-    (x, vx) and (y, vy): white acceleration of spectral density ``q_accel``,
-    ``[[dt^3/3, dt^2/2], [dt^2/2, dt]] * q_accel``, as the robust profile's ``_q``;
-    z: ``q_z * dt``; omega: ``q_turn * dt``; vz: 0.
+    (x, vx) and (y, vy): white acceleration of spectral density ``q_accel``, z: ``q_z * dt``,
+    as the constant-velocity filter's (:func:`kalman.white_acceleration`); omega:
+    ``q_turn * dt``; vz: 0.
     """
     q = np.zeros((DIM, DIM))
-    for i in (0, 1):
-        q[i, i] = q_accel * dt**3 / 3.0
-        q[i, i + 3] = q[i + 3, i] = q_accel * dt**2 / 2.0
-        q[i + 3, i + 3] = q_accel * dt
-    q[2, 2] = q_z * dt
+    q[:6, :6] = kalman.white_acceleration(dt, q_accel, q_z)
     q[6, 6] = q_turn * dt
     return q
 

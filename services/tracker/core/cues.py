@@ -1,0 +1,122 @@
+"""The robust profile's cues (the TU Ilmenau framework's cue fusion) and the measurement
+covariance, as pure functions over one frame.
+
+Each cue gives every (detection, track) pair a log-odds that the pair is the same person
+(0: no information); the fusion adds them. The functions return what they computed on the
+way (the squared Mahalanobis distances of the gate, the squared descriptor distances of
+the pairs compared), so nothing is left on the tracker between two steps of a frame.
+
+:func:`usable_covariances` is the project's one test of a detection's covariance: the
+tracker service counts the bad ones with it, the cores replace them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from services.tracker.core import classifier as clf
+
+if TYPE_CHECKING:
+    from services.tracker.core.tracks import GalleryBank
+    from services.tracker.core.types import AppearanceModel
+
+__all__ = ["PairDistances", "appearance_log_odds", "classifier_log_odds", "logit", "measurement_covariance",
+           "position_log_odds", "usable_covariances"]
+
+_LOG_2PI = math.log(2.0 * math.pi)
+
+
+def usable_covariances(covs: np.ndarray) -> np.ndarray:
+    """(N,) bool: which covariances (N, 3, 3) are finite, symmetric and positive definite."""
+    if not len(covs):
+        return np.zeros(0, bool)
+    finite = np.all(np.isfinite(covs), axis=(1, 2))
+    safe = np.where(finite[:, None, None], covs, np.eye(3))
+    sym = 0.5 * (safe + np.swapaxes(safe, 1, 2))
+    symmetric = np.all(np.abs(safe - sym) <= 1e-9 + 1e-6 * np.abs(sym), axis=(1, 2))
+    return finite & symmetric & np.all(np.linalg.eigvalsh(sym) > 0, axis=1)
+
+
+def measurement_covariance(cov: np.ndarray | None, usable: np.ndarray | None, r: np.ndarray,
+                           n: int) -> tuple[np.ndarray, int]:
+    """Each detection's R (N, 3, 3) and how many covariances were unusable: with its own
+    covariance ``cov`` where ``usable`` (None: :func:`usable_covariances` tells), ``r + cov``
+    (Basso/Munaro's sigma^2 = sigma_v^2 + sigma_d^2: a fixed part, here the body's extent
+    around the point the sensor saw, plus the sensor's own, which grows with distance^2);
+    elsewhere, or without covariances, ``r``."""
+    if cov is None:
+        return np.broadcast_to(r, (n, 3, 3)), 0
+    if usable is None:
+        usable = usable_covariances(cov)
+    sym = 0.5 * (cov + np.swapaxes(cov, 1, 2))
+    return np.where(usable[:, None, None], sym + r, r), int(n - usable.sum())
+
+
+def logit(p: np.ndarray | float) -> np.ndarray:
+    p = np.clip(p, 1e-6, 1 - 1e-6)
+    return np.log(p / (1.0 - p))
+
+
+def position_log_odds(positions: np.ndarray, r: np.ndarray, means_xy: np.ndarray, covs_xy: np.ndarray,
+                      new_density: float) -> tuple[np.ndarray, np.ndarray]:
+    """(N, T) log-likelihood ratio of each detection (N, 3) under each track's predicted
+    Gaussian on (x, y) (innovation covariance ``S = HPH^T + R``; ``means_xy`` (T, 2),
+    ``covs_xy`` (T, 2, 2), ``r`` (N, 3, 3)) against a uniform density ``new_density``
+    (people per m^2) of someone else or clutter, and the squared Mahalanobis distances
+    (N, T) for the gate. A track that has coasted long has a wide ``S`` and scores lower
+    everywhere (TU Ilmenau's |Sigma_h| penalty)."""
+    s = covs_xy[None, :, :, :] + r[:, None, :2, :2]  # (N, T, 2, 2)
+    diff = positions[:, None, :2] - means_xy[None, :, :]  # (N, T, 2)
+    a, b, c = s[..., 0, 0], s[..., 0, 1], s[..., 1, 1]
+    det = a * c - b * b
+    dx, dy = diff[..., 0], diff[..., 1]
+    d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / det
+    log_n = -0.5 * d2 - _LOG_2PI - 0.5 * np.log(det)
+    return log_n - math.log(new_density), d2
+
+
+@dataclass(frozen=True)
+class PairDistances:
+    """The squared descriptor distances of the pairs :func:`appearance_log_odds` compared:
+    ``d2[k]`` (capacity,) for the pair (``dets[k]``, ``tracks[k]``)."""
+
+    dets: list[int]
+    tracks: list[int]
+    d2: np.ndarray
+
+    def get(self, d: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """The rows of pairs (``d[k]``, ``t[k]``), or None if one of them was not compared."""
+        index = dict(zip(zip(self.dets, self.tracks), range(len(self.dets))))
+        rows = [index.get(pair) for pair in zip(d.tolist(), t.tolist())]
+        return None if None in rows else self.d2[rows]
+
+
+def appearance_log_odds(model: AppearanceModel, bank: GalleryBank, slots: list[int], descriptors: np.ndarray,
+                        pairs: np.ndarray) -> tuple[np.ndarray, PairDistances]:
+    """(N, T) log-odds that detection d is track t by appearance: the model's distance from
+    the detection's descriptor (``descriptors`` (N, D)) to the nearest descriptor of the
+    track's gallery (``slots`` (T,) in ``bank``, -1: none) through a Fermi function placed by
+    the model's calibrated thresholds. Only the ``pairs`` (N, T) bool are compared (0
+    elsewhere: no information), in one batched product; their squared distances come back
+    for the insertion that follows a match."""
+    d_idx, t_idx = np.nonzero(pairs & (bank.sizes(slots) > 0)[None, :])
+    d2 = bank.pair_sq_distances(np.asarray(slots, np.int64)[t_idx], descriptors[d_idx])
+    dist = np.full(pairs.shape, np.nan)
+    dist[d_idx, t_idx] = model.from_euclidean(np.sqrt(d2.min(axis=1)))
+    return model.log_odds(dist), PairDistances(d_idx.tolist(), t_idx.tolist(), d2)
+
+
+def classifier_log_odds(weights: np.ndarray | None, steps: list[int], u: np.ndarray, has_desc: np.ndarray,
+                        clip: float) -> np.ndarray:
+    """(N, T) the tracks' online classifiers' log-odds (Basso/Munaro) of the unit descriptors
+    ``u`` (one row per detection with ``has_desc``): 0 for an untrained classifier (``steps``
+    0: no training step yet) or a detection without a descriptor."""
+    out = np.zeros((len(has_desc), len(steps)))
+    cols = [j for j, k in enumerate(steps) if k]
+    if len(cols) and weights is not None:
+        out[np.ix_(np.flatnonzero(has_desc), cols)] = clf.scores(weights[cols], u, clip)
+    return out

@@ -1,0 +1,85 @@
+"""The robust profile's settings (services/tracker/README.md, *Profiles*, explains each)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from services.tracker.core.classifier import ClassifierParams
+from services.tracker.core.posture import PostureParams
+from services.tracker.core.types import AppearanceModel, ScoreModel
+
+__all__ = ["RobustParams"]
+
+_F3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class RobustParams:
+    """The robust profile's settings (README of the tracker: what each one does)."""
+
+    #: "cv": constant-velocity Kalman filter; "ukf": unscented filter, coordinated turn (Basso/Munaro)
+    motion: Literal["cv", "ukf"] = "cv"
+    q_accel: float = 3.0  # m^2/s^3, white acceleration on x and y
+    q_turn: float = 0.01  # rad^2/s^3, random walk of the turn rate ("ukf")
+    sigma0_turn: float = 0.5  # rad/s, a new track's turn-rate std ("ukf")
+    q_z: float = 0.05  # m^2/s, random walk of z
+    sigma0_position: float = 0.3  # m, a new track's position std
+    sigma0_velocity: float = 2.0  # m/s, a new track's velocity std (people walk at ~1.4 m/s; the frame may move)
+    sigma_r: _F3 = (0.2, 0.2, 0.3)  # m, measurement std when a detection has no covariance
+    new_density: float = 0.02  # people (or clutter) per m^2 that compete with a track's prediction
+    gate_sq: float = 13.8  # squared Mahalanobis bound on (x, y): chi2(0.999, 2)
+    appearance_weight: float = 1.0
+    appearance: AppearanceModel | None = None
+    scores: ScoreModel = field(default_factory=ScoreModel)
+    n_init: int = 3
+    confirm_is_person: float = 0.75
+    is_person_tau_s: float = 2.0
+    tentative_timeout_s: float = 0.25
+    report_coast_s: float = 0.3
+    view_margin: float = 0.1  # image border (share of its size) where a coasting person counts as out of view
+    max_coast_s: float = 2.0
+    max_position_var: float = 4.0  # m^2, trace of the (x, y) covariance
+    #: the same two limits for a track coasting out of every camera's view (it cannot be
+    #: detected there, so a miss says nothing about it: a person walking from one camera's
+    #: view into another's through a blind stretch); no view known: the limits above
+    max_coast_unseen_s: float = 2.0
+    max_position_var_unseen: float = 4.0
+    #: hand-over by motion: a track confirmed within this squared Mahalanobis distance (x, y)
+    #: of a track coasting out of view takes that track's ID (the person came back into a
+    #: view elsewhere); None: off
+    handover_gate_sq: float | None = None
+    #: two people's centres are never closer than this on the ground (m): a detection this near
+    #: one that went to a track, or to a stronger birth, is a second report of that person (a
+    #: split depth cluster, a double box), not a new track; 0: off
+    birth_separation_m: float = 0.3
+    gallery_size: int = 100
+    memory_size: int = 500
+    #: Basso/Munaro's online per-track appearance classifiers; None: off
+    classifier: ClassifierParams | None = field(default_factory=ClassifierParams)
+    #: TU Ilmenau's posture and orientation filters; None: off
+    posture: PostureParams | None = field(default_factory=PostureParams)
+
+    def __post_init__(self) -> None:
+        if self.n_init < 1:
+            raise ValueError("n_init must be at least 1")
+        if self.motion not in ("cv", "ukf"):
+            raise ValueError(f"motion must be 'cv' or 'ukf', got {self.motion!r}")
+        if not (self.q_turn >= 0 and self.sigma0_turn >= 0):
+            raise ValueError("q_turn and sigma0_turn must not be negative")
+        for name in ("q_accel", "q_z", "sigma0_position", "sigma0_velocity", "new_density", "gate_sq",
+                     "is_person_tau_s", "max_position_var"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if not (0 < self.tentative_timeout_s and 0 <= self.report_coast_s <= self.max_coast_s):
+            raise ValueError("need tentative_timeout_s > 0 and 0 <= report_coast_s <= max_coast_s")
+        if not (self.max_coast_unseen_s > 0 and self.max_position_var_unseen > 0):
+            raise ValueError("max_coast_unseen_s and max_position_var_unseen must be positive")
+        if self.handover_gate_sq is not None and not self.handover_gate_sq > 0:
+            raise ValueError(f"handover_gate_sq must be positive or None, got {self.handover_gate_sq}")
+        if not 0 <= self.view_margin < 0.5:
+            raise ValueError(f"view_margin must be in [0, 0.5), got {self.view_margin}")
+        if not self.birth_separation_m >= 0:
+            raise ValueError(f"birth_separation_m must not be negative, got {self.birth_separation_m}")
+        if not 0.5 <= self.confirm_is_person < 1:
+            raise ValueError("confirm_is_person must be in [0.5, 1)")

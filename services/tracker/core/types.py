@@ -1,0 +1,190 @@
+"""What every tracker core takes and gives: one frame's input, the tracks it reports, the
+embedding model's and the detector's calibrations. Shared by both profiles
+(:mod:`~services.tracker.core.tracker`, :mod:`~services.tracker.core.robust`) and by
+everything that drives them through :class:`~services.tracker.core.protocol.TrackerCore`.
+
+Pure numpy; no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import TYPE_CHECKING, Literal, NamedTuple
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from services.tracker.core.view import FieldOfView, Views
+
+__all__ = ["AppearanceModel", "FrameInput", "FrameResult", "ScoreModel", "TrackStatus", "TrackView"]
+
+
+class TrackStatus(str, Enum):
+    TENTATIVE = "tentative"
+    CONFIRMED = "confirmed"
+    COASTING = "coasting"  # confirmed, missed lately: reported with its prediction (robust profile)
+    DELETED = "deleted"
+
+
+@dataclass(frozen=True)
+class TrackView:
+    """A read-only picture of a track after an update."""
+
+    id: int
+    status: TrackStatus
+    mean: np.ndarray
+    cov: np.ndarray
+    hits: int
+    misses: int
+    age_s: float
+    last_update: float
+    gallery_size: int
+    ever_confirmed: bool = False
+    #: whether the camera could see the track's position at this update (None: not known)
+    in_view: bool | None = None
+    #: P(standing, sitting, lying) (3,) and P(orientation bin) (8,); None: not estimated
+    posture: np.ndarray | None = None
+    orientation: np.ndarray | None = None
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.mean[:3]
+
+    @property
+    def velocity(self) -> np.ndarray:
+        return self.mean[3:]
+
+
+@dataclass
+class FrameResult:
+    """What one update did."""
+
+    stamp: float
+    appearance_available: bool
+    tracks: list[TrackView] = field(default_factory=list)  # live tracks (tentative and confirmed)
+    deleted: list[TrackView] = field(default_factory=list)
+    new_ids: list[int] = field(default_factory=list)
+    recovered_ids: list[int] = field(default_factory=list)
+    matches: int = 0
+
+    @property
+    def confirmed(self) -> list[TrackView]:
+        """The tracker's output: Confirmed tracks only."""
+        return [t for t in self.tracks if t.status is TrackStatus.CONFIRMED]
+
+
+@dataclass(frozen=True)
+class AppearanceModel:
+    """An embedding model's calibrated distances: 0.9 same-person probability at
+    ``t_lower``, 0.1 at ``t_upper``; ``t_recover`` for the ID memory. ``metric`` says how
+    descriptors compare (``euclidean``, or ``cosine``: 1 - cos on unit vectors; the thesis
+    profile compares Euclidean distances whatever it says). ``s_max``: the model's own bound
+    on the squared Mahalanobis distance in Algorithm 1's ambiguous band (thesis profile;
+    None: the profile's)."""
+
+    t_lower: float
+    t_upper: float
+    t_recover: float
+    metric: Literal["euclidean", "cosine"] = "euclidean"
+    s_max: float | None = None
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.t_lower < self.t_upper:
+            raise ValueError(f"need 0 <= t_lower < t_upper, got {self.t_lower}, {self.t_upper}")
+
+    def log_odds(self, distance: np.ndarray) -> np.ndarray:
+        """Log-odds that a pair at ``distance`` is the same person (0 where ``nan``)."""
+        mid = 0.5 * (self.t_lower + self.t_upper)
+        # logistic through (t_lower, 0.9) and (t_upper, 0.1): slope ln(9) / half-width
+        slope = math.log(9.0) / (0.5 * (self.t_upper - self.t_lower))
+        out = slope * (mid - distance)
+        return np.where(np.isnan(out), 0.0, out)
+
+    def from_euclidean(self, d: np.ndarray) -> np.ndarray:
+        """The model's distance from the Euclidean distance of unit vectors."""
+        return 0.5 * d * d if self.metric == "cosine" else d
+
+
+@dataclass(frozen=True)
+class ScoreModel:
+    """Detector score -> P(true person): ``sigmoid((score - center) / scale)``.
+
+    ``center`` None means the scores carry no calibrated meaning: every detection is
+    confident with probability ``default_p``. ``birth_score``: detections below it may
+    update tracks but never start one (None: every detection may).
+    """
+
+    center: float | None = None
+    scale: float = 1.0
+    default_p: float = 0.7
+    birth_score: float | None = None
+
+    def probability(self, scores: np.ndarray) -> np.ndarray:
+        if self.center is None:
+            return np.full(len(scores), self.default_p)
+        return 1.0 / (1.0 + np.exp(-(np.asarray(scores, float) - self.center) / self.scale))
+
+    def confident(self, scores: np.ndarray) -> np.ndarray:
+        if self.birth_score is None:
+            return np.ones(len(scores), bool)
+        return np.asarray(scores, float) >= self.birth_score
+
+
+class FrameInput(NamedTuple):
+    """One frame as a core takes it, converted once (:meth:`of`; a named tuple: cheap to make).
+
+    ``positions`` (N, 3) float64 in the tracking frame. ``descriptors`` (N, D) float32 or
+    None for a position-only frame; a row of NaN marks a detection without a descriptor.
+    ``measurement_cov`` (N, 3, 3) each detection's covariance or None, and ``cov_usable``
+    (N,) which of them are finite, symmetric and positive definite when that is known (the
+    one test, :func:`~services.tracker.core.cues.usable_covariances`; None: the core checks). ``scores`` (N,) the detector's
+    confidences (zeros when it gave none). ``view``: what the cameras could see (None:
+    unknown). ``aspects`` (N,) the boxes' height / width (None: no boxes). ``orientations``
+    (N, 8) an orientation classifier's probabilities per detection in the tracking frame's
+    bins (NaN rows: none). ``score_model``: how this frame's detector's scores read (None:
+    the profile's). ``camera``: the camera the frame comes from.
+    """
+
+    positions: np.ndarray
+    descriptors: np.ndarray | None = None
+    measurement_cov: np.ndarray | None = None
+    cov_usable: np.ndarray | None = None
+    scores: np.ndarray | None = None
+    view: FieldOfView | Views | None = None
+    aspects: np.ndarray | None = None
+    orientations: np.ndarray | None = None
+    score_model: ScoreModel | None = None
+    camera: str = ""
+
+    @classmethod
+    def of(cls, positions: np.ndarray, descriptors: np.ndarray | None = None,
+           measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
+           view: FieldOfView | Views | None = None, aspects: np.ndarray | None = None,
+           orientations: np.ndarray | None = None, score_model: ScoreModel | None = None,
+           camera: str = "") -> FrameInput:
+        """Convert one frame's arrays (ValueError for descriptors of the wrong shape)."""
+        positions = np.asarray(positions, dtype=np.float64)
+        if positions.ndim != 2 or positions.shape[1:] != (3,):
+            positions = positions.reshape(-1, 3)
+        n = len(positions)
+        if descriptors is not None:
+            descriptors = np.asarray(descriptors, dtype=np.float32)
+            if descriptors.ndim != 2 or len(descriptors) != n:
+                raise ValueError(f"descriptors must be (N, D) with N = {n} detections, got shape {descriptors.shape}")
+        if measurement_cov is not None:
+            measurement_cov = np.asarray(measurement_cov, dtype=np.float64).reshape(n, 3, 3)
+        if scores is None:
+            scores = np.zeros(n)
+        else:
+            scores = np.asarray(scores, dtype=np.float64)
+            if scores.shape != (n,):
+                scores = scores.reshape(n)
+        return cls(positions, descriptors, measurement_cov, None, scores, view, aspects, orientations, score_model,
+                   camera)
+
+    @property
+    def has_descriptors(self) -> bool:
+        """Whether this frame carries descriptors (of some dimension; maybe NaN rows)."""
+        return self.descriptors is not None and self.descriptors.shape[1] > 0

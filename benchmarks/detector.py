@@ -238,13 +238,16 @@ def sim_table(args: argparse.Namespace) -> int:
     from tools.simulator.core.scenarios import SCENARIOS
 
     use_cpu_clock(args.cpu_time)
+    from services.detector.main import keep_freed_memory
+
+    kept = keep_freed_memory()  # as the detector process does
 
     names = args.scenarios.split(",") if args.scenarios else list(SCENARIOS)
     frames = {name: sim_frames(name, args.sim_frames) for name in progress(names, desc="frames", unit="scenario")}
     w, h = SIM_SIZE
     print(f"# depth detector on the simulator's frames: {args.sim_frames} per scenario, {w}x{h} at {SIM_FPS:g} fps; "
           f"{args.sim_passes} passes, {'CPU' if args.cpu_time else 'wall'} time; {platform.node()}, {os.cpu_count()} CPUs, Python {platform.python_version()}, "
-          f"numpy {np.__version__}")
+          f"numpy {np.__version__}; freed memory kept: {'yes' if kept else 'no'}, as in the detector process")
     print("| scenario | frames | people boxes | core median ms | core p95 ms | service median ms | service p95 ms | "
           "service / core |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")

@@ -116,3 +116,11 @@ def test_backproject_keeps_every_step_th_pixel_in_range() -> None:
         y = (rows.astype(np.float32) * step - K[1, 2]) * z / K[1, 1]
         np.testing.assert_array_equal(backproject(depth, K, step, 0.3, 8.0),
                                       np.column_stack([x, y, z]).astype(np.float32))
+
+
+def test_the_detector_process_keeps_freed_memory_with_glibc() -> None:
+    import platform
+
+    from services.detector.main import keep_freed_memory
+
+    assert keep_freed_memory() is (platform.system() == "Linux" and platform.libc_ver()[0] == "glibc")

@@ -4,10 +4,10 @@ Frames: every scenario of ``tools/simulator``, ``--sim-frames`` frames each (def
 evenly spaced over the scenario, rendered at 640x480 and 30 fps as ``perception demo --fps 30
 --width 640 --height 480`` renders them. Each frame goes through the simulator's messages
 and the detector service on the in-memory bus (encoding, decoding, the floor from the
-transforms), and what the service hands its core is kept: the RGB image, the depth in metres,
-K and the floor plane. They are cached under ``benchmarks/.cache`` (git-ignored), keyed by the
+transforms); the encoded frame and transform messages and the floor plane the service found
+are kept, and the frame is decoded as the service decodes it. They are cached under ``benchmarks/.cache`` (git-ignored), keyed by the
 scenario, the size, the frame rate, the sample and a hash of the simulator's and ``common``'s
-code, so only the first run renders (about a minute on the 2-core VM).
+code, so only the first run renders (about 2 minutes of CPU on the 2-core VM; 200 MB of cache).
 
 Timed: the core (``DepthClusterDetector.detect``, the demo's settings, one detector per
 scenario over its frames in order) and the service's whole step per frame

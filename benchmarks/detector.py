@@ -2,6 +2,7 @@
 
     python benchmarks/detector.py [--repeats 30] [--backends hog,depth,...]
     python benchmarks/detector.py --pets [--pets-step 1]   # accuracy only
+    python benchmarks/detector.py --sim [--sim-frames 24] [--against REV]   # depth, the simulator's frames
 
 ``--pets``: the HOG backend on the 400 frames of ``../shared/data/pets09_dev`` (every
 ``--pets-step``-th), scored by ``benchmarks/detector_accuracy.py``: PASCAL-VOC AP at
@@ -10,6 +11,11 @@ raw windows are computed once per upsampling factor at the lowest threshold of t
 table, and each row's settings turn them into boxes (``HogDetector.boxes_from_windows``),
 so the rows differ only in what they name. "window fit 0.6 x 0.8, no voting" are the
 settings before the boxes were fitted to the person.
+
+``--sim``: the depth backend on the simulator's own 640x480 frames, every scenario
+(``benchmarks/detector_sim.py``): its core and the detector service's whole step per frame,
+median and p95 per scenario and overall; ``--against REV`` also runs the core as it was at
+git revision REV on the same frames, interleaved, and compares their detections.
 
 Inputs: a PETS09 frame resized to each size when ../shared/data is present (else a
 rendered scene) for the RGB backends; a rendered floor + people + table scene for
@@ -30,7 +36,11 @@ import time
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
+if "--sim" in sys.argv:  # as the demo runs the detector process (numpy's BLAS on one thread)
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -219,15 +229,85 @@ def pets_accuracy(step: int) -> int:
     return 0
 
 
+def sim_table(args: argparse.Namespace) -> int:
+    """Print the depth core's and the detector service's times on the simulator's frames."""
+    import platform
+
+    from benchmarks.detector_sim import (SIM_FPS, SIM_SIZE, compare, sim_frames, time_core, time_service,
+                                         use_cpu_clock)
+    from tools.simulator.core.scenarios import SCENARIOS
+
+    use_cpu_clock(args.cpu_time)
+    from services.detector.main import keep_freed_memory
+
+    kept = keep_freed_memory()  # as the detector process does
+
+    names = args.scenarios.split(",") if args.scenarios else list(SCENARIOS)
+    frames = {name: sim_frames(name, args.sim_frames) for name in progress(names, desc="frames", unit="scenario")}
+    w, h = SIM_SIZE
+    print(f"# depth detector on the simulator's frames: {args.sim_frames} per scenario, {w}x{h} at {SIM_FPS:g} fps; "
+          f"{args.sim_passes} passes, {'CPU' if args.cpu_time else 'wall'} time; {platform.node()}, {os.cpu_count()} CPUs, Python {platform.python_version()}, "
+          f"numpy {np.__version__}; freed memory kept: {'yes' if kept else 'no'}, as in the detector process")
+    print("| scenario | frames | people boxes | core median ms | core p95 ms | service median ms | service p95 ms | "
+          "service / core |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    all_core, all_node, all_inner = [], [], []
+    for name in progress(names, desc="timing", unit="scenario"):
+        group = frames[name]
+        core = time_core(group, args.sim_passes)
+        node, inner = time_service(group, args.sim_passes)
+        all_core.append(core)
+        all_node.append(node)
+        all_inner.append(inner)
+        print(f"| {name} | {len(group)} | {_boxes(group)} | {np.median(core):.1f} | {np.percentile(core, 95):.1f} | "
+              f"{np.median(node):.1f} | {np.percentile(node, 95):.1f} | {node.sum() / inner.sum():.2f} |", flush=True)
+    core, node, inner = (np.concatenate(a) for a in (all_core, all_node, all_inner))
+    print(f"| **all** | {sum(len(g) for g in frames.values())} | | **{np.median(core):.1f}** | "
+          f"{np.percentile(core, 95):.1f} | {np.median(node):.1f} | {np.percentile(node, 95):.1f} | "
+          f"{node.sum() / inner.sum():.2f} |")
+    if args.against:
+        everything = [f for name in names for f in frames[name]]
+        c = compare(everything, args.against)
+        ratio = c.old_ms / c.new_ms
+        print(f"\n# against {args.against}, paired (interleaved frame by frame): core median {np.median(c.old_ms):.1f} "
+              f"-> {np.median(c.new_ms):.1f} ms, p95 {np.percentile(c.old_ms, 95):.1f} -> "
+              f"{np.percentile(c.new_ms, 95):.1f} ms, speed-up per frame median {np.median(ratio):.2f}x "
+              f"(p5 {np.percentile(ratio, 5):.2f}x)")
+        print(f"detections: {c.identical} of {c.frames} frames identical (boxes and scores bit for bit); "
+              f"largest box difference {c.max_box_px:.2g} px, score {c.max_score:.2g}; "
+              f"frames with another count: {c.count_differs or 'none'}")
+        if c.identical != c.frames:
+            return 1
+    return 0
+
+
+def _boxes(frames: list) -> int:
+    """The people the current core finds in ``frames`` (in order, one detector)."""
+    from benchmarks.detector_sim import _depth_detector, _plane
+
+    det, ground = _depth_detector()
+    return sum(len(det.detect(f.rgb, f.depth, f.K, floor=_plane(f.floor, ground))[0]) for f in frames)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeats", type=int, default=30)
     parser.add_argument("--backends", default="hog,hog-x2.25,depth,depth+hog,yolo-onnx,darknet")
     parser.add_argument("--pets", action="store_true", help="HOG's AP and foot-point error on pets09_dev instead")
     parser.add_argument("--pets-step", type=int, default=1, help="use every n-th pets09_dev frame")
+    parser.add_argument("--sim", action="store_true", help="the depth backend on the simulator's frames instead")
+    parser.add_argument("--sim-frames", type=int, default=24, help="--sim: frames per scenario, evenly spaced")
+    parser.add_argument("--sim-passes", type=int, default=3, help="--sim: timed passes over the frames")
+    parser.add_argument("--scenarios", default=None, help="--sim: comma-separated scenarios (default all)")
+    parser.add_argument("--cpu-time", action="store_true",
+                        help="--sim: time in this thread's CPU time instead of wall time (a machine others load)")
+    parser.add_argument("--against", default=None, metavar="REV",
+                        help="--sim: also the depth core at git revision REV, paired, and its detections compared")
     args = parser.parse_args()
     if args.pets:
         return pets_accuracy(max(args.pets_step, 1))
+    if args.sim:
+        return sim_table(args)
     wanted = args.backends.split(",")
     tmp = Path(tempfile.mkdtemp(prefix="detector-bench-"))
     factories: dict[str, Callable[[], object]] = {

@@ -98,7 +98,7 @@ def refine_plane(points: np.ndarray, previous: Plane, params: GroundParams,
     least squares on its inliers gives the result. With too few inliers, or a step
     larger than ``max_step_deg``/``max_step_m``, the previous plane is kept (count 0).
     """
-    cand = points[np.abs(previous.height(points)) < params.window_m]
+    cand = points.compress(np.abs(previous.height(points)) < params.window_m, axis=0)  # (4x a mask's gather)
     if len(cand) < params.min_inliers:
         return previous, 0
     normals, offsets = _sample_planes(cand, previous.normal, params.iterations, rng)
@@ -108,7 +108,7 @@ def refine_plane(points: np.ndarray, previous: Plane, params: GroundParams,
     normals, offsets = normals[keep], offsets[keep]
     inliers = np.abs(cand @ normals.T + offsets[None, :]) < params.inlier_m  # (M, K)
     best = int(np.argmax(inliers.sum(axis=0)))
-    support = cand[inliers[:, best]]
+    support = cand.compress(inliers[:, best], axis=0)
     if len(support) < params.min_inliers:
         return previous, 0
     plane = fit_plane_lsq(support, previous.normal)
@@ -116,7 +116,7 @@ def refine_plane(points: np.ndarray, previous: Plane, params: GroundParams,
         return previous, 0
     plane_inliers = np.abs(plane.height(cand)) < params.inlier_m
     if plane_inliers.sum() >= 3:
-        plane = fit_plane_lsq(cand[plane_inliers], previous.normal) or plane
+        plane = fit_plane_lsq(cand.compress(plane_inliers, axis=0), previous.normal) or plane
     if plane.angle_to(previous) > np.deg2rad(params.max_step_deg) or abs(plane.offset - previous.offset) > params.max_step_m:
         return previous, 0
     return plane, int(plane_inliers.sum())

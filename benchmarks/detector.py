@@ -238,7 +238,7 @@ def sim_table(args: argparse.Namespace) -> int:
     from tools.simulator.core.scenarios import SCENARIOS
 
     use_cpu_clock(args.cpu_time)
-    from services.detector.main import keep_freed_memory
+    from services.detector.memory import keep_freed_memory
 
     kept = keep_freed_memory()  # as the detector process does
 

@@ -10,6 +10,7 @@ from common.runtime.node import add_node_arguments, load_node_config
 from services.detector.config import BACKENDS, DetectorConfig, build_detector
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
+from services.detector.memory import keep_freed_memory
 
 __all__ = ["add_arguments", "add_backend_arguments", "detector_from_args", "load_service_config", "node_overrides",
            "overrides", "prepare"]
@@ -56,7 +57,9 @@ def node_overrides(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def prepare(config: DetectorConfig) -> dict[str, Any]:
-    """Build the detector before the transport opens, so a missing model stops the node at once."""
+    """Build the detector before the transport opens, so a missing model stops the node at once;
+    the process keeps the memory a frame frees for the next (:func:`keep_freed_memory`)."""
+    keep_freed_memory()
     return {"detector": detector_from_args(config)}
 
 

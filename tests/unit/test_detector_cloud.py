@@ -121,6 +121,6 @@ def test_backproject_keeps_every_step_th_pixel_in_range() -> None:
 def test_the_detector_process_keeps_freed_memory_with_glibc() -> None:
     import platform
 
-    from services.detector.main import keep_freed_memory
+    from services.detector.memory import keep_freed_memory
 
     assert keep_freed_memory() is (platform.system() == "Linux" and platform.libc_ver()[0] == "glibc")

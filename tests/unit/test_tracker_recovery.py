@@ -138,3 +138,18 @@ def test_params_are_checked() -> None:
         RecoveryParams(p_new=1.0)
     with pytest.raises(ValueError):
         RecoveryParams(max_speed=0.0)
+
+
+def test_the_config_section_reaches_the_core_and_is_checked() -> None:
+    from pydantic import ValidationError
+
+    from services.tracker.config import TrackerConfig
+
+    cfg = TrackerConfig(robust={"recovery": {"p_new": None, "prior_new": 2.0}})
+    params = cfg.robust.recovery.params()
+    assert params.p_new is None and params.prior_new == 2.0 and params.prior_returned == 1.0
+    assert TrackerConfig().robust.recovery.params() == RecoveryParams()
+    with pytest.raises(ValidationError, match="p_undo"):
+        TrackerConfig(robust={"recovery": {"p_undo": 0.6, "p_recover": 0.5}})
+    with pytest.raises(ValidationError):
+        TrackerConfig(robust={"classifier": {"recover_score": 1.5}})  # gone: the open-set decision replaced it

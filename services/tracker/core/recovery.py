@@ -65,8 +65,9 @@ class RecoveryParams:
     """How sure the ID memory must be before it gives a remembered ID, and when it takes it back."""
 
     #: prior probability that a newly confirmed person is someone new (the rest is shared by the
-    #: remembered candidates); None: estimated online from the confirmations so far
-    p_new: float | None = None
+    #: remembered candidates); None: estimated online from the contested confirmations so far.
+    #: 0.3 by the rule of services/tracker/README.md: the online estimate lost PETS09 IDF1
+    p_new: float | None = 0.3
     #: the online estimate counts about this many recent contested confirmations (exponential
     #: forgetting), so it follows the scene and never reaches 0 or 1
     prior_window: float = 20.0

@@ -121,33 +121,43 @@ class RecoveryState:
     online counts of new and returning people behind ``p_new``."""
 
     departures: dict[int, Departure] = field(default_factory=dict)
-    #: ID -> the IDs it was detected in the same frame with (certainly other people)
-    together: dict[int, set[int]] = field(default_factory=dict)
+    #: ID -> the IDs it was detected in the same frame with (certainly other people); frozensets,
+    #: replaced and never changed in place, so a copy of the dict is a copy of the state
+    together: dict[int, frozenset[int]] = field(default_factory=dict)
     new: float = 0.0
     returned: float = 0.0
     #: recoveries undone so far
     undone: int = 0
+    #: the last group recorded: a frame with the same people (or fewer of them) adds nothing
+    last_group: frozenset[int] = frozenset()
 
     def copy(self) -> RecoveryState:
-        return RecoveryState(dict(self.departures), {k: set(v) for k, v in self.together.items()}, self.new,
-                             self.returned, self.undone)
+        return RecoveryState(dict(self.departures), dict(self.together), self.new, self.returned, self.undone,
+                             self.last_group)
 
     def seen_together(self, ids: list[int]) -> None:
         """The people of ``ids`` were detected in one frame: each is someone else than the others."""
         if len(ids) < 2:
             return
-        group = set(ids)
-        for i in ids:
-            self.together.setdefault(i, set()).update(group - {i})
+        group = frozenset(ids)
+        if group <= self.last_group:
+            return
+        self.last_group = group
+        empty: frozenset[int] = frozenset()
+        for i in group:
+            known = self.together.get(i, empty)
+            if not group <= known | {i}:
+                self.together[i] = known | (group - {i})
 
     def forget(self, keep: set[int] | None = None, drop: int | None = None) -> None:
         """Drop what is known of ``drop``, or of every ID not in ``keep``."""
+        self.last_group = frozenset()
         if drop is not None:
             self.departures.pop(drop, None)
             self.together.pop(drop, None)
         if keep is not None:
             self.departures = {i: d for i, d in self.departures.items() if i in keep}
-            self.together = {i: {j for j in s if j in keep} for i, s in self.together.items() if i in keep}
+            self.together = {i: s & keep for i, s in self.together.items() if i in keep}
 
     def p_new(self, params: RecoveryParams) -> float:
         """The prior P(new): ``params.p_new``, or the Beta estimate from the counts."""
@@ -273,10 +283,10 @@ class Evidence:
     llr: np.ndarray
     reach: np.ndarray
     new_llr: float
-    together: dict[int, set[int]]
+    together: dict[int, frozenset[int]]
 
     def rivals(self, k: int) -> np.ndarray:
-        known = self.together.get(k, set())
+        known = self.together.get(k, frozenset())
         return np.array([i in known for i in self.ids], bool)
 
 

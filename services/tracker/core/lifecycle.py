@@ -221,11 +221,12 @@ def evidence(state: RobustTrackerState, j: int, exclude: set[int], p: RobustPara
                         others, state.classifiers, p.classifier, state.recovery, p.recovery)
 
 
-def observed(state: RobustTrackerState, rows: list[int]) -> None:
+def observed(state: RobustTrackerState, rows: list[int], p: RobustParams) -> None:
     """The tracks ``rows`` were detected in this frame: their fixes (where, for reachability) and
-    that they are different people (core/recovery.py's rivals)."""
+    that they are different people (core/recovery.py's rivals). Position-only: nothing (no
+    recovery without appearance; a departure not known later makes a person reachable)."""
     t = state.tracks
-    if not rows:
+    if not rows or p.appearance is None:
         return
     xy, var = t.mean[rows, :2].tolist(), (0.5 * (t.cov[rows, 0, 0] + t.cov[rows, 1, 1])).tolist()
     for j, (x, y), v in zip(rows, xy, var):

@@ -153,7 +153,7 @@ class RobustTracker(TrackerCore):
                              pairs, moved)
         self._update_pose(matches, positions, frame.aspects, frame.orientations, moved)
         self._train_classifiers(matches, u, has_desc, confident)
-        lifecycle.observed(state, [j for _, j in matches])  # fixes, who was seen with whom (recovery)
+        lifecycle.observed(state, [j for _, j in matches], p)  # fixes, who was seen with whom (recovery)
         matched_d = {d for d, _ in matches}
         self._age(stamp, result, frame.view, previous)
         born = lifecycle.births([d for d in range(n) if d not in matched_d and confident[d]], matched_d, positions,

@@ -1,6 +1,7 @@
 """Tracking quality: this project's tracker side by side with two plain trackers, on the same data.
 
-    python benchmarks/quality.py [--quick] [--only kitti,pets,pets-live,sim] [--json FILE] [--cache-dir DIR] [--data DIR]
+    python benchmarks/quality.py [--quick] [--only kitti,pets,pets-gt,pets-live,sim] [--json FILE] [--cache-dir DIR]
+                                 [--data DIR]
                                  [--scenarios NAME,...] [--sim-seconds S] [--refresh-sim]
 
 Trackers (each takes a :class:`~services.tracker.offline.Detections` object and returns
@@ -43,7 +44,13 @@ Data (``../shared/data``, or ``$PERCEPTION_SHARED_DATA``; nothing is downloaded)
    positions only. Detections and descriptors are cached under ``--cache-dir``
    (default ``benchmarks/.cache/``), keyed by a hash of the detector's and embedder's code and
    settings and the frames, so only the first run pays the ~1-2 minutes of detection.
-3. ``sim``: the simulated apartment, all 7 scenarios of ``tools/simulator`` for 60 s each
+3. ``pets-gt`` (skipped with ``--quick``): the same 400 frames with the ground truth's boxes as
+   perfect detections (``benchmarks/pets_gt.py``: the ``conf`` 1 boxes, the people the judge
+   counts, described by the colour embedder and placed on the ground by the same foot point and
+   homography): the tracker alone. The project's profiles run twice, with the descriptors and
+   positions only (``, no appearance``), on the same positions, so the difference is what
+   appearance, the ID memory included, adds or costs.
+4. ``sim``: the simulated apartment, all 7 scenarios of ``tools/simulator`` for 60 s each
    (``--sim-seconds``; 10 s with ``--quick``) at 10 fps, 320x240, seed 0: the scenario runs
    once through ``tools.demo.inprocess.run_chain`` (the real depth detector, localizer and
    colour embedder) and what reaches its tracker is captured and cached under
@@ -98,7 +105,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks import quality_sim  # noqa: E402
+from benchmarks import pets_gt, quality_sim  # noqa: E402
 from common.runtime.progress import Bar, progress_bar  # noqa: E402
 from services.localizer.core import FloorHomography, foot_points  # noqa: E402
 from services.tracker.config import TrackerConfig  # noqa: E402
@@ -545,15 +552,24 @@ def pets_live_section(root: Path, cache_dir: Path) -> str:
     return "\n".join(lines)
 
 
-def load_pets(root: Path, cache_dir: Path, log: Callable[[str], None] = print) -> list[Sequence]:
-    """One sequence: HOG+colour detections, ground truth (conf 1 rows) and its conf 0 rows as ignore."""
+def load_pets(root: Path, cache_dir: Path, log: Callable[[str], None] = print, boxes: str = "hog") -> list[Sequence]:
+    """One sequence: HOG+colour detections (``boxes`` "hog") or the ground truth's boxes (``boxes``
+    "gt", ``benchmarks/pets_gt.py``), ground truth (conf 1 rows) and its conf 0 rows as ignore."""
     gt = np.loadtxt(root / "gt.txt", delimiter=",", ndmin=2)
     n_frames = len(list((root / "frames").glob("frame_*.jpg")))
     gt = gt[gt[:, 0] <= n_frames]
     care = gt[:, 6] > 0
     table = TrackTable.from_arrays(gt[care, 0].astype(np.int64), gt[care, 1].astype(np.int64), gt[care, 7:9])
     ignore = TrackTable.from_arrays(gt[~care, 0].astype(np.int64), gt[~care, 1].astype(np.int64), gt[~care, 7:9])
-    return [Sequence("S2L1-0001-0400", pets_detections(root, cache_dir, log), table, ignore)]
+    dets = pets_detections(root, cache_dir, log) if boxes == "hog" else pets_gt.pets_gt_detections(
+        root, cache_dir, log, care_only=True)
+    return [Sequence("S2L1-0001-0400", dets, table, ignore)]
+
+
+def without_appearance(trackers: list[TrackerAdapter]) -> list[TrackerAdapter]:
+    """The project's trackers of ``trackers`` again, given the positions only (``, no appearance``)."""
+    return [TrackerAdapter(f"{t.name}, no appearance", t.run, uses_appearance=False, config=t.config)
+            for t in trackers if t.config is not None]
 
 
 # ------------------------------------------------------------------------------------
@@ -714,7 +730,7 @@ def score_dict(s: Score) -> dict[str, object]:
             "frames_per_s": s.fps}
 
 
-DATASETS = ("kitti", "pets", "pets-live", "sim")
+DATASETS = ("kitti", "pets", "pets-gt", "pets-live", "sim")
 SIM_QUICK_SECONDS = 10.0
 
 
@@ -793,11 +809,26 @@ def main(argv: list[str] | None = None) -> int:
         print("PETS09 skipped (--quick)\n")
     elif pets.is_dir():
         title = "PETS09-S2L1 frames 1-400: HOG -> colour embedder -> ground plane"
-        tables[title] = run_dataset(load_pets(pets, args.cache_dir), trackers, desc="pets09 track")
+        ours = [t for t in trackers if t.config is not None]
+        tables[title] = run_dataset(load_pets(pets, args.cache_dir), trackers + without_appearance(ours),
+                                    desc="pets09 track")
         print(format_scores(title, tables[title]))
-        print("(the project's tracker uses the colour descriptors; kalman-baseline and norfair positions only)\n")
+        print("(the project's tracker uses the colour descriptors, and positions only in the rows ', no appearance'; "
+              "kalman-baseline and norfair positions only)\n")
     else:
         print(f"PETS09 skipped: {pets} not found\n")
+
+    if "pets-gt" not in args.only or args.quick:
+        print("PETS09 with the ground-truth boxes skipped (--only or --quick)\n")
+    elif pets.is_dir():
+        title = "PETS09-S2L1 frames 1-400: the ground truth's boxes -> colour embedder -> ground plane"
+        ours = [t for t in trackers if t.config is not None]
+        tables[title] = run_dataset(load_pets(pets, args.cache_dir, boxes="gt"),
+                                    ours + without_appearance(ours) + [t for t in trackers if t.config is None],
+                                    desc="pets09 gt track")
+        print(format_scores(title, tables[title]))
+        print("(perfect detections: the conf 1 boxes of gt.txt; the rows ', no appearance' are the same trackers on the "
+              "same positions without descriptors)\n")
 
     if "pets-live" in args.only and not args.quick and pets.is_dir():
         print(pets_live_section(pets, args.cache_dir) + "\n")

@@ -8,7 +8,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from services.tracker.core import (
     AppearanceGate,
@@ -23,6 +23,7 @@ from services.tracker.core import (
 from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.posture import PostureParams
+from services.tracker.core.recovery import RecoveryParams
 
 __all__ = ["ClassifierConfig", "PostureConfig", "RobustConfig", "ScoreConfig", "ThesisConfig"]
 
@@ -59,11 +60,9 @@ class ClassifierConfig(BaseModel):
     l2: float = Field(default=_CL.l2, ge=0.0, lt=1.0, description="weight decay per step")
     clip: float = Field(default=_CL.clip, gt=0.0, description="bound on a classifier's log-odds")
     weight: float = Field(default=_CL.weight, ge=0.0, description="weight of its log-odds in the association")
-    recover_score: float = Field(default=_CL.recover_score,
-                                 description="mean log-odds that gives a remembered person's ID back")
 
     def params(self) -> ClassifierParams | None:
-        return ClassifierParams(self.rate, self.l2, self.clip, self.weight, self.recover_score) if self.enabled else None
+        return ClassifierParams(self.rate, self.l2, self.clip, self.weight) if self.enabled else None
 
 
 _PO = PostureParams()
@@ -87,6 +86,41 @@ class PostureConfig(BaseModel):
             return None
         return PostureParams(self.posture_tau_s, self.orientation_tau_s, self.min_speed, self.kappa_per_mps,
                              self.max_kappa)
+
+
+_RE = RecoveryParams()
+
+
+class RecoveryConfig(BaseModel):
+    """The ID memory's open-set decision (services/tracker/core/recovery.py)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    p_new: float | None = Field(default=_RE.p_new, gt=0.0, lt=1.0,
+                                description="prior that a newly confirmed person is someone new; null: estimated "
+                                            "online from the recent contested confirmations")
+    prior_window: float = Field(default=_RE.prior_window, ge=1.0, description="confirmations the estimate counts")
+    prior_new: float = Field(default=_RE.prior_new, gt=0.0, description="the estimate's prior: new (pseudo-counts)")
+    prior_returned: float = Field(default=_RE.prior_returned, gt=0.0,
+                                  description="the estimate's prior: returning (pseudo-counts)")
+    p_recover: float = Field(default=_RE.p_recover, gt=0.0, lt=1.0,
+                             description="posterior a remembered person needs to get their ID back")
+    p_undo: float = Field(default=_RE.p_undo, gt=0.0, lt=1.0,
+                          description="during probation, a recovery whose posterior falls below this is undone")
+    max_speed: float = Field(default=_RE.max_speed, gt=0.0, description="fastest walk (m/s): farther is unreachable")
+    n_sigma: float = Field(default=_RE.n_sigma, ge=0.0, description="position standard deviations allowed on top")
+    probation_s: float = Field(default=_RE.probation_s, ge=0.0,
+                               description="how long a recovery is checked again (s); 0: never undone")
+    check_period_s: float = Field(default=_RE.check_period_s, gt=0.0, description="how often during probation (s)")
+
+    @model_validator(mode="after")
+    def _undo_below_recover(self) -> RecoveryConfig:
+        if not self.p_undo <= self.p_recover:
+            raise ValueError(f"p_undo ({self.p_undo}) must not exceed p_recover ({self.p_recover})")
+        return self
+
+    def params(self) -> RecoveryParams:
+        return RecoveryParams(**self.model_dump())
 
 
 class RobustConfig(BaseModel):
@@ -142,12 +176,14 @@ class RobustConfig(BaseModel):
     gallery_size: int = Field(default=_R.gallery_size, ge=1, le=100_000, description="max descriptors per track")
     classifier: ClassifierConfig = Field(default_factory=ClassifierConfig)
     posture: PostureConfig = Field(default_factory=PostureConfig)
+    recovery: RecoveryConfig = Field(default_factory=RecoveryConfig)
 
     def params(self, appearance: AppearanceModel | None, memory_size: int) -> RobustParams:
         fields = self.model_dump(exclude={"scores", "detector_scores", "use_detection_covariance", "classifier",
-                                          "posture"})
+                                          "posture", "recovery"})
         return RobustParams(**fields, appearance=appearance, scores=self.scores.model(), memory_size=memory_size,
-                            classifier=self.classifier.params(), posture=self.posture.params())
+                            classifier=self.classifier.params(), posture=self.posture.params(),
+                            recovery=self.recovery.params())
 
     def build(self, appearance: AppearanceModel | None, memory: IdentityMemory | None, memory_size: int) -> TrackerCore:
         return RobustTracker(self.params(appearance, memory_size), memory)

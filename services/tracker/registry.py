@@ -87,6 +87,9 @@ class IdRegistry:
                 if view.id in self._last_state:
                     self._last_state[view.id] = track_state(view, result.appearance_available, epoch_ns)
                 self._forgotten.discard(view.id)
+            for old, _ in result.recovery_undone:  # a recovery taken back: that ID is no longer live
+                if old in self._last_state:
+                    self._last_state[old] = self._last_state[old].model_copy(update={"status": "deleted"})
         self._dirty = True
 
     def ended(self, track_ids: list[int]) -> None:

@@ -190,6 +190,8 @@ class TrackerService(Node):
             self.counters.count("position_only_frames")
         if result.recovered_ids:
             self.counters.count("ids_recovered", len(result.recovered_ids))
+        if result.recovery_undone:  # a recovery taken back (robust profile's ID memory)
+            self.counters.count("ids_recovery_undone", len(result.recovery_undone))
         self.registry.record(result, self._epoch_ns)
         return result
 

@@ -9,6 +9,7 @@ import pytest
 from services.tracker.config import TrackerConfig
 from services.tracker.core import classifier as clf
 from services.tracker.core.classifier import ClassifierParams
+from services.tracker.core.recovery import RecoveryParams
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
 
 COLOUR = AppearanceModel(0.35, 0.85, 0.40)
@@ -63,7 +64,11 @@ def _id_at(trk: RobustTracker, x: float) -> int:
 
 @pytest.mark.parametrize("enabled", [True, False])
 def test_a_person_who_returns_relit_after_a_full_occlusion_gets_their_id_back(enabled: bool) -> None:
-    params = RobustParams(appearance=COLOUR, classifier=ClassifierParams() if enabled else None, max_coast_s=1.0)
+    # a home, where most people confirmed are people coming back (p_new 0.3): the classifier's
+    # log-odds then tip the open-set decision (core/recovery.py) that the gallery's distance alone
+    # loses (with the online prior, after two newcomers, neither would give A's ID back)
+    params = RobustParams(appearance=COLOUR, classifier=ClassifierParams() if enabled else None, max_coast_s=1.0,
+                          recovery=RecoveryParams(p_new=0.3))
     trk = RobustTracker(params)
     t = _frames(trk, 0.0, 5.0, [(A, 0.0), (B, 3.0)])
     a_id, b_id = _id_at(trk, 0.0), _id_at(trk, 3.0)

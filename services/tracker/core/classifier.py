@@ -34,15 +34,14 @@ __all__ = ["ClassifierParams", "normalise", "scores", "train"]
 @dataclass(frozen=True)
 class ClassifierParams:
     """``rate``: SGD step; ``l2``: weight decay per step; ``clip``: bound on a score's log-odds;
-    ``weight``: its weight in the association's log-odds (0 turns the classifiers off);
-    ``recover_score``: mean log-odds a remembered person's classifier must give a new
-    track's descriptors to hand it their ID back."""
+    ``weight``: its weight in the association's log-odds (0 turns the classifiers off), and
+    in the ID memory's recovery (a remembered person's classifier's mean log-odds over a new
+    track's views, core/recovery.py)."""
 
     rate: float = 1.0
     l2: float = 0.003
     clip: float = 4.0
     weight: float = 0.5
-    recover_score: float = 1.5
 
     def __post_init__(self) -> None:
         if not (self.rate > 0 and 0 <= self.l2 < 1 and self.clip > 0 and self.weight >= 0):

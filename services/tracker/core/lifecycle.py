@@ -1,6 +1,5 @@
 """The robust profile's life cycle, in time: ageing, birth, confirmation, hand-over, the ID
-(Algorithm 2 of Pinto's thesis through the calibrated model, Basso/Munaro's recovery by
-classifier) and the archive.
+(Algorithm 2 of Pinto's thesis, open-set: core/recovery.py) and the archive.
 
 * **Ageing.** A confirmed track that misses is *coasting*: it keeps its prediction and is
   deleted after ``max_coast_s`` without a detection or when its position variance passes
@@ -12,9 +11,12 @@ classifier) and the archive.
   a track or of a likelier birth (a second report of the same person).
 * **Confirmation** (Basso/Munaro). After ``n_init`` confident hits, with an IsPerson
   probability of at least ``confirm_is_person``. The ID comes then: by hand-over from a
-  track that left another camera's view (:func:`handover`), else a remembered person's
-  (:func:`identity`, :func:`recover_by_classifier`), else a new one.
-* **Archive.** A deleted track's gallery and classifier go to the ID memory.
+  track that left another camera's view (:func:`handover`), else a remembered person's by
+  the open-set decision of core/recovery.py (:func:`identity`), else a new one. For
+  ``recovery.probation_s`` a recovery is checked again and undone when the evidence turns
+  (:func:`probation`).
+* **Archive.** A deleted track's gallery and classifier go to the ID memory, where and when
+  it was last detected to the recovery's departures.
 
 Each step is a function of the tracker's state (:class:`RobustTrackerState`) and its
 settings. Pure numpy.
@@ -24,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from services.tracker.core import classifier as clf
+from services.tracker.core import recovery as rec
 from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.tracks import RobustTrackerState
 from services.tracker.core.types import FrameResult, TrackStatus
@@ -32,7 +34,8 @@ from services.tracker.core.view import FieldOfView, Views
 
 _TENTATIVE, _CONFIRMED, _COASTING = TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.COASTING
 
-__all__ = ["age", "archive", "birth", "births", "bayes", "confirm", "handover", "identity", "recover_by_classifier"]
+__all__ = ["age", "archive", "birth", "births", "bayes", "confirm", "evidence", "handover", "identity", "observed",
+           "probation"]
 
 
 def bayes(p: float, q: float) -> float:
@@ -91,6 +94,11 @@ def archive(state: RobustTrackerState, j: int) -> None:
         state.classifiers[t.id[j]] = t.clf[j].copy()
     if len(state.classifiers) > len(state.memory):  # follow the memory's evictions and forgetting
         state.classifiers = {i: w for i, w in state.classifiers.items() if i in state.memory}
+    fix, r = t.fix[j], state.recovery
+    if fix is not None and t.id[j] in state.memory:  # where and when they left, for reachability
+        r.departures[t.id[j]] = rec.Departure(t.last_update[j], *fix)
+    if len(r.departures) > len(state.memory) or len(r.together) > 2 * len(state.memory) + 64:
+        r.forget(keep=set(state.memory.entries) | state.live_ids())
 
 
 def births(free: list[int], matched: set[int], positions: np.ndarray, p_det: np.ndarray,
@@ -184,36 +192,64 @@ def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float |
 
 
 def identity(state: RobustTrackerState, j: int, removed: set[int], p: RobustParams) -> tuple[int, bool]:
-    """Algorithm 2 through the calibrated model: a remembered person nearer than ``t_recover``
-    to the mean of track ``j``'s gallery, else one whose classifier recognises it, else a new ID."""
-    model, memory = p.appearance, state.memory
-    slot = state.tracks.slot[j]
-    if model is None or not state.bank.size(slot) or not memory.entries:
-        return memory.new_id(), False
-    live = state.live_ids(removed)
-    gallery = state.bank.descriptors(slot)
-    ids, dist = memory.distances(gallery.mean(axis=0), exclude=live)
-    if len(ids):
-        dist = model.from_euclidean(dist)
-        best = int(np.argmin(dist))
-        if dist[best] < model.t_recover:
-            return int(ids[best]), True
-    recovered = recover_by_classifier(state, gallery, live, p)
-    if recovered is not None:
-        return recovered, True
-    return memory.new_id(), False
+    """Algorithm 2, open-set (core/recovery.py): a remembered person's ID when they are more
+    probable than "someone new" and their rivals together (probation starts), else a new ID."""
+    rp, t = p.recovery, state.tracks
+    if p.appearance is None or not state.bank.size(t.slot[j]):
+        return state.memory.new_id(), False
+    ev = evidence(state, j, state.live_ids(removed), p)
+    decision = rec.decide(ev.llr, ev.reach, state.recovery.p_new(rp), rp, ev.new_llr, lambda i: ev.rivals(ev.ids[i]))
+    state.recovery.count(decision, rp)
+    if decision.index is None:
+        return state.memory.new_id(), False
+    k, stamp = ev.ids[decision.index], t.last_update[j]
+    if rp.probation_s > 0:
+        t.probation[j] = (k, stamp + rp.probation_s, stamp + rp.check_period_s, 1.0 - decision.p_new)
+    return k, True
 
 
-def recover_by_classifier(state: RobustTrackerState, gallery: np.ndarray, live: set[int],
-                          p: RobustParams) -> int | None:
-    """Basso/Munaro's recovery: the remembered people's classifiers score the new track's views
-    (``gallery`` (M, D)); the best mean log-odds above ``recover_score`` gives its ID back."""
-    cp = p.classifier
-    u = clf.normalise(gallery)
-    cands = [(i, w) for i, w in state.classifiers.items()
-             if i not in live and i in state.memory and len(w) == u.shape[1] + 1]
-    if cp is None or not cands:
-        return None
-    s = clf.scores(np.stack([w for _, w in cands]), u, cp.clip).mean(axis=0)
-    best = int(np.argmax(s))
-    return int(cands[best][0]) if s[best] >= cp.recover_score else None
+def evidence(state: RobustTrackerState, j: int, exclude: set[int], p: RobustParams) -> rec.Evidence:
+    """core/recovery.py's evidence for track ``j``: the model's weighted log-odds, the remembered
+    classifiers, the other confirmed people in view now as the stranger's measure."""
+    model, t, bank = p.appearance, state.tracks, state.bank
+    assert model is not None
+    here = rec.Candidate(bank.descriptors(t.slot[j]), t.last_update[j], float(t.mean[j, 0]), float(t.mean[j, 1]),
+                         0.5 * float(t.cov[j, 0, 0] + t.cov[j, 1, 1]))
+    others = [bank.descriptors(t.slot[c]) for c in range(len(t)) if c != j and t.id[c] and bank.size(t.slot[c])]
+    return rec.evidence(here, state.memory, exclude,
+                        lambda d: p.appearance_weight * model.log_odds(model.from_euclidean(d)),
+                        others, state.classifiers, p.classifier, state.recovery, p.recovery)
+
+
+def observed(state: RobustTrackerState, rows: list[int], p: RobustParams) -> None:
+    """The tracks ``rows`` were detected in this frame: their fixes (where, for reachability) and
+    that they are different people (core/recovery.py's rivals). Position-only: nothing (no
+    recovery without appearance; a departure not known later makes a person reachable)."""
+    t = state.tracks
+    if not rows or p.appearance is None:
+        return
+    xy, var = t.mean[rows, :2].tolist(), (0.5 * (t.cov[rows, 0, 0] + t.cov[rows, 1, 1])).tolist()
+    for j, (x, y), v in zip(rows, xy, var):
+        t.fix[j] = (x, y, v)
+    state.recovery.seen_together([t.id[j] for j in rows if t.id[j]])
+
+
+def probation(state: RobustTrackerState, p: RobustParams, stamp: float, result: FrameResult) -> None:
+    """Check recent recoveries again with the tracks' grown galleries; undo those that no longer
+    stand (core/recovery.py): a fresh ID, the remembered person stays remembered, counted."""
+    rp, t = p.recovery, state.tracks
+    for j, prob in enumerate(t.probation):
+        if prob is None:
+            continue
+        k, until, check, share = prob
+        if t.id[j] != k or t.forgotten[j] or k not in state.memory or not state.bank.size(t.slot[j]):
+            t.probation[j] = None
+        elif stamp >= check or stamp >= until:
+            t.probation[j] = (k, until, stamp + rp.check_period_s, share) if stamp < until else None
+            ev = evidence(state, j, state.live_ids() - {k}, p)
+            if not rec.keeps(ev, k, state.recovery.p_new(rp), rp):
+                t.id[j], t.probation[j] = state.memory.new_id(), None
+                state.recovery.undone += 1
+                state.recovery.revise(share)
+                result.recovery_undone.append((k, t.id[j]))
+                result.new_ids.append(t.id[j])

@@ -33,7 +33,7 @@ the TU Ilmenau framework, Basso/Munaro's RGB-D tracker and Ban et al.'s robotic 
 5. **Life cycle, in time** (:mod:`~services.tracker.core.lifecycle`): birth candidates
    (Ban et al.), confirmation with IsPerson (TU Ilmenau: a binary Bayes filter over the
    detections' confidences that fades back to 0.5 with ``is_person_tau_s``), coasting,
-   deletion, hand-over between cameras and the ID memory (Algorithm 2).
+   deletion, hand-over between cameras and the ID memory (Algorithm 2, open-set: ``recovery``).
 
 Its parts: ``robust_params`` (the settings), ``cues`` (each cue's log-odds, the measurement
 covariance), ``lifecycle`` and ``tracks`` (the tracks as rows of arrays, their galleries in
@@ -153,12 +153,14 @@ class RobustTracker(TrackerCore):
                              pairs, moved)
         self._update_pose(matches, positions, frame.aspects, frame.orientations, moved)
         self._train_classifiers(matches, u, has_desc, confident)
+        lifecycle.observed(state, [j for _, j in matches], p)  # fixes, who was seen with whom (recovery)
         matched_d = {d for d, _ in matches}
         self._age(stamp, result, frame.view, previous)
         born = lifecycle.births([d for d in range(n) if d not in matched_d and confident[d]], matched_d, positions,
                                 p_det, p.birth_separation_m)
         lifecycle.birth(state, born, positions, descriptors, has_desc, p_det, stamp, frame.camera, self._p0)
         self._remove(lifecycle.confirm(state, p, result))
+        lifecycle.probation(state, p, stamp, result)  # recent recoveries checked again
         result.matches = len(matches)
         result.tracks = track_views(self.state, stamp, frame.view is not None, self._ukf, p.posture is not None)
         return result
@@ -186,7 +188,6 @@ class RobustTracker(TrackerCore):
                                 pose.transition(pose.ORIENTATION_BINS, step, pp.orientation_tau_s, circular=True))
             t.posture, t.orientation = t.posture @ self._pose_m[0], t.orientation @ self._pose_m[1]
         return True
-
 
     def _pair_log_odds(self, positions: np.ndarray, r: np.ndarray, descriptors: np.ndarray | None,
                        has_desc: np.ndarray, u: np.ndarray | None,
@@ -323,6 +324,7 @@ class RobustTracker(TrackerCore):
         state, t = self.state, self.state.tracks
         removed = state.memory.forget(track_id)
         had_classifier = state.classifiers.pop(track_id, None) is not None
+        state.recovery.forget(drop=track_id)
         rows = [j for j, i in enumerate(t.id) if i == track_id]
         for j in rows:
             removed += state.bank.size(t.slot[j])
@@ -351,10 +353,9 @@ class RobustTracker(TrackerCore):
         return [replace(v, mean=m, cov=c) for v, m, c in zip(views, means, covs)]
 
     def restart_clock(self) -> list[int]:
-        """End every live track and forget the clock, keeping the ID memory (a clock jump:
-        a replay that loops, a sensor clock reset). Each confirmed track's gallery goes to
-        the memory, so a person seen again after the jump gets their ID back; returns the
-        ended IDs (tentative tracks have none and are dropped)."""
+        """End every live track and forget the clock, keeping the ID memory (a clock jump: a replay
+        that loops, a sensor clock reset): a person seen again after the jump gets their ID back.
+        Returns the ended IDs (tentative tracks have none and are dropped)."""
         t = self.state.tracks
         ended = [j for j, i in enumerate(t.id) if i]
         for j in ended:
@@ -362,6 +363,7 @@ class RobustTracker(TrackerCore):
         ids = [t.id[j] for j in ended]
         self._remove(set(range(len(t))))
         self.state.last_stamp = None
+        self.state.recovery.departures.clear()  # their stamps are of the old clock
         return ids
 
     def reported(self, result: FrameResult) -> list[TrackView]:

@@ -7,6 +7,7 @@ from typing import Literal
 
 from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.posture import PostureParams
+from services.tracker.core.recovery import RecoveryParams
 from services.tracker.core.types import AppearanceModel, ScoreModel
 
 __all__ = ["RobustParams"]
@@ -59,6 +60,8 @@ class RobustParams:
     classifier: ClassifierParams | None = field(default_factory=ClassifierParams)
     #: TU Ilmenau's posture and orientation filters; None: off
     posture: PostureParams | None = field(default_factory=PostureParams)
+    #: the ID memory's open-set decision (core/recovery.py)
+    recovery: RecoveryParams = field(default_factory=RecoveryParams)
 
     def __post_init__(self) -> None:
         if self.n_init < 1:

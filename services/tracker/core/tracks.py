@@ -22,11 +22,11 @@ import numpy as np
 
 from services.tracker.core import posture as pose
 from services.tracker.core.identity import IdentityMemory
+from services.tracker.core.recovery import RecoveryState
 from services.tracker.core.types import TrackStatus, TrackView
 
 __all__ = ["GalleryBank", "RobustTrackerState", "TrackRow", "TrackTable", "row_view", "track_rows", "track_view",
            "track_views"]
-
 
 
 class GalleryBank:
@@ -197,7 +197,9 @@ class TrackTable:
     and ``orientation`` (T, 8) (the TU Ilmenau framework's filters), ``clf`` (T, D + 1) the online classifiers (rows of zeros while untrained; None until the
     first is trained). The bookkeeping a frame reads a few entries of is in lists: ``id`` (0
     while tentative), ``is_person`` (IsPerson, a probability), ``status``, the stamps, the hit counts, ``in_view`` (None: not known),
-    ``camera``, ``slot`` the gallery's in the :class:`GalleryBank` (-1: none yet)."""
+    ``camera``, ``slot`` the gallery's in the :class:`GalleryBank` (-1: none yet), and for the ID
+    memory's recovery (core/recovery.py) ``fix`` (x, y, variance per axis) at the last detection,
+    ``probation`` (the recovered ID, its end, the next check, the share counted as returning)."""
 
     mean: np.ndarray
     cov: np.ndarray
@@ -218,6 +220,8 @@ class TrackTable:
     unseen_s: list[float]
     camera: list[str]
     slot: list[int]
+    fix: list[tuple[float, float, float] | None]
+    probation: list[tuple[int, float, float, float] | None]
 
     @classmethod
     def empty(cls, state_dim: int) -> TrackTable:
@@ -267,6 +271,8 @@ class TrackTable:
         self.unseen_s += [0.0] * k
         self.camera += [camera] * k
         self.slot += [-1] * k
+        self.fix += [None] * k
+        self.probation += [None] * k
 
 
 _FIELDS = tuple(f.name for f in fields(TrackTable))
@@ -287,18 +293,20 @@ def _uniform_rows(k: int, n: int) -> np.ndarray:
 @dataclass
 class RobustTrackerState:
     """Everything the robust tracker knows: its tracks, their galleries, the ID memory, the
-    remembered people's classifiers (ID -> weights) and the last frame's stamp."""
+    remembered people's classifiers (ID -> weights), the last frame's stamp and the recovery's
+    state (departures, who was seen with whom, the P(new) counts)."""
 
     tracks: TrackTable
     bank: GalleryBank
     memory: IdentityMemory
     last_stamp: float | None = None
     classifiers: dict[int, np.ndarray] = field(default_factory=dict)
+    recovery: RecoveryState = field(default_factory=RecoveryState)
 
     def copy(self) -> RobustTrackerState:
         """An independent copy (galleries and memory shared copy-on-write)."""
         return RobustTrackerState(self.tracks.copy(), self.bank.copy(), self.memory.copy(), self.last_stamp,
-                                  dict(self.classifiers))
+                                  dict(self.classifiers), self.recovery.copy())
 
     def live_ids(self, skip: set[int] = frozenset()) -> set[int]:  # type: ignore[assignment]
         """The IDs of the live tracks (less the rows ``skip``)."""
@@ -345,7 +353,7 @@ def track_rows(table: TrackTable, bank: GalleryBank) -> list[TrackRow]:
     """Every track of ``table`` as a :class:`TrackRow` (copies)."""
     out = []
     for j in range(len(table)):
-        col = {name: getattr(table, name)[j] for name in _FIELDS if name not in ("clf", "slot")}
+        col = {name: getattr(table, name)[j] for name in _FIELDS if name not in ("clf", "slot", "fix", "probation")}
         col = {k: v.copy() if isinstance(v, np.ndarray) else v.item() if isinstance(v, np.generic) else v
                for k, v in col.items()}
         col["clf"] = table.clf[j].copy() if table.clf is not None and col["clf_steps"] else None

@@ -67,6 +67,8 @@ class FrameResult:
     deleted: list[TrackView] = field(default_factory=list)
     new_ids: list[int] = field(default_factory=list)
     recovered_ids: list[int] = field(default_factory=list)
+    #: recoveries taken back this frame (robust profile): (the remembered ID, the fresh ID the track got)
+    recovery_undone: list[tuple[int, int]] = field(default_factory=list)
     matches: int = 0
 
     @property

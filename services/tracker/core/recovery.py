@@ -1,0 +1,332 @@
+"""Open-set recovery: is a newly confirmed person someone new, or remembered person k?
+
+The ID memory (Pinto's Algorithm 2) gives a returning person their old ID. Asked only "which
+remembered person is nearest, and is that near enough?", it also hands old IDs to people it
+has never seen, and the more people it remembers the likelier some stranger looks like one
+of them. Here the question is open-set: the hypotheses are "someone new" and "remembered
+person k" for each of the K remembered people the new track could be, and the ID goes to k
+only when k is more probable than all the others together.
+
+* **Evidence** per candidate: the log-likelihood ratio ``llr[k]`` of "same person" against
+  "different person", from the same cues and the same arithmetic as the association (the TU
+  Ilmenau framework's Bayesian product: log-odds add): the appearance distance through the
+  embedding model's calibrated Fermi function, plus the candidate's online classifier
+  (Basso/Munaro) with its association weight. "New" is the hypothesis at log-odds 0, as Ban
+  et al.'s clutter-or-new-person class of the association.
+* **Prior**: P(new) = ``p_new``, and the rest shared evenly by the K candidates. A larger
+  memory thins every candidate's prior, so it never makes the decision more eager: for the
+  same evidence on the best candidate, one more candidate can only lower its posterior.
+  ``p_new`` None estimates it online: Ban et al.'s birth process, read as "what share of the
+  people who could have been returning were new", a Beta(``prior_new``, ``prior_returned``)
+  prior plus the posterior-weighted counts of the last ``prior_window`` *contested*
+  confirmations (a crowd of strangers makes it cautious, a home whose people come and go makes
+  it readier). Only a confirmation with at least one reachable remembered candidate counts:
+  one facing an empty memory, or only live or unreachable people, is new by necessity and says
+  nothing about the share of newcomers among those who could have returned (counting it drove
+  P(new) up at the start of every sequence, where the first people are all new).
+* **Posterior** ``P(k) = prior_k e^llr[k] / (P(new) + sum_j prior_j e^llr[j])``, and the decision
+  weighs the best candidate against "new" and its *rivals*: the candidates known to be someone
+  else than it, because the two were detected in the same frame. The margin to the second
+  best is in that sum: two different people alike share the probability and neither reaches
+  ``p_recover``. Two remembered IDs never seen together may be one person the memory holds
+  twice (a recovery missed earlier), and then either ID is right: they do not compete.
+* **Reachability**: a person cannot have walked from where and when they were last seen to
+  where the candidate is now faster than ``max_speed``, give or take ``n_sigma`` standard
+  deviations of both positions. Such a candidate's likelihood is 0 (it keeps its share of
+  the prior, which then goes to the other hypotheses in proportion).
+* **Undo**: for ``probation_s`` after a recovery the posterior is computed again every
+  ``check_period_s`` from the track's growing gallery; when it falls below ``p_undo`` the
+  recovery is taken back (the track gets a fresh ID, the remembered person stays
+  remembered).
+
+Pure numpy (the tracker's core types: the ID memory, galleries, classifiers); no tracker state
+beyond the small :class:`RecoveryState`. The tracker calls :func:`evidence` then :func:`decide` when
+a track is confirmed, and :func:`keeps` during probation.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from services.tracker.core import classifier as clf
+from services.tracker.core.classifier import ClassifierParams
+from services.tracker.core.identity import IdentityMemory
+
+__all__ = ["Candidate", "Decision", "Departure", "Evidence", "RecoveryParams", "RecoveryState", "decide", "evidence",
+           "keeps", "min_distance", "posterior", "reachable", "stranger_llr", "support"]
+
+
+@dataclass(frozen=True)
+class RecoveryParams:
+    """How sure the ID memory must be before it gives a remembered ID, and when it takes it back."""
+
+    #: prior probability that a newly confirmed person is someone new (the rest is shared by the
+    #: remembered candidates); None: estimated online from the contested confirmations so far.
+    #: 0.3 by the rule of services/tracker/README.md: the online estimate lost PETS09 IDF1
+    p_new: float | None = 0.3
+    #: the online estimate counts about this many recent contested confirmations (exponential
+    #: forgetting), so it follows the scene and never reaches 0 or 1
+    prior_window: float = 20.0
+    #: the estimate's Beta prior, in pseudo-confirmations: new and returning. Beta(1, 1) starts
+    #: at P(new) = 0.5 (no opinion) and weighs as two confirmations against ``prior_window``
+    prior_new: float = 1.0
+    prior_returned: float = 1.0
+    #: a remembered ID is given when its posterior reaches this: more probable than "new" and
+    #: every other candidate together
+    p_recover: float = 0.5
+    #: during probation, a recovery whose posterior falls below this is undone (hysteresis below
+    #: ``p_recover``, so noise about the bar does not flip it)
+    p_undo: float = 0.25
+    #: m/s: the fastest a person walks (brisk walking is about 1.8 to 2.5 m/s; a robot that moves
+    #: the tracking frame would add its own speed)
+    max_speed: float = 2.5
+    #: standard deviations of the two positions allowed on top of the walk
+    n_sigma: float = 3.0
+    #: s: how long after a recovery the decision is checked again; 0: never undone
+    probation_s: float = 3.0
+    #: s: how often during probation
+    check_period_s: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.p_new is not None and not 0 < self.p_new < 1:
+            raise ValueError(f"p_new must be in (0, 1) or None, got {self.p_new}")
+        if not 0 < self.p_undo <= self.p_recover < 1:
+            raise ValueError(f"need 0 < p_undo <= p_recover < 1, got {self.p_undo}, {self.p_recover}")
+        if not (self.max_speed > 0 and self.n_sigma >= 0 and self.prior_window >= 1):
+            raise ValueError("need max_speed > 0, n_sigma >= 0 and prior_window >= 1")
+        if not (self.prior_new > 0 and self.prior_returned > 0):
+            raise ValueError("need prior_new > 0 and prior_returned > 0")
+        if not (self.probation_s >= 0 and self.check_period_s > 0):
+            raise ValueError("need probation_s >= 0 and check_period_s > 0")
+
+
+@dataclass(frozen=True)
+class Departure:
+    """Where and when a remembered person was last detected: ``stamp`` (s), ``x``, ``y`` (m) and
+    the variance ``var`` (m^2, per axis) of that position."""
+
+    stamp: float
+    x: float
+    y: float
+    var: float
+
+
+@dataclass
+class RecoveryState:
+    """What recovery remembers besides the descriptors: each remembered ID's departure, and the
+    online counts of new and returning people behind ``p_new``."""
+
+    departures: dict[int, Departure] = field(default_factory=dict)
+    #: ID -> the IDs it was detected in the same frame with (certainly other people); frozensets,
+    #: replaced and never changed in place, so a copy of the dict is a copy of the state
+    together: dict[int, frozenset[int]] = field(default_factory=dict)
+    new: float = 0.0
+    returned: float = 0.0
+    #: recoveries undone so far
+    undone: int = 0
+    #: the last group recorded: a frame with the same people (or fewer of them) adds nothing
+    last_group: frozenset[int] = frozenset()
+
+    def copy(self) -> RecoveryState:
+        return RecoveryState(dict(self.departures), dict(self.together), self.new, self.returned, self.undone,
+                             self.last_group)
+
+    def seen_together(self, ids: list[int]) -> None:
+        """The people of ``ids`` were detected in one frame: each is someone else than the others."""
+        if len(ids) < 2:
+            return
+        group = frozenset(ids)
+        if group <= self.last_group:
+            return
+        self.last_group = group
+        empty: frozenset[int] = frozenset()
+        for i in group:
+            known = self.together.get(i, empty)
+            if not group <= known | {i}:
+                self.together[i] = known | (group - {i})
+
+    def forget(self, keep: set[int] | None = None, drop: int | None = None) -> None:
+        """Drop what is known of ``drop``, or of every ID not in ``keep``."""
+        self.last_group = frozenset()
+        if drop is not None:
+            self.departures.pop(drop, None)
+            self.together.pop(drop, None)
+        if keep is not None:
+            self.departures = {i: d for i, d in self.departures.items() if i in keep}
+            self.together = {i: s & keep for i, s in self.together.items() if i in keep}
+
+    def p_new(self, params: RecoveryParams) -> float:
+        """The prior P(new): ``params.p_new``, or the Beta estimate from the counts."""
+        if params.p_new is not None:
+            return params.p_new
+        a, b = params.prior_new + self.new, params.prior_returned + self.returned
+        return a / (a + b)
+
+    def count(self, decision: Decision, params: RecoveryParams) -> None:
+        """One more confirmed person, new with probability ``decision.p_new``, when the decision
+        was contested (a reachable remembered candidate existed; otherwise it is new by
+        necessity and not counted); older counts fade so that about ``prior_window`` weigh in."""
+        if not decision.contested:
+            return
+        keep = 1.0 - 1.0 / params.prior_window
+        self.new = keep * self.new + decision.p_new
+        self.returned = keep * self.returned + (1.0 - decision.p_new)
+
+    def revise(self, share: float) -> None:
+        """A recovery counted ``share`` as returning was undone: count it as new instead."""
+        share = min(share, self.returned)
+        self.returned -= share
+        self.new += share
+
+
+@dataclass(frozen=True)
+class Decision:
+    """``index``: the recovered candidate (None: someone new); ``p``: the best candidate's
+    posterior; ``p_new``: the posterior of "new"; ``contested``: whether any remembered candidate
+    was reachable (else "new" was the only hypothesis)."""
+
+    index: int | None
+    p: float
+    p_new: float
+    contested: bool = False
+
+
+def stranger_llr(cohort_llr: np.ndarray) -> float:
+    """The log-likelihood ratio a stranger is expected to reach here, from ``cohort_llr``: the
+    same evidence measured against people who certainly are someone else (those in view now).
+    For a calibrated ratio its mean over different people is 1 (log 0); where the people around
+    look alike (everyone in dark clothes) it is larger, and "new" explains the evidence as well
+    as a remembered person would. The mean is shrunk towards 1 by one pseudo-observation, and
+    never below 1 (an empty or unlike cohort leaves the calibration as it is)."""
+    lr = np.exp(np.minimum(np.asarray(cohort_llr, float).reshape(-1), 50.0))
+    return max(0.0, math.log((1.0 + float(lr.sum())) / (1.0 + len(lr))))
+
+
+def posterior(llr: np.ndarray, p_new: float, new_llr: float = 0.0) -> tuple[float, np.ndarray]:
+    """(P(new | evidence), P(k | evidence) (K,)) from the candidates' log-likelihood ratios
+    ``llr`` (K,) (``-inf``: impossible), the prior ``p_new``, the rest of the prior shared
+    evenly by the K candidates, and the new class's own ``new_llr`` (:func:`stranger_llr`; 0
+    for the calibrated model)."""
+    llr = np.asarray(llr, float).reshape(-1)
+    k = len(llr)
+    if k == 0:
+        return 1.0, np.zeros(0)
+    logits = np.concatenate([[math.log(p_new) + new_llr], math.log((1.0 - p_new) / k) + llr])
+    top = float(np.max(logits))
+    w = np.exp(logits - top)
+    w /= w.sum()
+    return float(w[0]), w[1:]
+
+
+def reachable(stamp: float, x: float, y: float, var: float, departures: list[Departure | None],
+              params: RecoveryParams) -> np.ndarray:
+    """(K,) whether each candidate could have walked from its departure to ``(x, y)`` (variance
+    ``var`` per axis) by ``stamp``. A candidate without a departure (e.g. remembered from a
+    file, or from before a clock jump) is reachable."""
+    out = np.ones(len(departures), bool)
+    for i, d in enumerate(departures):
+        if d is None:
+            continue
+        walk = params.max_speed * max(0.0, stamp - d.stamp)
+        slack = params.n_sigma * math.sqrt(max(0.0, var) + max(0.0, d.var))
+        out[i] = math.hypot(x - d.x, y - d.y) <= walk + slack
+    return out
+
+
+def support(post_new: float, post: np.ndarray, index: int, rivals: np.ndarray | None = None) -> float:
+    """Candidate ``index``'s probability against "new" and its ``rivals`` (K,) bool (None: every
+    other candidate): ``P(k) / (P(k) + P(new) + sum of the rivals' P)``."""
+    others = np.delete(post, index) if rivals is None else post[np.asarray(rivals, bool)]
+    p = float(post[index])
+    den = p + post_new + float(others.sum())
+    return p / den if den > 0 else 0.0
+
+
+def decide(llr: np.ndarray, reach: np.ndarray, p_new: float, params: RecoveryParams, new_llr: float = 0.0,
+           rivals: Callable[[int], np.ndarray] | None = None) -> Decision:
+    """The open-set decision: the most probable candidate if its :func:`support` reaches
+    ``params.p_recover``, else someone new. ``reach`` (K,) False gives that candidate
+    likelihood 0; ``new_llr`` as in :func:`posterior`; ``rivals(k)`` the (K,) candidates known
+    to be someone else than ``k`` (None: all of them)."""
+    llr = np.where(np.asarray(reach, bool), np.asarray(llr, float), -np.inf)
+    post_new, post = posterior(llr, p_new, new_llr)
+    if not np.isfinite(llr).any():
+        return Decision(None, 0.0, post_new)
+    best = int(np.argmax(post))
+    p = support(post_new, post, best, None if rivals is None else rivals(best))
+    return Decision(best if p >= params.p_recover else None, p, post_new, True)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """The newly confirmed track as recovery sees it: its views (M, D) (its gallery), and where it
+    is: ``stamp``, ``x``, ``y`` and the variance ``var`` per axis of that position."""
+
+    views: np.ndarray
+    stamp: float
+    x: float
+    y: float
+    var: float
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What :func:`evidence` found: the remembered ``ids`` (K) the track could be, each one's
+    log-likelihood ratio ``llr`` (K,), whether each could have walked there (``reach`` (K,)), the
+    stranger's ``new_llr``, and ``rivals(k)``: the (K,) candidates known to be someone else than ``k``."""
+
+    ids: list[int]
+    llr: np.ndarray
+    reach: np.ndarray
+    new_llr: float
+    together: dict[int, frozenset[int]]
+
+    def rivals(self, k: int) -> np.ndarray:
+        known = self.together.get(k, frozenset())
+        return np.array([i in known for i in self.ids], bool)
+
+
+def min_distance(x: np.ndarray, gallery: np.ndarray) -> float:
+    """Smallest Euclidean distance from ``x`` (D,) to the rows of ``gallery`` (M, D) (``inf`` if none)."""
+    if not len(gallery):
+        return math.inf
+    g = np.asarray(gallery, np.float32)
+    d2 = float((np.einsum("ij,ij->i", g, g) - 2.0 * (g @ x)).min()) + float(x @ x)
+    return math.sqrt(max(d2, 0.0))
+
+
+def evidence(track: Candidate, memory: IdentityMemory, exclude: set[int], pair_llr: Callable[[np.ndarray], np.ndarray],
+             others: list[np.ndarray], classifiers: dict[int, np.ndarray], classifier: ClassifierParams | None,
+             state: RecoveryState, params: RecoveryParams) -> Evidence:
+    """The evidence for each remembered person (not in ``exclude``, e.g. the live IDs) that
+    ``track`` could be, from the association's cues: ``pair_llr`` turns Euclidean descriptor
+    distances into the model's weighted log-odds, here the distance of the track's mean view to
+    the remembered gallery (Algorithm 2's); the remembered person's classifier (``classifiers``,
+    weighted by ``classifier.weight``) adds its mean log-odds over the track's views. The same
+    appearance measure against ``others`` ((M, D) arrays), the galleries of the people in view now, gives the
+    stranger's log-odds (:func:`stranger_llr`)."""
+    mean = np.asarray(track.views, np.float32).mean(axis=0)
+    ids_a, dist = memory.distances(mean, exclude=exclude)
+    ids = ids_a.tolist()
+    llr = np.asarray(pair_llr(dist), float).copy()
+    cohort = np.array([min_distance(mean, g) for g in others if len(g)])
+    new_llr = stranger_llr(pair_llr(cohort)) if len(cohort) else 0.0
+    if classifier is not None and classifier.weight > 0 and ids:
+        u = clf.normalise(np.asarray(track.views, np.float32))
+        cols = [i for i, k in enumerate(ids) if len(classifiers.get(k, ())) == u.shape[1] + 1]
+        if cols:
+            w = np.stack([classifiers[ids[i]] for i in cols])
+            llr[cols] += classifier.weight * clf.scores(w, u, classifier.clip).mean(axis=0)
+    reach = reachable(track.stamp, track.x, track.y, track.var, [state.departures.get(k) for k in ids], params)
+    return Evidence(ids, llr, reach, new_llr, state.together)
+
+
+def keeps(ev: Evidence, k: int, p_new: float, params: RecoveryParams) -> bool:
+    """During probation: whether the recovery of ``k`` still stands, its support (against "new"
+    and its rivals) at least ``params.p_undo``."""
+    post_new, post = posterior(np.where(ev.reach, ev.llr, -np.inf), p_new, ev.new_llr)
+    return support(post_new, post, ev.ids.index(k), ev.rivals(k)) >= params.p_undo

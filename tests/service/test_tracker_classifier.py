@@ -90,6 +90,22 @@ def test_a_person_alone_in_view_trains_no_classifier() -> None:
     assert [t.clf_steps for t in trk.tracks] == [0]
 
 
+def test_a_forgotten_person_live_track_learns_no_classifier_and_none_is_kept() -> None:
+    """perception forget on a person in view: their track keeps its ID but learns no appearance
+    from then on, so nothing of them goes to the memory file or the ID memory when they leave."""
+    trk = RobustTracker(RobustParams(appearance=COLOUR, max_coast_s=1.0))
+    t = _frames(trk, 0.0, 3.0, [(A, 0.0), (B, 3.0)])
+    a_id, b_id = _id_at(trk, 0.0), _id_at(trk, 3.0)
+    assert a_id in trk.kept_classifiers()
+    done = trk.forget(a_id)
+    assert done["live_track"] and done["classifier"]
+    t = _frames(trk, t, t + 3.0, [(A, 0.0), (B, 3.0)])  # A stays in view beside B
+    assert a_id in trk.live_ids() and _id_at(trk, 0.0) == a_id
+    assert a_id not in trk.kept_classifiers() and b_id in trk.kept_classifiers()
+    _frames(trk, t, t + 2.0, [(B, 3.0)])  # A leaves: nothing of them is remembered
+    assert a_id not in trk.classifiers and a_id not in trk.memory
+
+
 def test_snapshot_and_restore_keep_the_remembered_classifiers() -> None:
     trk = RobustTracker(RobustParams(appearance=COLOUR, max_coast_s=1.0))
     t = _frames(trk, 0.0, 3.0, [(A, 0.0), (B, 3.0)])

@@ -282,7 +282,7 @@ class RobustTracker(TrackerCore):
         if cp is None or u is None or self.params.appearance is None or has_desc.sum() < 2:
             return
         row_of = np.cumsum(has_desc) - 1  # detection -> its row of u
-        pairs = [(int(row_of[d]), j) for d, j in matches if has_desc[d] and confident[d]]
+        pairs = [(int(row_of[d]), j) for d, j in matches if has_desc[d] and confident[d] and not t.forgotten[j]]
         if not pairs:
             return
         dim = u.shape[1]

@@ -22,6 +22,7 @@ from typing import Callable
 
 import numpy as np
 
+from benchmarks.quality_sim import hash_code
 from services.localizer.core import FloorHomography, foot_points
 from services.tracker.offline import Detections
 
@@ -48,14 +49,8 @@ def cache_key(root: Path) -> str:
 
     from services.embedder.config import EmbedderConfig
 
-    code = hashlib.sha256()
-    for rel in CODE:
-        base = ROOT / rel
-        for f in sorted([base] if base.is_file() else base.rglob("*.py")):
-            code.update(str(f.relative_to(ROOT)).encode())
-            code.update(f.read_bytes())
     frames = sorted((root / "frames").glob("frame_*.jpg"))
-    desc = {"version": 1, "code": code.hexdigest()[:16], "embedder": EmbedderConfig().model_dump(mode="json"),
+    desc = {"version": 1, "code": hash_code(CODE), "embedder": EmbedderConfig().model_dump(mode="json"),
             "gt": hashlib.sha256((root / "gt.txt").read_bytes()).hexdigest(),
             "homography": json.loads((root / "ground_homography.json").read_text())["H"],
             "frames": [(p.name, p.stat().st_size) for p in frames], "opencv": cv2.__version__}

@@ -446,15 +446,9 @@ def pets_cache_key(root: Path) -> str:
 
     det_cfg, emb_cfg = pets_settings()
     frames = sorted((root / "frames").glob("frame_*.jpg"))
-    code = hashlib.sha256()
-    for rel in PETS_CODE:
-        base = ROOT / rel
-        for f in sorted([base] if base.is_file() else base.rglob("*.py")):
-            code.update(str(f.relative_to(ROOT)).encode())
-            code.update(f.read_bytes())
     desc = {
         "version": 2,
-        "code": code.hexdigest()[:16],
+        "code": quality_sim.hash_code(PETS_CODE),
         "detector": det_cfg.model_dump(mode="json"),  # type: ignore[attr-defined]
         "embedder": emb_cfg.model_dump(mode="json"),  # type: ignore[attr-defined]
         "homography": json.loads((root / "ground_homography.json").read_text())["H"],

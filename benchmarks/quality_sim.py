@@ -186,7 +186,8 @@ def _to_capture(rec: _Recorder, meta: dict[str, Any]) -> Capture:
         view_pose=view_pose, view_k=view_k, view_size=view_size, view_range=view_range, meta=meta)
 
 
-def _hash_code(paths: tuple[str, ...]) -> str:
+def hash_code(paths: tuple[str, ...]) -> str:
+    """The first 16 hex digits of a hash of the files (and their names) under ``paths``, for cache keys."""
     h = hashlib.sha256()
     for rel in paths:
         base = ROOT / rel
@@ -207,7 +208,7 @@ def chain_tracker_key() -> str:
     Computed once per process (call it before tracking): the code this process runs is
     the code it imported, even if the files change during the run.
     """
-    text = _hash_code(("services/tracker",)) + _chain_config().model_dump_json()
+    text = hash_code(("services/tracker",)) + _chain_config().model_dump_json()
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -223,7 +224,7 @@ def cache_key(scenario: str, seconds: float, fps: float) -> str:
         "version": 1, "scenario": scenario, "seconds": seconds, "fps": fps, "size": SIM_SIZE, "seed": SIM_SEED,
         "detector": DetectorConfig(backend=SIM_DETECTOR).model_dump(mode="json"),  # type: ignore[arg-type]
         "localizer": LocalizerConfig().model_dump(mode="json"), "embedder": EmbedderConfig().model_dump(mode="json"),
-        "code": _hash_code(INPUT_CODE), "numpy": np.__version__, "opencv": cv2.__version__,
+        "code": hash_code(INPUT_CODE), "numpy": np.__version__, "opencv": cv2.__version__,
     }
     return hashlib.sha256(json.dumps(desc, sort_keys=True).encode()).hexdigest()[:16]
 

@@ -69,11 +69,13 @@ def position_log_odds(positions: np.ndarray, r: np.ndarray, means_xy: np.ndarray
     (people per m^2) of someone else or clutter, and the squared Mahalanobis distances
     (N, T) for the gate. A track that has coasted long has a wide ``S`` and scores lower
     everywhere (TU Ilmenau's |Sigma_h| penalty)."""
-    s = covs_xy[None, :, :, :] + r[:, None, :2, :2]  # (N, T, 2, 2)
-    diff = positions[:, None, :2] - means_xy[None, :, :]  # (N, T, 2)
-    a, b, c = s[..., 0, 0], s[..., 0, 1], s[..., 1, 1]
+    # S's three distinct entries (N, T), each from its own columns: no (N, T, 2, 2) array
+    a = r[:, 0, 0, None] + covs_xy[None, :, 0, 0]
+    b = r[:, 0, 1, None] + covs_xy[None, :, 0, 1]
+    c = r[:, 1, 1, None] + covs_xy[None, :, 1, 1]
     det = a * c - b * b
-    dx, dy = diff[..., 0], diff[..., 1]
+    dx = positions[:, 0, None] - means_xy[None, :, 0]
+    dy = positions[:, 1, None] - means_xy[None, :, 1]
     d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / det
     log_n = -0.5 * d2 - _LOG_2PI - 0.5 * np.log(det)
     return log_n - math.log(new_density), d2
@@ -105,9 +107,9 @@ def appearance_log_odds(model: AppearanceModel, bank: GalleryBank, slots: list[i
     for the insertion that follows a match."""
     d_idx, t_idx = np.nonzero(pairs & (bank.sizes(slots) > 0)[None, :])
     d2 = bank.pair_sq_distances(np.asarray(slots, np.int64)[t_idx], descriptors[d_idx])
-    dist = np.full(pairs.shape, np.nan)
-    dist[d_idx, t_idx] = model.from_euclidean(np.sqrt(d2.min(axis=1)))
-    return model.log_odds(dist), PairDistances(d_idx.tolist(), t_idx.tolist(), d2)
+    out = np.zeros(pairs.shape)
+    out[d_idx, t_idx] = model.log_odds(model.from_euclidean(np.sqrt(d2.min(axis=1))))
+    return out, PairDistances(d_idx.tolist(), t_idx.tolist(), d2)
 
 
 def classifier_log_odds(weights: np.ndarray | None, steps: list[int], u: np.ndarray, has_desc: np.ndarray,
@@ -115,8 +117,10 @@ def classifier_log_odds(weights: np.ndarray | None, steps: list[int], u: np.ndar
     """(N, T) the tracks' online classifiers' log-odds (Basso/Munaro) of the unit descriptors
     ``u`` (one row per detection with ``has_desc``): 0 for an untrained classifier (``steps``
     0: no training step yet) or a detection without a descriptor."""
-    out = np.zeros((len(has_desc), len(steps)))
     cols = [j for j, k in enumerate(steps) if k]
+    if len(cols) == len(steps) and len(u) == len(has_desc) and weights is not None:
+        return clf.scores(weights, u, clip)  # every classifier trained, every detection described
+    out = np.zeros((len(has_desc), len(steps)))
     if len(cols) and weights is not None:
         out[np.ix_(np.flatnonzero(has_desc), cols)] = clf.scores(weights[cols], u, clip)
     return out

@@ -32,7 +32,7 @@ __all__ = ["GalleryBank", "RobustTrackerState", "TrackRow", "TrackTable", "row_v
 class GalleryBank:
     """Galleries of at most ``capacity`` descriptors each, in slots of one array.
 
-    ``data`` (S, capacity, D) float32, ``sq`` (S, capacity) their squared norms (``inf``
+    ``data`` (S, D, capacity) float32 (each gallery a column per descriptor: the layout a vector-by-matrix product reads fastest), ``sq`` (S, capacity) their squared norms (``inf``
     where a slot holds no descriptor, so a distance to it is ``inf``), ``age`` the order
     they came in, ``n`` (S,) how many each slot holds. A track holds a slot from its first
     descriptor on; a freed slot is reused. Copies share the arrays until either side
@@ -44,7 +44,7 @@ class GalleryBank:
             raise ValueError(f"capacity must be positive, got {capacity}")
         self.capacity = capacity
         self.dim = 0
-        self.data = np.zeros((0, capacity, 0), np.float32)
+        self.data = np.zeros((0, 0, capacity), np.float32)
         self.sq = np.zeros((0, capacity), np.float32)
         self.age = np.zeros((0, capacity), np.int64)
         self.n = np.zeros(0, np.int64)
@@ -64,7 +64,7 @@ class GalleryBank:
         self._own()
         if not self.dim:
             self.dim = dim
-            self.data = np.zeros((len(self.n), self.capacity, dim), np.float32)
+            self.data = np.zeros((len(self.n), dim, self.capacity), np.float32)
         if not self.free:
             self._grow(max(4, 2 * len(self.n)))
         return self.free.pop(0)
@@ -79,7 +79,7 @@ class GalleryBank:
 
     def _grow(self, size: int) -> None:
         extra = size - len(self.n)
-        self.data = np.concatenate([self.data, np.zeros((extra, self.capacity, self.dim), np.float32)])
+        self.data = np.concatenate([self.data, np.zeros((extra, self.dim, self.capacity), np.float32)])
         self.sq = np.concatenate([self.sq, np.full((extra, self.capacity), np.inf, np.float32)])
         self.age = np.concatenate([self.age, np.zeros((extra, self.capacity), np.int64)])
         self.n = np.concatenate([self.n, np.zeros(extra, np.int64)])
@@ -105,13 +105,16 @@ class GalleryBank:
 
     def sizes(self, slots: list[int]) -> np.ndarray:
         """How many descriptors each of ``slots`` holds (0 for -1: no gallery)."""
-        return np.array([self.n[s] if s >= 0 else 0 for s in slots], np.int64)
+        if not len(self.n):
+            return np.zeros(len(slots), np.int64)
+        s = np.asarray(slots, np.int64)
+        return np.where(s >= 0, self.n[s], 0)
 
     def descriptors(self, slot: int) -> np.ndarray:
         """The descriptors of ``slot``, oldest first: (n, D) float32 (a copy)."""
         n = self.size(slot)
         order = np.argsort(self.age[slot, :n], kind="stable")
-        return self.data[slot, :n][order].copy()
+        return self.data[slot, :, :n].T[order].copy()
 
     def pair_sq_distances(self, slots: np.ndarray, x: np.ndarray) -> np.ndarray:
         """Squared Euclidean distances (P, capacity) from each descriptor ``x[p]`` (P, D) to
@@ -121,27 +124,55 @@ class GalleryBank:
         A slot compared with one descriptor (the usual case) goes into one batched matrix
         product over the whole bank; a slot compared with several, into its own product."""
         x = np.asarray(x, np.float32)
-        out = np.empty((len(slots), self.capacity), np.float32)
         if not len(slots):
-            return out
+            return np.empty((0, self.capacity), np.float32)
         x_sq = np.einsum("ij,ij->i", x, x)
+        listed = slots.tolist()
+        if len(set(listed)) == len(listed):  # each slot once (the usual case): no masks
+            out = self._distinct_products(slots, listed, x, len(listed) > _FEW_PAIRS)
+        else:
+            out = self._shared_products(slots, x)
+        out += x_sq[:, None]
+        return np.maximum(out, 0.0, out=out)
+
+    def _distinct_products(self, slots: np.ndarray, listed: list[int], x: np.ndarray, batched: bool) -> np.ndarray:
+        """``sq - 2 x . g`` (P, capacity) for distinct ``slots``: one ``batched`` product over
+        the bank, else a product per slot (``inf`` past a gallery's descriptors, as ``sq`` is:
+        for a few pairs this costs less than setting up the batched one)."""
+        if not batched:
+            out = np.empty((len(listed), self.capacity), np.float32)
+            for k, slot in enumerate(listed):
+                n = int(self.n[slot])
+                out[k, n:] = np.inf
+                out[k, :n] = self.sq[slot, :n] - 2.0 * (x[k] @ self.data[slot, :, :n])
+            return out
+        hi = max(listed) + 1  # slots are taken lowest first: the bank's used part
+        in_order = hi == len(listed) and listed == list(range(hi))
+        if in_order:
+            xs = x[:, None, :]
+        else:
+            xs = np.zeros((hi, 1, self.dim), np.float32)
+            xs[slots, 0] = x
+        prod = np.matmul(xs, self.data[:hi])[:, 0]  # (hi, capacity): one product per slot
+        out = prod if in_order else prod[slots]
+        out *= -2.0  # sq - 2 x . g, without temporaries
+        out += self.sq[:hi] if in_order else self.sq[slots]
+        return out
+
+    def _shared_products(self, slots: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """As :meth:`_distinct_products` where some slot is compared with several descriptors."""
+        out = np.empty((len(slots), self.capacity), np.float32)
         count = np.bincount(slots, minlength=len(self.n))
         single = count[slots] == 1
-        if len(slots) <= _FEW_PAIRS:  # a product per slot costs less than setting up the batched one
+        if len(slots) <= _FEW_PAIRS:
             single[:] = False
         if single.any():
-            ps = slots[single]
-            hi = int(ps.max()) + 1  # slots are taken lowest first: the bank's used part
-            xs = np.zeros((hi, self.dim, 1), np.float32)
-            xs[ps, :, 0] = x[single]
-            prod = np.matmul(self.data[:hi], xs)  # (hi, capacity, 1): one product per slot
-            out[single] = self.sq[ps] - 2.0 * prod[ps, :, 0]
+            out[single] = self._distinct_products(slots[single], slots[single].tolist(), x[single], True)
         for slot in np.flatnonzero(count > 1 if single.any() else count).tolist():
             rows, n = np.flatnonzero(slots == slot), int(self.n[slot])
             out[rows] = np.inf
-            out[rows, :n] = (self.sq[slot, :n, None] - 2.0 * (self.data[slot, :n] @ x[rows].T)).T
-        out += x_sq[:, None]
-        return np.maximum(out, 0.0, out=out)
+            out[rows, :n] = self.sq[slot, :n] - 2.0 * (x[rows] @ self.data[slot, :, :n])
+        return out
 
     # ------------------------------------------------------------- mutation
     def add(self, slot: int, x: np.ndarray) -> None:
@@ -155,7 +186,7 @@ class GalleryBank:
         if n < self.capacity:
             self._write(np.array([slot]), np.array([n]), x[None], np.array([xx], np.float32), np.array([n + 1]))
             return
-        d2 = self.sq[slot] + np.float32(xx) - 2.0 * (self.data[slot] @ x)
+        d2 = self.sq[slot] + np.float32(xx) - 2.0 * (x @ self.data[slot])
         np.maximum(d2, 0.0, out=d2)
         self._write(np.array([slot]), np.array([int(np.argmin(d2))]), x[None], np.array([xx], np.float32),
                     np.array([n]))
@@ -183,7 +214,7 @@ class GalleryBank:
 
     def _write(self, slots: np.ndarray, cols: np.ndarray, x: np.ndarray, xx: np.ndarray, n: np.ndarray) -> None:
         counter = self.counter[slots]
-        self.data[slots, cols] = x
+        self.data[slots, :, cols] = x
         self.sq[slots, cols] = xx
         self.age[slots, cols] = counter
         self.counter[slots] = counter + 1
@@ -392,9 +423,9 @@ def track_views(state: RobustTrackerState, stamp: float, view_known: bool, ukf: 
         return []
     means, covs = (t.mean[:, :6], t.cov[:, :6, :6]) if ukf else (t.mean, t.cov)
     poses = zip(t.posture, t.orientation) if posture else ((None, None) for _ in t.id)
-    coasting = TrackStatus.COASTING
-    return [TrackView(i, s, m, c, h, 0, max(0.0, stamp - first), last, state.bank.size(slot), ever,
-                      flag if view_known and s is coasting else None, posture=pp, orientation=o)
+    coasting, make, sizes = TrackStatus.COASTING, TrackView.of_fields, state.bank.n.tolist()
+    return [make(i, s, m, c, h, 0, max(0.0, stamp - first), last, sizes[slot] if slot >= 0 else 0, ever,
+                 flag if view_known and s is coasting else None, pp, o)
             for i, s, m, c, h, first, last, slot, ever, flag, (pp, o)
             in zip(t.id, t.status, means, covs, t.total_hits, t.first_stamp, t.last_update, t.slot, t.ever_confirmed,
                    t.in_view, poses)]

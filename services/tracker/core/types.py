@@ -9,7 +9,7 @@ Pure numpy; no I/O.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from enum import Enum
 from typing import TYPE_CHECKING, Literal, NamedTuple
 
@@ -48,6 +48,15 @@ class TrackView:
     posture: np.ndarray | None = None
     orientation: np.ndarray | None = None
 
+    @classmethod
+    def of_fields(cls, *values: object) -> TrackView:
+        """A view from all its fields in order, made the way a plain class would be: a frozen
+        dataclass's ``__init__`` sets every field through ``object.__setattr__``, twice as
+        slow, and the robust core makes one view per track per frame."""
+        view = object.__new__(cls)
+        view.__dict__.update(zip(_VIEW_FIELDS, values))
+        return view
+
     @property
     def position(self) -> np.ndarray:
         return self.mean[:3]
@@ -55,6 +64,9 @@ class TrackView:
     @property
     def velocity(self) -> np.ndarray:
         return self.mean[3:]
+
+
+_VIEW_FIELDS = tuple(f.name for f in fields(TrackView))
 
 
 @dataclass

@@ -138,7 +138,9 @@ def match_log_odds(log_odds: np.ndarray, dets: list[int], tracks: list[int]) -> 
     worth no more than explaining the detection as clutter or a new person (Ban et al.)."""
     if not dets or not tracks:
         return []
-    sub = log_odds[dets][:, tracks]
+    n, t = log_odds.shape
+    all_d, all_t = len(dets) == n and dets == list(range(n)), len(tracks) == t and tracks == list(range(t))
+    sub = log_odds if all_d and all_t else log_odds[dets][:, tracks]  # no copies when every pair takes part
     if len(dets) == 1 or len(tracks) == 1:  # no assignment problem: the best positive pair
         i, j = divmod(int(np.argmax(sub)), len(tracks))
         return [(dets[i], tracks[j])] if sub[i, j] > 0 else []

@@ -72,12 +72,17 @@ def train(weights: np.ndarray, u: np.ndarray, positive: np.ndarray, params: Clas
     k, n = len(weights), len(u)
     if k == 0 or n < 2:
         return weights
-    labels = np.zeros((n, k))
-    labels[positive, np.arange(k)] = 1.0
-    # positives and negatives weigh the same in total: 1 and 1 / (n - 1) each
-    sample_w = np.where(labels > 0, 1.0, 1.0 / (n - 1))
     s = u @ weights[:, :-1].T + weights[:, -1]  # unclipped, for the gradient
-    err = sample_w * (1.0 / (1.0 + np.exp(-s)) - labels)  # (N, K)
+    np.negative(s, out=s)
+    np.exp(s, out=s)
+    s += 1.0
+    p = np.reciprocal(s, out=s)  # (N, K) P(own person) of each descriptor
+    # the error p - label, positives and negatives weighing the same in total: 1 and 1 / (n - 1) each
+    cols = np.arange(k)
+    own = p[positive, cols] - 1.0
+    err = p
+    err *= 1.0 / (n - 1)
+    err[positive, cols] = own
     grad = np.empty_like(weights)
     grad[:, :-1] = err.T @ u
     grad[:, -1] = err.sum(axis=0)

@@ -92,8 +92,11 @@ class PairDistances:
 
     def get(self, d: np.ndarray, t: np.ndarray) -> np.ndarray | None:
         """The rows of pairs (``d[k]``, ``t[k]``), or None if one of them was not compared."""
+        dets, tracks = d.tolist(), t.tolist()
+        if dets == self.dets and tracks == self.tracks:  # the very pairs compared (all matched)
+            return self.d2
         index = dict(zip(zip(self.dets, self.tracks), range(len(self.dets))))
-        rows = [index.get(pair) for pair in zip(d.tolist(), t.tolist())]
+        rows = [index.get(pair) for pair in zip(dets, tracks)]
         return None if None in rows else self.d2[rows]
 
 

@@ -244,14 +244,17 @@ class RobustTracker(TrackerCore):
         sure, p_true = confident.tolist(), p_det.tolist()
         learn: list[tuple[int, int]] = []
         with_desc = has_desc.tolist() if descriptors is not None else [False] * len(sure)
+        last, unseen, cams, hits, is_person = t.last_update, t.unseen_s, t.camera, t.total_hits, t.is_person
+        status, confident_hits, forgotten, bayes = t.status, t.confident_hits, t.forgotten, lifecycle.bayes
+        coasting, confirmed = TrackStatus.COASTING, TrackStatus.CONFIRMED
         for d, j in matches:
-            t.last_update[j], t.unseen_s[j], t.camera[j] = stamp, 0.0, camera
-            t.total_hits[j] += 1
-            t.is_person[j] = lifecycle.bayes(t.is_person[j], p_true[d])
-            t.confident_hits[j] += sure[d]
-            if t.status[j] is TrackStatus.COASTING:
-                t.status[j] = TrackStatus.CONFIRMED
-            if with_desc[d] and sure[d] and not t.forgotten[j]:
+            last[j], unseen[j], cams[j] = stamp, 0.0, camera
+            hits[j] += 1
+            is_person[j] = bayes(is_person[j], p_true[d])
+            confident_hits[j] += sure[d]
+            if status[j] is coasting:
+                status[j] = confirmed
+            if with_desc[d] and sure[d] and not forgotten[j]:
                 learn.append((d, j))
         if learn:
             bank = self.state.bank
@@ -281,17 +284,22 @@ class RobustTracker(TrackerCore):
         cp, t = self.params.classifier, self.state.tracks
         if cp is None or u is None or self.params.appearance is None or has_desc.sum() < 2:
             return
-        row_of = np.cumsum(has_desc) - 1  # detection -> its row of u
-        pairs = [(int(row_of[d]), j) for d, j in matches if has_desc[d] and confident[d] and not t.forgotten[j]]
+        row_of, sure = (np.cumsum(has_desc) - 1).tolist(), (has_desc & confident).tolist()  # detection -> its row of u
+        pairs = [(row_of[d], j) for d, j in matches if sure[d] and not t.forgotten[j]]
         if not pairs:
             return
         dim = u.shape[1]
         if t.clf is None or t.clf.shape[1] != dim + 1:
             t.clf, t.clf_steps = np.zeros((len(t), dim + 1)), [0] * len(t)
         rows = [j for _, j in pairs]
-        t.clf[rows] = clf.train(t.clf[rows], u, np.array([r for r, _ in pairs]), cp)
+        positive = np.array([r for r, _ in pairs])
+        if rows == list(range(len(t))):  # every track learns: new weights, no gather
+            t.clf = clf.train(t.clf, u, positive, cp)
+        else:
+            t.clf[rows] = clf.train(t.clf[rows], u, positive, cp)
+        steps = t.clf_steps
         for j in rows:
-            t.clf_steps[j] += 1
+            steps[j] += 1
 
     def _age(self, stamp: float, result: FrameResult, view: FieldOfView | Views | None, previous: float | None) -> None:
         """Coasting and deletion (:func:`lifecycle.age`); a deleted track's appearance is archived."""

@@ -205,9 +205,10 @@ class GalleryBank:
         full = n >= self.capacity
         cols = n.copy()
         if full.any():
+            every = bool(full.all())
             if d2 is None:
-                d2 = self.pair_sq_distances(slots[full], x[full])
-            else:
+                d2 = self.pair_sq_distances(slots if every else slots[full], x if every else x[full])
+            elif not every:
                 d2 = d2[full]
             cols[full] = np.argmin(d2, axis=1)
         self._write(slots, cols, x, xx, np.where(full, n, n + 1))

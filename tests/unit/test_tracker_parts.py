@@ -9,7 +9,7 @@ import pytest
 from services.tracker.core import cues, kalman, ukf
 from services.tracker.core.gallery import Gallery
 from services.tracker.core.robust import RobustParams, RobustTracker
-from services.tracker.core.tracks import GalleryBank
+from services.tracker.core.bank import GalleryBank
 from services.tracker.core.types import AppearanceModel, FrameInput
 
 RNG = np.random.default_rng(7)

@@ -21,7 +21,7 @@ import numpy as np
 from services.tracker.core import classifier as clf
 
 if TYPE_CHECKING:
-    from services.tracker.core.tracks import GalleryBank
+    from services.tracker.core.bank import GalleryBank
     from services.tracker.core.types import AppearanceModel
 
 __all__ = ["PairDistances", "appearance_log_odds", "classifier_log_odds", "logit", "measurement_covariance",
@@ -57,7 +57,7 @@ def measurement_covariance(cov: np.ndarray | None, usable: np.ndarray | None, r:
 
 
 def logit(p: np.ndarray | float) -> np.ndarray:
-    p = np.clip(p, 1e-6, 1 - 1e-6)
+    p = np.minimum(np.maximum(p, 1e-6), 1 - 1e-6)  # np.clip's values, without its dispatch
     return np.log(p / (1.0 - p))
 
 

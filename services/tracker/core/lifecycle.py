@@ -15,6 +15,8 @@
   the open-set decision of core/recovery.py (:func:`identity`), else a new one. For
   ``recovery.probation_s`` a recovery is checked again and undone when the evidence turns
   (:func:`probation`).
+* **Learning.** A matched track's online classifier (Basso/Munaro) takes one step on the
+  frame's descriptors, its own detection against the others (:func:`train_classifiers`).
 * **Archive.** A deleted track's gallery and classifier go to the ID memory, where and when
   it was last detected to the recovery's departures.
 
@@ -26,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from services.tracker.core import classifier as clf
 from services.tracker.core import recovery as rec
 from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.tracks import RobustTrackerState
@@ -35,7 +38,7 @@ from services.tracker.core.view import FieldOfView, Views
 _TENTATIVE, _CONFIRMED, _COASTING = TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.COASTING
 
 __all__ = ["age", "archive", "birth", "births", "bayes", "confirm", "evidence", "handover", "identity", "observed",
-           "probation"]
+           "probation", "train_classifiers"]
 
 
 def bayes(p: float, q: float) -> float:
@@ -253,3 +256,29 @@ def probation(state: RobustTrackerState, p: RobustParams, stamp: float, result: 
                 state.recovery.revise(share)
                 result.recovery_undone.append((k, t.id[j]))
                 result.new_ids.append(t.id[j])
+
+
+def train_classifiers(state: RobustTrackerState, p: RobustParams, matches: list[tuple[int, int]], u: np.ndarray | None,
+                      has_desc: np.ndarray, confident: np.ndarray) -> None:
+    """One step of the online classifier (Basso/Munaro) of every track matched with a confident
+    descriptor while others are in view (``u``: the frame's unit descriptors, one row per
+    detection with ``has_desc``); a forgotten person's track learns nothing."""
+    cp, t = p.classifier, state.tracks
+    if cp is None or u is None or p.appearance is None or has_desc.sum() < 2:
+        return
+    row_of, sure = (np.cumsum(has_desc) - 1).tolist(), (has_desc & confident).tolist()  # detection -> its row of u
+    pairs = [(row_of[d], j) for d, j in matches if sure[d] and not t.forgotten[j]]
+    if not pairs:
+        return
+    dim = u.shape[1]
+    if t.clf is None or t.clf.shape[1] != dim + 1:
+        t.clf, t.clf_steps = np.zeros((len(t), dim + 1)), [0] * len(t)
+    rows = [j for _, j in pairs]
+    positive = np.array([r for r, _ in pairs])
+    if rows == list(range(len(t))):  # every track learns: new weights, no gather
+        t.clf = clf.train(t.clf, u, positive, cp)
+    else:
+        t.clf[rows] = clf.train(t.clf[rows], u, positive, cp)
+    steps = t.clf_steps
+    for j in rows:
+        steps[j] += 1

@@ -100,8 +100,8 @@ def update(prior: np.ndarray, likelihood: np.ndarray | None) -> np.ndarray:
     if likelihood is None:
         return prior
     post = prior * likelihood
-    total = post.sum()
-    return post / total if total > 0 and np.isfinite(total) else prior
+    total = float(post.sum())
+    return post / total if total > 0 and math.isfinite(total) else prior
 
 
 def updates(prior: np.ndarray, likelihood: np.ndarray) -> np.ndarray:
@@ -149,17 +149,18 @@ def observe(posture: np.ndarray, orientation: np.ndarray, rows: np.ndarray, heig
     if aspect is not None:
         posture = posture if fresh else posture.copy()
         posture[rows] = updates(posture[rows], posture_evidences(height_m, aspect))
-    old = np.flatnonzero(~young)
+    old = [k for k, y in enumerate(young.tolist()) if not y]
     if len(old) <= _FEW:  # a few tracks: one at a time is quicker than the arrays
-        own = fresh
-        for k in old.tolist():
-            lik = orientation_evidence(velocity_xy[k], params)
+        own, v = fresh, velocity_xy.tolist()
+        for k in old:
+            lik = orientation_evidence(v[k], params)
             if lik is None and classified is not None and np.all(np.isfinite(classified[k])):
                 lik = np.asarray(classified[k], float) + 1e-3
             if lik is not None:
                 orientation, own = (orientation if own else orientation.copy()), True
                 orientation[rows[k]] = update(orientation[rows[k]], lik)
         return posture, orientation
+    old = np.array(old)
     rows, velocity_xy = rows[old], velocity_xy[old]
     lik, use = orientation_evidences(velocity_xy, params)
     if classified is not None:

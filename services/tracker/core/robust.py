@@ -56,7 +56,8 @@ from services.tracker.core.association import match_log_odds
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.protocol import TrackerCore
 from services.tracker.core.robust_params import RobustParams
-from services.tracker.core.tracks import GalleryBank, RobustTrackerState, TrackRow, TrackTable, track_rows
+from services.tracker.core.bank import GalleryBank
+from services.tracker.core.tracks import RobustTrackerState, TrackRow, TrackTable, track_rows
 from services.tracker.core.tracks import row_view, track_view, track_views
 from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, ScoreModel, TrackStatus, TrackView
 from services.tracker.core.view import FieldOfView, Views
@@ -78,7 +79,7 @@ class RobustTracker(TrackerCore):
         if self._ukf:
             self._p0 = ukf.initiate(np.zeros(3), params.sigma0_position, params.sigma0_velocity, params.sigma0_turn)[1]
         self.bad_covariances = 0  #: detections whose covariance was unusable
-        self._q_dt, self._q_last = -1.0, np.zeros((6, 6))  # the last step's process noise
+        self._q_of: dict[float, np.ndarray] = {}  # process noise by step: a stream's steps take a few values
         self._r_n: dict[int, np.ndarray] = {}  # the fixed R broadcast to n detections
         self._pose_dt, self._pose_m = -1.0, (np.eye(3), np.eye(pose.ORIENTATION_BINS))  # drift matrices of the last dt
 
@@ -105,9 +106,12 @@ class RobustTracker(TrackerCore):
         self.params = replace(self.params, appearance=model)
 
     def _q(self, dt: float) -> np.ndarray:
-        if dt != self._q_dt:
-            self._q_dt, self._q_last = dt, kalman.white_acceleration(dt, self.params.q_accel, self.params.q_z)
-        return self._q_last
+        q = self._q_of.get(dt)
+        if q is None:
+            if len(self._q_of) >= 64:  # a clock with jitter: keep the latest steps only
+                self._q_of.clear()
+            q = self._q_of[dt] = kalman.white_acceleration(dt, self.params.q_accel, self.params.q_z)
+        return q
 
     # ------------------------------------------------------------------ update
     def step(self, stamp: float, frame: FrameInput) -> FrameResult:
@@ -149,15 +153,16 @@ class RobustTracker(TrackerCore):
         log_odds, pairs = self._pair_log_odds(positions, r, descriptors if appearance else None, has_desc, u, p_det)
         result = FrameResult(stamp=stamp, appearance_available=appearance)
         matches = self._associate(log_odds, confident)
-        self._update_matched(matches, positions, r, descriptors, has_desc, p_det, confident, stamp, frame.camera,
-                             pairs, moved)
-        self._update_pose(matches, positions, frame.aspects, frame.orientations, moved)
-        self._train_classifiers(matches, u, has_desc, confident)
+        rows = np.array(matches, np.int64).T if matches else np.zeros((2, 0), np.int64)  # (detections, tracks)
+        self._update_matched(matches, rows, positions, r, descriptors, has_desc, p_det, confident, stamp,
+                             frame.camera, pairs, moved)
+        self._update_pose(rows, positions, frame.aspects, frame.orientations, moved)
+        lifecycle.train_classifiers(state, p, matches, u, has_desc, confident)
         lifecycle.observed(state, [j for _, j in matches], p)  # fixes, who was seen with whom (recovery)
         matched_d = {d for d, _ in matches}
         self._age(stamp, result, frame.view, previous)
-        born = lifecycle.births([d for d in range(n) if d not in matched_d and confident[d]], matched_d, positions,
-                                p_det, p.birth_separation_m)
+        free = [d for d, c in enumerate(confident.tolist()) if c and d not in matched_d]
+        born = lifecycle.births(free, matched_d, positions, p_det, p.birth_separation_m)
         lifecycle.birth(state, born, positions, descriptors, has_desc, p_det, stamp, frame.camera, self._p0)
         self._remove(lifecycle.confirm(state, p, result))
         lifecycle.probation(state, p, stamp, result)  # recent recoveries checked again
@@ -228,15 +233,14 @@ class RobustTracker(TrackerCore):
         matches += match_log_odds(log_odds, [d for d in high if d not in taken_d], birth)
         return matches
 
-    def _update_matched(self, matches: list[tuple[int, int]], positions: np.ndarray, r: np.ndarray,
+    def _update_matched(self, matches: list[tuple[int, int]], rows: np.ndarray, positions: np.ndarray, r: np.ndarray,
                         descriptors: np.ndarray | None, has_desc: np.ndarray, p_det: np.ndarray,
                         confident: np.ndarray, stamp: float, camera: str, pairs: cues.PairDistances | None,
                         moved: bool) -> None:
         if not matches:
             return
         t = self.state.tracks
-        d_idx = np.array([d for d, _ in matches])
-        t_idx = np.array([j for _, j in matches])
+        d_idx, t_idx = rows
         new_means, new_covs = kalman.update(t.mean[t_idx], t.cov[t_idx], positions[d_idx], r[d_idx])
         if not moved:  # a view of the last frame keeps its arrays
             t.mean, t.cov = t.mean.copy(), t.cov.copy()
@@ -265,41 +269,18 @@ class RobustTracker(TrackerCore):
             d2 = pairs.get(d_new, t_new) if pairs is not None else None
             bank.add_many(np.array([t.slot[j] for _, j in learn]), descriptors[d_new], d2)  # type: ignore[index]
 
-    def _update_pose(self, matches: list[tuple[int, int]], positions: np.ndarray, aspects: np.ndarray | None,
+    def _update_pose(self, rows: np.ndarray, positions: np.ndarray, aspects: np.ndarray | None,
                      orientations: np.ndarray | None, moved: bool) -> None:
         """TU Ilmenau: posture from the body height and box shape, orientation from walking or,
         standing still, from the crop classifier (:func:`posture.observe`)."""
         pp, t = self.params.posture, self.state.tracks
-        if pp is None or not matches:
+        if pp is None or not rows.shape[1]:
             return
-        d_idx, t_idx = np.array([d for d, _ in matches]), np.array([j for _, j in matches])
+        d_idx, t_idx = rows
         t.posture, t.orientation = pose.observe(
             t.posture, t.orientation, t_idx, positions[d_idx, 2], None if aspects is None else aspects[d_idx],
             t.mean[t_idx, 3:5], np.array([t.status[j] is TrackStatus.TENTATIVE for j in t_idx.tolist()]),
             None if orientations is None else orientations[d_idx], pp, fresh=moved)
-
-    def _train_classifiers(self, matches: list[tuple[int, int]], u: np.ndarray | None, has_desc: np.ndarray,
-                           confident: np.ndarray) -> None:
-        """One step for every track matched with a confident descriptor while others are in view."""
-        cp, t = self.params.classifier, self.state.tracks
-        if cp is None or u is None or self.params.appearance is None or has_desc.sum() < 2:
-            return
-        row_of, sure = (np.cumsum(has_desc) - 1).tolist(), (has_desc & confident).tolist()  # detection -> its row of u
-        pairs = [(row_of[d], j) for d, j in matches if sure[d] and not t.forgotten[j]]
-        if not pairs:
-            return
-        dim = u.shape[1]
-        if t.clf is None or t.clf.shape[1] != dim + 1:
-            t.clf, t.clf_steps = np.zeros((len(t), dim + 1)), [0] * len(t)
-        rows = [j for _, j in pairs]
-        positive = np.array([r for r, _ in pairs])
-        if rows == list(range(len(t))):  # every track learns: new weights, no gather
-            t.clf = clf.train(t.clf, u, positive, cp)
-        else:
-            t.clf[rows] = clf.train(t.clf[rows], u, positive, cp)
-        steps = t.clf_steps
-        for j in rows:
-            steps[j] += 1
 
     def _age(self, stamp: float, result: FrameResult, view: FieldOfView | Views | None, previous: float | None) -> None:
         """Coasting and deletion (:func:`lifecycle.age`); a deleted track's appearance is archived."""

@@ -7,7 +7,9 @@ model's name), ``next_id``, ``capacity``, then the memory's blocks as
 classifiers, :mod:`services.tracker.core.classifier`): ``classifier_ids`` (C,) and
 ``classifiers`` (C, D + 1) float64; a file without them reads as no classifiers. And
 ``seen_ids`` (S,), ``seen_at`` (S,) float64: when each ID was last seen (Unix time, for
-the retention).
+the retention). And the robust profile's open-set recovery (core/recovery.py), the arrays
+named ``recovery_*``: where and when each person was last detected (the sensors' clock, s),
+who was seen with whom, the online P(new) counts; a file without them reads as none.
 
 Saving writes a temporary file next to the target, syncs it and renames it over the
 target, so a crash never leaves a half-written memory behind.
@@ -28,7 +30,7 @@ from services.tracker.config import TrackerConfig
 from services.tracker.core import IdentityMemory
 
 __all__ = ["FORMAT_VERSION", "descriptor_dim", "load_memory", "read_classifiers", "read_last_seen", "read_memory",
-           "save_memory"]
+           "read_recovery", "save_memory", "shift_recovery"]
 
 log = logging.getLogger(__name__)
 
@@ -39,16 +41,21 @@ FORMAT_VERSION = 1
 def save_memory(path: str | Path, memory: IdentityMemory, model: str = "",
                 extra: Iterable[tuple[int, np.ndarray]] = (),
                 classifiers: Mapping[int, np.ndarray] | None = None,
-                last_seen: Mapping[int, float] | None = None) -> None:
+                last_seen: Mapping[int, float] | None = None,
+                recovery: Mapping[str, np.ndarray] | None = None) -> None:
     """Write ``memory`` atomically to ``path`` (``.npz``).
 
     ``extra`` adds (ID, descriptors (M, D)) blocks stored next to the memory, e.g. the
     galleries of the tracks alive now; :func:`read_memory` merges them into their IDs.
     ``classifiers``: ID -> weights (D + 1,) of trained online classifiers, stored beside
     (:func:`read_classifiers`). ``last_seen``: ID -> Unix time it was last seen
-    (:func:`read_last_seen`). Raises ``OSError``, or ``ValueError`` for descriptors of
-    several dimensions.
+    (:func:`read_last_seen`). ``recovery``: the recovery's arrays (``recovery_*``,
+    :func:`read_recovery`). Raises ``OSError``, or ``ValueError`` for descriptors of
+    several dimensions or other array names.
     """
+    blocks = dict(recovery or {})
+    if any(not k.startswith("recovery_") for k in blocks):
+        raise ValueError(f"recovery arrays must be named recovery_*, got {sorted(blocks)}")
     ids, counts, data = memory.to_blocks(extra)
     clf = {int(i): np.asarray(w, np.float64) for i, w in (classifiers or {}).items()}
     if len({len(w) for w in clf.values()}) > 1:
@@ -64,7 +71,7 @@ def save_memory(path: str | Path, memory: IdentityMemory, model: str = "",
         with os.fdopen(fd, "wb") as f:
             np.savez(f, format_version=np.int64(FORMAT_VERSION), model=np.str_(model), next_id=np.int64(memory.next_id),
                      capacity=np.int64(memory.capacity), ids=ids, counts=counts, descriptors=data,
-                     classifier_ids=clf_ids, classifiers=clf_w, seen_ids=seen_ids, seen_at=seen_at)
+                     classifier_ids=clf_ids, classifiers=clf_w, seen_ids=seen_ids, seen_at=seen_at, **blocks)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, target)
@@ -130,6 +137,27 @@ def read_last_seen(path: str | Path) -> dict[int, float]:
     if block is None:
         return {}
     return {int(i): float(t) for i, t in zip(block[0].tolist(), block[1].tolist())}
+
+
+def read_recovery(path: str | Path) -> dict[str, np.ndarray]:
+    """The recovery's arrays stored by :func:`save_memory` (empty for a file without them); the
+    departures' stamps are in the sensors' clock, seconds (:func:`shift_recovery`)."""
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            return {k: f[k] for k in f.files if k.startswith("recovery_")}
+    except (OSError, KeyError, EOFError, ValueError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path}: unreadable recovery state in the ID memory file: {exc}") from exc
+
+
+def shift_recovery(arrays: Mapping[str, np.ndarray], seconds: float) -> dict[str, np.ndarray]:
+    """``arrays`` (the recovery's) with every departure's stamp moved by ``seconds``: the file
+    keeps the sensors' clock (Unix time), the tracker counts from its first frame."""
+    out = dict(arrays)
+    if "recovery_departures" in out and len(out["recovery_departures"]):
+        moved = np.array(out["recovery_departures"], np.float64)
+        moved[:, 0] += seconds
+        out["recovery_departures"] = moved
+    return out
 
 
 def load_memory(config: TrackerConfig) -> tuple[IdentityMemory, str | None]:

@@ -16,13 +16,15 @@ import threading
 import time
 from typing import Callable
 
+import numpy as np
+
 from common.messages.schemas import ForgetReply, Header, Tracks, TrackState
 from common.runtime.ratelog import RateLimitedLog
 from common.runtime.service import Counters
 from services.tracker.config import TrackerConfig
 from services.tracker.convert import track_state
 from services.tracker.core import FrameResult, TrackerCore, TrackStatus
-from services.tracker.memory_file import read_last_seen, save_memory
+from services.tracker.memory_file import read_last_seen, save_memory, shift_recovery
 
 __all__ = ["IdRegistry"]
 
@@ -57,6 +59,7 @@ class IdRegistry:
         self._saved_version = tracker.memory.version
         self._last_save = clock()
         self._dirty = False
+        self._epoch_ns: int | None = None  # the sensors' stamp of the tracker's time 0 (record() says)
         #: wall-clock time each remembered or tracked ID was last seen (retention_s forgets the others)
         self._seen: dict[int, float] = {}
         path = config.memory_path
@@ -75,6 +78,7 @@ class IdRegistry:
     def record(self, result: FrameResult, epoch_ns: int) -> None:
         """The tracks of an update: the query's table and the last-seen times."""
         self._ever_confirmed.update(v.id for v in result.confirmed)
+        self._epoch_ns = epoch_ns
         wall = self.wall_clock()
         with self._state_lock:
             # the query answers for confirmed and coasting tracks (and the last state of one that
@@ -91,6 +95,11 @@ class IdRegistry:
                 if old in self._last_state:
                     self._last_state[old] = self._last_state[old].model_copy(update={"status": "deleted"})
         self._dirty = True
+
+    def _on_sensor_clock(self, recovery: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The recovery's departures from the tracker's clock (from its first frame) to the
+        sensors' (before the first frame they still are on the sensors' clock, from the file)."""
+        return recovery if self._epoch_ns is None else shift_recovery(recovery, self._epoch_ns / 1e9)
 
     def ended(self, track_ids: list[int]) -> None:
         """Tracks ended by a clock jump: shown deleted if they were ever confirmed, else dropped."""
@@ -116,7 +125,8 @@ class IdRegistry:
             return
         try:
             save_memory(path, memory, self._model(), extra=self.tracker.live_galleries(),
-                        classifiers=self.tracker.kept_classifiers(), last_seen=self._seen)
+                        classifiers=self.tracker.kept_classifiers(), last_seen=self._seen,
+                        recovery=self._on_sensor_clock(self.tracker.kept_recovery()))
         except (OSError, ValueError) as exc:
             self.counters.count("memory_save_errors")
             log.error("could not write the ID memory to %s: %s", path, exc)

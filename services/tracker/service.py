@@ -46,7 +46,7 @@ from services.tracker.convert import tracks_message
 from services.tracker.core import FrameResult, TrackView
 from services.tracker.core.view import FieldOfView, Views
 from services.tracker.intake import Frame, Intake
-from services.tracker.memory_file import descriptor_dim, load_memory, read_classifiers
+from services.tracker.memory_file import descriptor_dim, load_memory, read_classifiers, read_recovery, shift_recovery
 from services.tracker.pacing import Pacing
 from services.tracker.registry import IdRegistry
 from services.tracker.reorder import InputKey, ReorderBuffer
@@ -75,12 +75,19 @@ class TrackerService(Node):
         dim_why = "" if dim is None else (f"the ID memory in {config.memory_path} holds dimension {dim} "
                                           "(move the file away if the model changed)")
         self.tracker = config.build_tracker(config.thresholds(model) if model else None, memory)
+        self._recovery_file: dict[str, np.ndarray] = {}  # the file's recovery state, until the first frame
         if config.memory_path is not None and config.memory_path.exists():
             # the remembered classifiers, for a profile that has them (a bad block costs them, not the memory)
             try:
                 self.tracker.load_classifiers(read_classifiers(config.memory_path))
             except ValueError as exc:
                 log.warning("%s; starting without remembered classifiers", exc)
+            try:  # where and when each person was last seen, who with whom (the open-set recovery)
+                recovery = read_recovery(config.memory_path)
+                self.tracker.load_recovery(recovery)  # checked now, put on the tracker's clock at the first frame
+                self._recovery_file = recovery
+            except ValueError as exc:
+                log.warning("%s: %s; starting without the recovery's state", config.memory_path, exc)
         self._log = RateLimitedLog(log, clock=clock)
         self.intake = Intake(config, self.counters, self._log, model, dim, dim_why, self._thresholds)
         self._epoch_ns: int | None = None
@@ -184,6 +191,9 @@ class TrackerService(Node):
         stamp_ns = frame.loc.header.stamp_ns
         if self._epoch_ns is None:
             self._epoch_ns = stamp_ns
+            if self._recovery_file:  # the file's departures, from the sensors' clock to the tracker's
+                self.tracker.load_recovery(shift_recovery(self._recovery_file, -stamp_ns / 1e9))
+                self._recovery_file = {}
         result = self.tracker.step((stamp_ns - self._epoch_ns) / 1e9, frame.input)
         self.counters.count("updates")
         if not result.appearance_available and frame.loc.detections:

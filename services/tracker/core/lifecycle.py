@@ -37,8 +37,8 @@ from services.tracker.core.view import FieldOfView, Views
 
 _TENTATIVE, _CONFIRMED, _COASTING = TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.COASTING
 
-__all__ = ["age", "archive", "birth", "births", "bayes", "confirm", "evidence", "handover", "identity", "observed",
-           "probation", "train_classifiers"]
+__all__ = ["age", "archive", "birth", "births", "bayes", "confirm", "evidence", "handover", "identity", "kept_recovery",
+           "load_recovery", "observed", "probation", "train_classifiers"]
 
 
 def bayes(p: float, q: float) -> float:
@@ -282,3 +282,21 @@ def train_classifiers(state: RobustTrackerState, p: RobustParams, matches: list[
     steps = t.clf_steps
     for j in rows:
         steps[j] += 1
+
+
+def kept_recovery(state: RobustTrackerState) -> dict[str, np.ndarray]:
+    """The recovery's state as arrays for the ID memory's file; a live track counts as having
+    left where and when it was last detected (after a restart that is where the person is)."""
+    t = state.tracks
+    live = {t.id[j]: rec.Departure(t.last_update[j], *t.fix[j]) for j in range(len(t))
+            if t.id[j] and t.fix[j] is not None and not t.forgotten[j]}
+    return state.recovery.to_arrays(live)
+
+
+def load_recovery(state: RobustTrackerState, arrays: dict[str, np.ndarray]) -> None:
+    """The recovery's state from the ID memory's file, for the remembered people only (ValueError
+    when inconsistent); the first frame checks its departures against the clock
+    (:meth:`~services.tracker.core.recovery.RecoveryState.settle`)."""
+    loaded = rec.RecoveryState.from_arrays(arrays)
+    loaded.forget(keep=set(state.memory.entries))
+    state.recovery = loaded

@@ -90,6 +90,15 @@ class TrackerCore(Protocol):
         """ID -> trained appearance classifier to keep beside the memory (none: a profile without)."""
         return {}
 
+    def kept_recovery(self) -> dict[str, np.ndarray]:
+        """What the ID memory's recovery knows, as named arrays to keep beside the memory (where
+        and when each person was last detected, who was seen with whom); none: a profile without."""
+        return {}
+
+    def load_recovery(self, arrays: dict[str, np.ndarray]) -> None:
+        """The recovery's state, as :meth:`kept_recovery` gave it (a profile without ignores it;
+        ValueError when it is inconsistent)."""
+
     def load_classifiers(self, weights: dict[int, np.ndarray]) -> None:
         """The remembered people's classifiers, as :meth:`kept_classifiers` gave them (a profile
         without ignores them)."""

@@ -56,8 +56,8 @@ from services.tracker.core import classifier as clf
 from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.identity import IdentityMemory
 
-__all__ = ["Candidate", "Decision", "Departure", "Evidence", "RecoveryParams", "RecoveryState", "decide", "evidence",
-           "keeps", "min_distance", "posterior", "reachable", "stranger_llr", "support"]
+__all__ = ["ARRAY_KEYS", "Candidate", "Decision", "Departure", "Evidence", "RecoveryParams", "RecoveryState", "decide",
+           "evidence", "keeps", "min_distance", "posterior", "reachable", "stranger_llr", "support"]
 
 
 @dataclass(frozen=True)
@@ -115,6 +115,11 @@ class Departure:
     var: float
 
 
+#: the arrays of :meth:`RecoveryState.to_arrays`, as the ID memory's file stores them
+ARRAY_KEYS = ("recovery_departure_ids", "recovery_departures", "recovery_together_ids", "recovery_together_counts",
+              "recovery_together_with", "recovery_counts")
+
+
 @dataclass
 class RecoveryState:
     """What recovery remembers besides the descriptors: each remembered ID's departure, and the
@@ -134,6 +139,49 @@ class RecoveryState:
     def copy(self) -> RecoveryState:
         return RecoveryState(dict(self.departures), dict(self.together), self.new, self.returned, self.undone,
                              self.last_group)
+
+    def to_arrays(self, live: dict[int, Departure] | None = None) -> dict[str, np.ndarray]:
+        """The state as plain arrays (:data:`ARRAY_KEYS`), for the ID memory's file; ``live``: the
+        people tracked now, kept as if they left where and when they were last detected."""
+        deps = {**self.departures, **(live or {})}
+        ids = sorted(deps)
+        groups = sorted(self.together)
+        return {"recovery_departure_ids": np.array(ids, np.int64),
+                "recovery_departures": np.array([[deps[i].stamp, deps[i].x, deps[i].y, deps[i].var] for i in ids],
+                                                np.float64).reshape(-1, 4),
+                "recovery_together_ids": np.array(groups, np.int64),
+                "recovery_together_counts": np.array([len(self.together[i]) for i in groups], np.int64),
+                "recovery_together_with": np.array([o for i in groups for o in sorted(self.together[i])], np.int64),
+                "recovery_counts": np.array([self.new, self.returned], np.float64)}
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> RecoveryState:
+        """The state :meth:`to_arrays` wrote (keys it lacks: empty); ``ValueError`` saying which
+        block is inconsistent."""
+        def get(key: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
+            return np.asarray(arrays.get(key, np.zeros(shape, dtype)))
+
+        ids, deps = get("recovery_departure_ids", (0,), np.int64), get("recovery_departures", (0, 4), np.float64)
+        if deps.ndim != 2 or deps.shape[1:] != (4,) or len(deps) != len(ids) or not np.all(np.isfinite(deps)):
+            raise ValueError(f"recovery departures: {len(ids)} ids, values of shape {deps.shape} (need finite (K, 4))")
+        groups, counts = get("recovery_together_ids", (0,), np.int64), get("recovery_together_counts", (0,), np.int64)
+        others = get("recovery_together_with", (0,), np.int64)
+        if len(groups) != len(counts) or np.any(counts < 0) or int(counts.sum()) != len(others):
+            raise ValueError(f"recovery groups: {len(groups)} ids, {len(counts)} counts, {len(others)} members")
+        rates = get("recovery_counts", (2,), np.float64).reshape(-1)
+        if rates.shape != (2,) or not np.all(np.isfinite(rates)) or np.any(rates < 0):
+            raise ValueError(f"recovery counts: {rates.tolist()} (need two non-negative numbers)")
+        bounds = np.concatenate([[0], np.cumsum(counts)]).tolist()
+        members = others.tolist()
+        return cls({int(i): Departure(*row) for i, row in zip(ids.tolist(), deps.tolist())},
+                   {int(i): frozenset(members[a:b]) for i, a, b in zip(groups.tolist(), bounds, bounds[1:])},
+                   float(rates[0]), float(rates[1]))
+
+    def settle(self, stamp: float) -> None:
+        """The first frame after a start at ``stamp``: departures stamped later are of another
+        clock (a replay or a simulator from its start), and then none of them can be trusted."""
+        if any(d.stamp > stamp for d in self.departures.values()):
+            self.departures = {}
 
     def seen_together(self, ids: list[int]) -> None:
         """The people of ``ids`` were detected in one frame: each is someone else than the others."""

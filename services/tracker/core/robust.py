@@ -126,6 +126,8 @@ class RobustTracker(TrackerCore):
         p, state = self.params, self.state
         positions, descriptors = frame.positions, frame.descriptors
         n = len(positions)
+        if state.last_stamp is None and state.recovery.departures:
+            state.recovery.settle(stamp)  # departures from the memory's file, or of the clock before
         if n == 0 and not len(state.tracks) and (state.last_stamp is None or stamp >= state.last_stamp):
             state.last_stamp = stamp  # nothing to track, nothing to predict
             return FrameResult(stamp, descriptors is not None and p.appearance is not None and descriptors.shape[1] > 0)
@@ -379,6 +381,12 @@ class RobustTracker(TrackerCore):
     def kept_classifiers(self) -> dict[int, np.ndarray]:
         """The classifiers to keep: the remembered people's and the live tracks'."""
         return {**self.classifiers, **self.live_classifiers()}
+
+    def kept_recovery(self) -> dict[str, np.ndarray]:
+        return lifecycle.kept_recovery(self.state)
+
+    def load_recovery(self, arrays: dict[str, np.ndarray]) -> None:
+        lifecycle.load_recovery(self.state, arrays)
 
     def load_classifiers(self, weights: dict[int, np.ndarray]) -> None:
         """The remembered people's classifiers (from the ID memory's file)."""

@@ -335,6 +335,10 @@ class TransformBatch(Message):
 BBox = tuple[float, float, float, float]
 
 
+#: A person's posture as a detector saw it (None: the detector cannot tell).
+Posture = Literal["standing", "sitting", "lying"]
+
+
 class Detection(_Model):
     """One person box in pixel coordinates of the source image."""
 
@@ -343,6 +347,8 @@ class Detection(_Model):
     score: float = Field(ge=0.0, le=1.0)
     class_id: int = 0
     class_name: str = "person"
+    posture: Posture | None = Field(default=None, description="the posture the detector saw (the depth detector: "
+                                    "standing or sitting); None: it cannot tell")
 
     @field_validator("bbox_xyxy")
     @classmethod
@@ -372,6 +378,7 @@ class LocalizedDetection(_Model):
     cov: NDArray(np.float64, (3, 3))  # type: ignore[valid-type]
     depth_m: float = Field(gt=0.0, description="depth used along the optical axis")
     valid_pixels: int = Field(default=0, ge=0)
+    posture: Posture | None = Field(default=None, description="the detector's posture, passed on")
 
     @model_validator(mode="after")
     def _check(self) -> LocalizedDetection:

@@ -88,6 +88,11 @@ class DetectorService(Node):
         normal = cam_from_floor.matrix[:3, 2].copy()
         return Plane(normal, float(-normal @ cam_from_floor.translation - self.config.floor_height_m))
 
+    def _postures(self, n: int) -> list[str | None]:
+        """The posture of each of the ``n`` last detections, None where the backend cannot tell."""
+        postures = list(self.detector.postures)
+        return postures if len(postures) == n else [None] * n  # type: ignore[return-value]
+
     def _floor_agreement(self, floor: Plane | None) -> None:
         """Count frames whose depth shows no floor where the transforms put it, with the camera's
         height and tilt above each floor (for perception doctor: a wrong camera mount)."""
@@ -157,8 +162,8 @@ class DetectorService(Node):
         self.counters.count("frames_processed")
         msg = Detections(
             header=frame.header.model_copy(),
-            detections=[Detection(index=i, bbox_xyxy=tuple(float(v) for v in b), score=float(s))
-                        for i, (b, s) in enumerate(zip(boxes, scores))],
+            detections=[Detection(index=i, bbox_xyxy=tuple(float(v) for v in b), score=float(s), posture=posture)
+                        for i, (b, s, posture) in enumerate(zip(boxes, scores, self._postures(len(boxes))))],
             image_width=int(rgb.shape[1]),
             image_height=int(rgb.shape[0]),
             detector=self.detector.name,

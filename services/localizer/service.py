@@ -261,6 +261,7 @@ class LocalizerService(Node):
                     cov=out.covs[k],
                     depth_m=float(out.depth_m[k]),
                     valid_pixels=int(out.valid_pixels[k]),
+                    posture=d.posture,
                 )
             )
         rejected = out.rejected_counts()

@@ -27,6 +27,7 @@ from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import descriptors_for, field_of_view, orientations_for, positions_of
 from services.tracker.core import FrameInput
 from services.tracker.core.cues import usable_covariances
+from services.tracker.core.posture import codes as posture_codes
 from services.tracker.core.view import FieldOfView, Views
 from services.tracker.reorder import ClockJumps, InputKey
 
@@ -45,7 +46,8 @@ R_EPS = np.eye(3) * 1e-6
 class Arrival:
     """A localized detections message, converted on arrival: ``positions`` (N, 3),
     ``covs`` (N, 3, 3) (plus :data:`R_EPS`), ``usable`` (N,) the covariance check's
-    verdicts, ``scores`` (N,), ``aspects`` (N,) the boxes' height / width."""
+    verdicts, ``scores`` (N,), ``aspects`` (N,) the boxes' height / width, ``postures`` (N,)
+    the detector's posture reports as codes (None: none)."""
 
     loc: LocalizedDetections
     positions: np.ndarray
@@ -53,6 +55,7 @@ class Arrival:
     usable: np.ndarray
     scores: np.ndarray
     aspects: np.ndarray
+    postures: np.ndarray | None
 
     @classmethod
     def of(cls, loc: LocalizedDetections) -> Arrival:
@@ -61,7 +64,8 @@ class Arrival:
         scores = np.array([d.score for d in loc.detections], np.float64)
         boxes = np.array([d.bbox_xyxy for d in loc.detections], np.float64).reshape(-1, 4)
         aspects = (boxes[:, 3] - boxes[:, 1]) / np.maximum(boxes[:, 2] - boxes[:, 0], 1e-6)  # for posture
-        return cls(loc, positions, covs, usable_covariances(covs), scores, aspects)
+        return cls(loc, positions, covs, usable_covariances(covs), scores, aspects,
+                   posture_codes([d.posture for d in loc.detections]))
 
 
 @dataclass(frozen=True)
@@ -206,7 +210,7 @@ class Intake:
         frame = FrameInput(arrival.positions, descriptors, arrival.covs if use_cov else None,
                            arrival.usable if use_cov else None, arrival.scores,
                            self.view(loc) if view is None else view, arrival.aspects, orientations_for(loc, emb),
-                           self._score_models.get(loc.detector), loc.camera_frame)
+                           self._score_models.get(loc.detector), loc.camera_frame, arrival.postures)
         return Frame(arrival, emb is not None, frame)
 
     def view(self, loc: LocalizedDetections) -> FieldOfView | Views | None:

@@ -80,12 +80,21 @@ class PostureConfig(BaseModel):
     min_speed: float = Field(default=_PO.min_speed, ge=0.0, description="walking slower says nothing of orientation (m/s)")
     kappa_per_mps: float = Field(default=_PO.kappa_per_mps, gt=0.0, description="von Mises concentration per m/s")
     max_kappa: float = Field(default=_PO.max_kappa, gt=0.0, description="its cap")
+    reported_likelihood: list[list[float]] = Field(
+        default=[list(r) for r in _PO.reported_likelihood], min_length=3, max_length=3,
+        description="P(a detector reports standing / sitting / lying | the person stands, sits, lies): one row "
+                    "per report; rows of equal values ignore the detector")
+
+    @model_validator(mode="after")
+    def _valid(self) -> PostureConfig:
+        PostureParams(reported_likelihood=tuple(tuple(r) for r in self.reported_likelihood))  # type: ignore[arg-type]
+        return self
 
     def params(self) -> PostureParams | None:
         if not self.enabled:
             return None
         return PostureParams(self.posture_tau_s, self.orientation_tau_s, self.min_speed, self.kappa_per_mps,
-                             self.max_kappa)
+                             self.max_kappa, tuple(tuple(r) for r in self.reported_likelihood))  # type: ignore[misc]
 
 
 _RE = RecoveryParams()

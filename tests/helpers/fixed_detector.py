@@ -14,6 +14,7 @@ class FixedDetector:
 
     name = "fixed"
     needs_depth = False
+    postures = ("standing", "sitting")  # the posture of each of the two boxes
 
     def __init__(self, block_first: bool = False) -> None:
         self.entered = threading.Event()

@@ -56,6 +56,7 @@ def test_detections_carry_the_frame_header(memory_bus: MemoryBus) -> None:
     assert msg.detector == "fixed" and msg.inference_ms is not None and msg.inference_ms >= 0
     assert [d.index for d in msg.detections] == [0, 1]
     assert msg.detections[0].bbox_xyxy == (10.0, 20.0, 50.0, 120.0) and msg.detections[0].score == pytest.approx(0.9)
+    assert [d.posture for d in msg.detections] == ["standing", "sitting"]  # the backend's postures go along
     assert counters.extra["frames_processed"] == 1 and "inference_ms" in counters.extra
 
 
@@ -127,6 +128,7 @@ def test_depth_backend_end_to_end(memory_bus: MemoryBus) -> None:
     step(service, 5.0)
     got = out.recv(5.0)
     assert got is not None and got.msg.detector == "depth" and len(got.msg.detections) == 1
+    assert got.msg.detections[0].posture == "standing"  # 1.8 m tall on the floor: Basso/Munaro's standing rule
 
 
 def test_undecodable_image_is_counted_and_skipped(memory_bus: MemoryBus) -> None:

@@ -4,6 +4,7 @@ what the service publishes."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from common.messages.schemas import TrackState
 from services.tracker.convert import track_state
@@ -69,6 +70,40 @@ def test_the_service_publishes_posture_from_the_boxes(tmp_path) -> None:  # type
     out = rig.walk(T0, 10, [(0, (2.0, 0.0, 1.0))])
     posture = out[-1].tracks[0].posture
     assert np.isclose(sum(posture), 1.0) and not np.allclose(posture, 1 / 3)
+
+
+def test_a_detectors_posture_report_decides_where_height_and_box_do_not() -> None:
+    assert pose.codes([None, None]) is None
+    codes = pose.codes(["sitting", None, "standing"])
+    assert codes is not None and codes.tolist() == [1, -1, 0]
+    lik = pose.reported_evidences(codes, pose.PostureParams().reported_likelihood)
+    np.testing.assert_allclose(lik, [[0.05, 1.0, 0.2], [1, 1, 1], [1.0, 0.5, 0.2]])
+    with pytest.raises(ValueError, match="reported_likelihood"):
+        pose.PostureParams(reported_likelihood=((1.0, 0.0, 0.0),))
+    # halfway between a standing and a seated torso, a square-ish box: the geometry hesitates
+    ambiguous = (0.9, 2.1)
+    alone, told = RobustTracker(RobustParams()), RobustTracker(RobustParams())
+    for t in np.arange(0.0, 2.0, 0.1):
+        alone.update(float(t), np.array([[0.0, 0.0, ambiguous[0]]]), aspects=np.array([ambiguous[1]]))
+        told.update(float(t), np.array([[0.0, 0.0, ambiguous[0]]]), aspects=np.array([ambiguous[1]]),
+                    postures=np.array([1]))
+    assert alone.tracks[0].posture[1] < 0.8 < told.tracks[0].posture[1]
+    assert int(np.argmax(told.tracks[0].posture)) == 1
+
+
+def test_the_service_reads_the_detectors_posture() -> None:
+    from common.messages.schemas import Header, LocalizedDetection, LocalizedDetections
+    from services.tracker.intake import Arrival
+
+    def det(index: int, posture: str | None) -> LocalizedDetection:
+        return LocalizedDetection(index=index, bbox_xyxy=(0, 0, 10, 20), score=0.9, position=np.full(3, index),
+                                  cov=np.eye(3), depth_m=2.0, posture=posture)
+
+    msg = LocalizedDetections(header=Header(stamp_ns=1, frame_id="map", seq=0, source="head"),
+                              detections=[det(0, "sitting"), det(1, None)])
+    arrival = Arrival.of(msg)  # on arrival, the reports become the core's posture codes
+    assert arrival.postures is not None and arrival.postures.tolist() == [1, -1]
+    assert Arrival.of(msg.model_copy(update={"detections": [det(0, None)]})).postures is None
 
 
 def test_the_drift_matrix_equals_the_drift() -> None:

@@ -5,6 +5,7 @@ No Zenoh, no pydantic messages, no I/O beyond reading model files at constructio
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Protocol
 
 import numpy as np
@@ -20,11 +21,13 @@ class Detector(Protocol):
     ``detect`` takes ``rgb`` (H, W, 3) uint8 RGB, optionally ``depth`` (H, W) float32
     metres registered to ``rgb`` (NaN = invalid) and ``camera`` (3, 3) float64
     intrinsics K, and returns ``(boxes (N, 4) float32 xyxy pixels, scores (N,)
-    float32 in [0, 1])``, best score first.
+    float32 in [0, 1])``, best score first. ``postures``: the posture each of the last
+    detections showed ("standing", "sitting"), empty for a backend that cannot tell.
     """
 
     name: str
     needs_depth: bool
+    postures: Sequence[str]
 
     def detect(self, rgb: np.ndarray, depth: np.ndarray | None = None,
                camera: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]: ...

@@ -104,6 +104,7 @@ class DarknetDetector:
 
     name = "darknet"
     needs_depth = False
+    postures: tuple[str, ...] = ()  # boxes say nothing of the posture
 
     def __init__(self, params: DarknetParams) -> None:
         self.params = params

@@ -75,6 +75,7 @@ class HogDetector:
 
     name = "hog"
     needs_depth = False
+    postures: tuple[str, ...] = ()  # boxes say nothing of the posture
 
     def __init__(self, params: HogParams | None = None) -> None:
         self.params = params if params is not None else HogParams()

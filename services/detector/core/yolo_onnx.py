@@ -160,6 +160,7 @@ class YoloOnnxDetector:
 
     name = "yolo-onnx"
     needs_depth = False
+    postures: tuple[str, ...] = ()  # boxes say nothing of the posture
 
     def __init__(self, params: YoloParams) -> None:
         import onnxruntime as ort

@@ -4,7 +4,14 @@
   localized point's height above the floor, ``z`` in the map frame: the torso's centre)
   and its box's height-to-width ratio in the image. Each posture has a Gaussian
   likelihood on both (a standing torso centre is about 1.1 m up and its box about 2.7
-  times as tall as wide; sitting 0.7 m and 1.6; lying 0.3 m and 0.6).
+  times as tall as wide; sitting 0.7 m and 1.6; lying 0.3 m and 0.6). A detector that
+  tells the posture from the person's shape (the depth detector: standing or seated, as
+  the TU Ilmenau framework reads posture from the point cloud) adds its report, through
+  the likelihood of that report under each posture (``reported_likelihood``). The depth
+  detector's "sitting" comes only from a seated shape and is nearly always right; its
+  "standing" is Basso/Munaro's height rule, which also takes about half the seated people
+  together with the back of their chair (the simulator's ``chairs``: 215 of 396 seated
+  detections), so it says little.
 * **Orientation**: 8 bins of 45 degrees in the map frame (bin k is centred on k * 45
   degrees, 0 along +x). The evidence is the walking direction when the person moves: a
   von Mises likelihood around the velocity's heading whose concentration grows with the
@@ -20,12 +27,14 @@ Pure numpy; every function takes and returns probability vectors.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ORIENTATION_BINS", "POSTURES", "PostureParams", "drift", "orientation_evidence", "orientation_evidences",
-           "observe", "posture_evidence", "posture_evidences", "transition", "uniform", "update", "updates"]
+__all__ = ["ORIENTATION_BINS", "POSTURES", "PostureParams", "codes", "drift", "orientation_evidence",
+           "orientation_evidences", "observe", "posture_evidence", "posture_evidences", "reported_evidences",
+           "transition", "uniform", "update", "updates"]
 
 POSTURES = ("standing", "sitting", "lying")
 ORIENTATION_BINS = 8
@@ -39,13 +48,24 @@ _ASPECT = np.array([[2.7, 0.7], [1.6, 0.5], [0.6, 0.3]])
 class PostureParams:
     """``posture_tau_s`` / ``orientation_tau_s``: time constants of the drift to uniform;
     ``min_speed``: m/s below which walking says nothing of the orientation; ``kappa_per_mps``:
-    von Mises concentration per m/s of speed (capped at ``max_kappa``)."""
+    von Mises concentration per m/s of speed (capped at ``max_kappa``); ``reported_likelihood``:
+    the likelihood of each posture given a detector's report (:func:`reported_evidences`)."""
 
     posture_tau_s: float = 5.0
     orientation_tau_s: float = 5.0
     min_speed: float = 0.3
     kappa_per_mps: float = 2.0
     max_kappa: float = 4.0
+    #: P(a detector reports standing, sitting, lying | each true posture): one row per report
+    reported_likelihood: tuple[tuple[float, float, float], ...] = ((1.0, 0.5, 0.2), (0.05, 1.0, 0.2),
+                                                                   (0.05, 0.2, 1.0))
+
+    def __post_init__(self) -> None:
+        rows = self.reported_likelihood
+        lik = np.asarray(rows, float) if len(rows) == 3 and all(len(r) == 3 for r in rows) else np.zeros(0)
+        if lik.shape != (3, 3) or np.any(lik < 0) or not np.all(lik.max(axis=1) > 0):
+            raise ValueError("reported_likelihood needs 3 rows (standing, sitting, lying reports) of 3 "
+                             "non-negative likelihoods, each row with one above 0")
 
 
 def uniform(n: int) -> np.ndarray:
@@ -68,6 +88,22 @@ def posture_evidences(height_m: np.ndarray, aspect: np.ndarray | None) -> np.nda
         shape = np.exp(-0.5 * ((np.where(known, a, 1.0) - _ASPECT[:, 0]) / _ASPECT[:, 1]) ** 2)
         lik = np.where(known, lik * shape, lik)
     return lik + 1e-6  # never certain: a posture the evidence rules out can still come back
+
+
+def codes(labels: Sequence[str | None]) -> np.ndarray | None:
+    """Detectors' posture reports as codes (N,) int8, the index in :data:`POSTURES` (-1: none);
+    None when no detection has one."""
+    if not any(labels):
+        return None
+    return np.array([POSTURES.index(x) if x in POSTURES else -1 for x in labels], np.int8)
+
+
+def reported_evidences(reported: np.ndarray, likelihood: tuple[tuple[float, float, float], ...]) -> np.ndarray:
+    """Likelihoods (M, 3) of the postures given detectors' reports (M,) (:func:`codes`): row
+    ``likelihood[report]``; a detection without a report, ones."""
+    reported = np.asarray(reported, np.int64)
+    table = np.vstack([np.asarray(likelihood, float), np.ones((1, len(POSTURES)))])  # -1: the last row
+    return table[np.where(reported >= 0, reported, len(POSTURES))]
 
 
 def orientation_evidence(velocity_xy: np.ndarray, params: PostureParams) -> np.ndarray | None:
@@ -139,16 +175,21 @@ def drift(p: np.ndarray, dt: float, tau_s: float, circular: bool = False) -> np.
 
 def observe(posture: np.ndarray, orientation: np.ndarray, rows: np.ndarray, height_m: np.ndarray,
             aspect: np.ndarray | None, velocity_xy: np.ndarray, young: np.ndarray, classified: np.ndarray | None,
-            params: PostureParams, fresh: bool = False) -> tuple[np.ndarray, np.ndarray]:
+            params: PostureParams, fresh: bool = False,
+            reported: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Tracks ``rows`` (M,) of ``posture`` (T, 3) and ``orientation`` (T, 8) after one detection
     each: posture from the height and the box's aspect (None: no boxes, no posture evidence);
+    with the detectors' posture reports ``reported`` (M,) (:func:`codes`; None: none);
     orientation from the walking ``velocity_xy`` (M, 2) or, too slow for that, from an
     orientation classifier's probabilities ``classified`` (M, 8; NaN rows: none); a ``young``
     (M,) track's velocity is its prior and says nothing. Returns new arrays, the given ones
     left as they are, unless they are ``fresh`` (nobody else holds them): then updated in place."""
     if aspect is not None:
         posture = posture if fresh else posture.copy()
-        posture[rows] = updates(posture[rows], posture_evidences(height_m, aspect))
+        lik = posture_evidences(height_m, aspect)
+        if reported is not None:
+            lik = lik * reported_evidences(reported, params.reported_likelihood)
+        posture[rows] = updates(posture[rows], lik)
     old = [k for k, y in enumerate(young.tolist()) if not y]
     if len(old) <= _FEW:  # a few tracks: one at a time is quicker than the arrays
         own, v = fresh, velocity_xy.tolist()

@@ -158,7 +158,7 @@ class RobustTracker(TrackerCore):
         rows = np.array(matches, np.int64).T if matches else np.zeros((2, 0), np.int64)  # (detections, tracks)
         self._update_matched(matches, rows, positions, r, descriptors, has_desc, p_det, confident, stamp,
                              frame.camera, pairs, moved)
-        self._update_pose(rows, positions, frame.aspects, frame.orientations, moved)
+        self._update_pose(rows, positions, frame.aspects, frame.orientations, frame.postures, moved)
         lifecycle.train_classifiers(state, p, matches, u, has_desc, confident)
         lifecycle.observed(state, [j for _, j in matches], p)  # fixes, who was seen with whom (recovery)
         matched_d = {d for d, _ in matches}
@@ -272,7 +272,7 @@ class RobustTracker(TrackerCore):
             bank.add_many(np.array([t.slot[j] for _, j in learn]), descriptors[d_new], d2)  # type: ignore[index]
 
     def _update_pose(self, rows: np.ndarray, positions: np.ndarray, aspects: np.ndarray | None,
-                     orientations: np.ndarray | None, moved: bool) -> None:
+                     orientations: np.ndarray | None, reported: np.ndarray | None, moved: bool) -> None:
         """TU Ilmenau: posture from the body height and box shape, orientation from walking or,
         standing still, from the crop classifier (:func:`posture.observe`)."""
         pp, t = self.params.posture, self.state.tracks
@@ -282,7 +282,8 @@ class RobustTracker(TrackerCore):
         t.posture, t.orientation = pose.observe(
             t.posture, t.orientation, t_idx, positions[d_idx, 2], None if aspects is None else aspects[d_idx],
             t.mean[t_idx, 3:5], np.array([t.status[j] is TrackStatus.TENTATIVE for j in t_idx.tolist()]),
-            None if orientations is None else orientations[d_idx], pp, fresh=moved)
+            None if orientations is None else orientations[d_idx], pp, fresh=moved,
+            reported=None if reported is None else reported[d_idx])
 
     def _age(self, stamp: float, result: FrameResult, view: FieldOfView | Views | None, previous: float | None) -> None:
         """Coasting and deletion (:func:`lifecycle.age`); a deleted track's appearance is archived."""

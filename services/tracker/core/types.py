@@ -158,7 +158,9 @@ class FrameInput(NamedTuple):
     unknown). ``aspects`` (N,) the boxes' height / width (None: no boxes). ``orientations``
     (N, 8) an orientation classifier's probabilities per detection in the tracking frame's
     bins (NaN rows: none). ``score_model``: how this frame's detector's scores read (None:
-    the profile's). ``camera``: the camera the frame comes from.
+    the profile's). ``camera``: the camera the frame comes from. ``postures`` (N,) int8 the
+    detector's posture report per detection, the index in ``posture.POSTURES`` (-1: none;
+    None: no report at all).
     """
 
     positions: np.ndarray
@@ -171,13 +173,14 @@ class FrameInput(NamedTuple):
     orientations: np.ndarray | None = None
     score_model: ScoreModel | None = None
     camera: str = ""
+    postures: np.ndarray | None = None
 
     @classmethod
     def of(cls, positions: np.ndarray, descriptors: np.ndarray | None = None,
            measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
            view: FieldOfView | Views | None = None, aspects: np.ndarray | None = None,
            orientations: np.ndarray | None = None, score_model: ScoreModel | None = None,
-           camera: str = "") -> FrameInput:
+           camera: str = "", postures: np.ndarray | None = None) -> FrameInput:
         """Convert one frame's arrays (ValueError for descriptors of the wrong shape)."""
         positions = np.asarray(positions, dtype=np.float64)
         if positions.ndim != 2 or positions.shape[1:] != (3,):
@@ -195,8 +198,10 @@ class FrameInput(NamedTuple):
             scores = np.asarray(scores, dtype=np.float64)
             if scores.shape != (n,):
                 scores = scores.reshape(n)
+        if postures is not None:
+            postures = np.asarray(postures, np.int8).reshape(n)
         return cls(positions, descriptors, measurement_cov, None, scores, view, aspects, orientations, score_model,
-                   camera)
+                   camera, postures)
 
     @property
     def has_descriptors(self) -> bool:

@@ -309,7 +309,8 @@ def main() -> int:
     if args.sim:
         return sim_table(args)
     wanted = args.backends.split(",")
-    tmp = Path(tempfile.mkdtemp(prefix="detector-bench-"))
+    models = tempfile.TemporaryDirectory(prefix="detector-bench-")  # removed at exit
+    tmp = Path(models.name)
     factories: dict[str, Callable[[], object]] = {
         "hog": lambda: HogDetector(),
         "hog-x2.25": lambda: HogDetector(HogParams(upsample=2.25)),

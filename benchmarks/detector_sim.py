@@ -261,13 +261,19 @@ def time_service(frames: list[SimFrame], passes: int = 1) -> tuple[np.ndarray, n
     return np.array(node_ms), np.array(core_ms)
 
 
+#: the folders of :func:`reference_core`'s packages, kept while the process runs
+_REFERENCE_DIRS: list[tempfile.TemporaryDirectory[str]] = []
+
+
 def reference_core(rev: str) -> str:
     """The ``services/detector/core`` package at git revision ``rev``, importable under a name of
     its own (its imports of itself renamed); returns that name."""
     name = "_detector_core_" + hashlib.sha1(rev.encode()).hexdigest()[:8]
     if name in sys.modules:
         return name
-    folder = Path(tempfile.mkdtemp(prefix="detector-ref-")) / name
+    where = tempfile.TemporaryDirectory(prefix="detector-ref-")  # removed at exit
+    _REFERENCE_DIRS.append(where)
+    folder = Path(where.name) / name
     folder.mkdir()
     listing = subprocess.run(["git", "-C", str(ROOT), "ls-tree", "--name-only", f"{rev}:services/detector/core"],
                              check=True, capture_output=True, text=True).stdout.split()

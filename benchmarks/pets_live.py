@@ -14,7 +14,6 @@ and the live chain's frames/s is printed beside it.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import signal
 import subprocess
@@ -43,16 +42,11 @@ SERVICES = ("detector", "localizer", "embedder", "tracker")
 
 
 def quality_module() -> ModuleType:
-    """benchmarks/quality.py, imported by path (its settings and judge are the reference)."""
-    name = "benchmarks_quality"
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / "quality.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    """benchmarks/quality.py (its settings and judge are the reference), imported when first
+    needed: it imports this module too."""
+    from benchmarks import quality
+
+    return quality
 
 
 @dataclass

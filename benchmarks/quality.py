@@ -524,14 +524,9 @@ def pets_detections(root: Path, cache_dir: Path, log: Callable[[str], None] = pr
 
 def pets_live_section(root: Path, cache_dir: Path) -> str:
     """The same 400 frames through the live services (benchmarks/pets_live.py), beside the offline chain."""
-    import importlib.util
     import tempfile
 
-    spec = importlib.util.spec_from_file_location("benchmarks_pets_live", ROOT / "benchmarks" / "pets_live.py")
-    assert spec is not None and spec.loader is not None
-    live_mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = live_mod
-    spec.loader.exec_module(live_mod)
+    from benchmarks import pets_live as live_mod
     n = len(list((root / "frames").glob("frame_*.jpg")))
     lines = ["### PETS09-S2L1 frames 1-%d through the live services (robust), beside the offline chain" % n, "",
              "| chain | MOTA | IDF1 | IDSW | frames/s |", "|---|---|---|---|---|"]

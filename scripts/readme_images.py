@@ -15,7 +15,6 @@ Run from the repository root: ``.venv/bin/python scripts/readme_images.py`` (nee
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import os
 import subprocess
@@ -39,10 +38,7 @@ def plot(out: Path, scenario: str, duration_s: float) -> None:
 
 
 def soak_plot(out: Path, samples: Path) -> None:
-    spec = importlib.util.spec_from_file_location("benchmarks_soak", ROOT / "benchmarks" / "soak.py")
-    assert spec is not None and spec.loader is not None
-    soak = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(soak)
+    from benchmarks import soak
     print(f"wrote {soak.plot_soak(json.loads(samples.read_text()), out)}")
 
 

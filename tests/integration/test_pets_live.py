@@ -6,25 +6,19 @@ agree within 0.02 MOTA and IDF1. All 400 frames: python benchmarks/pets_live.py.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import pytest
 
 pytestmark = [pytest.mark.zenoh, pytest.mark.slow]
-ROOT = Path(__file__).resolve().parents[2]
 FRAMES = 100
 
 
 def _pets_live() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("benchmarks_pets_live", ROOT / "benchmarks" / "pets_live.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    from benchmarks import pets_live
+
+    return pets_live
 
 
 def test_pets09_through_the_live_services_matches_the_offline_chain(shared_data: Path, tmp_path: Path) -> None:

@@ -7,14 +7,11 @@ $PERCEPTION_SHARED_DATA); skipped without it.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
 
 #: MOTA floors, per what is judged: the robust profile measures 0.550 here (commit 2437733),
 #: the pre-profile defaults measured 0.480 (the thesis profile still does). Each floor is the
@@ -23,15 +20,9 @@ MOTA_FLOOR = {"robust": 0.54, "default": 0.47}
 
 
 def _quality() -> ModuleType:
-    name = "benchmarks_quality"
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / "quality.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    from benchmarks import quality
+
+    return quality
 
 
 @pytest.fixture(scope="module")

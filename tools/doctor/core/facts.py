@@ -171,6 +171,14 @@ class Observation:
     def stream(self, key: str) -> StreamFacts:
         return self.streams.get(key) or StreamFacts(key)
 
+    def parents(self) -> dict[str, EdgeFacts]:
+        """Each child frame's transform from its parent, the latest stamped where it came twice."""
+        out: dict[str, EdgeFacts] = {}
+        for e in self.edges:
+            if e.child not in out or e.last_stamp_ns > out[e.child].last_stamp_ns:
+                out[e.child] = e
+        return out
+
     def running(self, service: str) -> list[NodeFacts]:
         """The instances of ``service`` that are up (alive, or with status in a recording)."""
         return [n for n in self.nodes if n.service == service and n.state == "running" and n.alive is not False]

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from tools.doctor.core.facts import Check, EdgeFacts, Observation
+from tools.doctor.core.facts import Check, Observation
 
 __all__ = ["geometry_checks"]
 
@@ -29,7 +29,7 @@ MIN_PEOPLE = 12
 
 def _mount(obs: Observation, camera_frame: str) -> str:
     """The transform to fix: the first edge above the camera's frame that is not the optical one."""
-    parents: dict[str, EdgeFacts] = {e.child: e for e in obs.edges}
+    parents = obs.parents()
     chain = []
     frame = camera_frame
     while frame in parents and len(chain) < 8:

@@ -111,10 +111,7 @@ def _static(obs: Observation, complete: bool) -> Check:
 def transform_checks(obs: Observation) -> list[Check]:
     """One chain line per camera frame, then the static transforms line."""
     target = _setting(obs, "localizer", "target_frame", "map")
-    parents: dict[str, EdgeFacts] = {}
-    for e in obs.edges:
-        if e.child not in parents or e.last_stamp_ns > parents[e.child].last_stamp_ns:
-            parents[e.child] = e
+    parents = obs.parents()
     cameras = _camera_frames(obs)
     if not cameras:
         return [Check(SECTION, f"chain {target} ← camera", "fail", "no frame names its camera frame",

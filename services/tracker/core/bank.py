@@ -23,9 +23,10 @@ _FEW_PAIRS = 2
 class GalleryBank:
     """Galleries of at most ``capacity`` descriptors each, in slots of one array.
 
-    ``data`` (S, D, capacity) float32 (each gallery a column per descriptor: the layout a vector-by-matrix product reads fastest), ``sq`` (S, capacity) their squared norms (``inf``
-    where a slot holds no descriptor, so a distance to it is ``inf``), ``age`` the order
-    they came in, ``n`` (S,) how many each slot holds. A track holds a slot from its first
+    ``data`` (S, D, capacity) float32, a column per descriptor (the layout a vector-by-matrix
+    product reads fastest), ``sq`` (S, capacity) their squared norms (``inf`` where a slot
+    holds no descriptor, so a distance to it is ``inf``), ``age`` the order they came in,
+    ``n`` (S,) how many each slot holds. A track holds a slot from its first
     descriptor on; a freed slot is reused. Copies share the arrays until either side
     changes them (copy-on-write), so a tracker snapshot costs almost nothing.
     """

@@ -111,7 +111,8 @@ def appearance_log_odds(model: AppearanceModel, bank: GalleryBank, slots: list[i
     d_idx, t_idx = np.nonzero(pairs & (bank.sizes(slots) > 0)[None, :])
     d2 = bank.pair_sq_distances(np.asarray(slots, np.int64)[t_idx], descriptors[d_idx])
     out = np.zeros(pairs.shape)
-    out[d_idx, t_idx] = model.log_odds(model.from_euclidean(np.sqrt(d2.min(axis=1))))
+    dist = model.from_euclidean(np.sqrt(d2.min(axis=1))).astype(np.float64)  # the log-odds in float64
+    out[d_idx, t_idx] = model.log_odds(dist)
     return out, PairDistances(d_idx.tolist(), t_idx.tolist(), d2)
 
 

@@ -212,6 +212,25 @@ def test_supervisor_api_restarts_and_stops_on_request() -> None:
     assert out.getvalue().count(b"[crash]   boom\n") >= 2
 
 
+def test_before_last_runs_after_the_services_stop_and_before_the_router() -> None:
+    """The launcher closes its failure report's Zenoh session there, while the router still runs."""
+    out = io.BytesIO()
+    up = "import time; print('up', flush=True); time.sleep(3600)"
+    specs = [ProcessSpec("router", [PY, "-c", up], dict(os.environ), stop_last=True),
+             ProcessSpec("service", [PY, "-c", up], dict(os.environ))]
+    seen: list[tuple[int | None, int | None]] = []
+    sup: Supervisor = Supervisor(specs, out, handle_signals=False,
+                                 before_last=lambda: seen.append((sup.pid("service"), sup.pid("router"))))
+    thread = threading.Thread(target=sup.run)
+    thread.start()
+    try:
+        wait_until(lambda: out.getvalue().count(b" up\n") == 2, TIMEOUT, interval=0.05, what="both children up")
+    finally:
+        sup.request_stop()
+        thread.join(TIMEOUT)
+    assert len(seen) == 1 and seen[0][0] is None and seen[0][1] is not None  # the service gone, the router not
+
+
 @pytest.mark.zenoh
 def test_router_port_already_taken_is_reported_not_mistaken_for_ready(router: RouterProcess, tmp_path: Path) -> None:
     f = tmp_path / "twice.yaml"

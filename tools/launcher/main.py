@@ -124,7 +124,10 @@ def main(args: argparse.Namespace) -> int:
             log.info("launching %s: %s", args.file, ", ".join(p.name for p in plan))
             report = failure_report(launch)
             try:
-                return Supervisor(plan, sys.stdout.buffer, colour=colour, on_failed=report).run()
+                # the report's session goes through the launched router: closed before it stops (a
+                # Zenoh session left to a router that is gone can abort the launcher at exit)
+                return Supervisor(plan, sys.stdout.buffer, colour=colour, on_failed=report,
+                                  before_last=report.close).run()
             finally:
                 report.close()
     except LaunchFileError as exc:

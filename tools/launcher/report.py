@@ -105,8 +105,8 @@ class FailureReport:
                 transport.close()
 
     def close(self) -> None:
-        """Withdraw the reports and close the session (if one was opened)."""
-        if self._thread is not None:
+        """Withdraw the reports and close the session (if one was opened); again: nothing."""
+        if self._thread is not None and self._thread.is_alive():
             self._queue.put(None)
             self._thread.join(timeout=REPORT_CONNECT_S + 10.0)  # opening is bounded; closing is quick
             if self._thread.is_alive():

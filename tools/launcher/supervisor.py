@@ -169,12 +169,15 @@ class Supervisor:
     ``run()`` returns 0 after a requested stop (signal or :meth:`request_stop`) or when
     every child finished with status 0; 1 if a child that was not restarted failed, or a
     child with ``ready_tcp`` did not come up. ``on_failed`` is called (on the supervisor's
-    thread) for each child that stops with a status in its ``no_restart_status``.
+    thread) for each child that stops with a status in its ``no_restart_status``;
+    ``before_last`` once when stopping, after the other children and before those stopped
+    last (the router), e.g. to close a session that goes through that router.
     """
 
     def __init__(self, specs: Sequence[ProcessSpec], out: BinaryIO, *, colour: bool = False,
                  handle_signals: bool = True, tick_s: float = 0.2,
-                 on_failed: Callable[[FailedChild], None] | None = None) -> None:
+                 on_failed: Callable[[FailedChild], None] | None = None,
+                 before_last: Callable[[], None] | None = None) -> None:
         width = max((len(s.name) for s in specs), default=0) + 2
         self._children = []
         for i, s in enumerate(specs):
@@ -194,6 +197,7 @@ class Supervisor:
         self._stop_requests = 0
         self._lock = threading.Lock()
         self._on_failed = on_failed
+        self._before_last = before_last
         #: Children stopped for good (a status in their ``no_restart_status``), in order.
         self.failed: list[FailedChild] = []
 
@@ -288,6 +292,8 @@ class Supervisor:
         first = [c for c in self._children if not c.spec.stop_last]
         last = [c for c in self._children if c.spec.stop_last]
         for phase in (first, last):
+            if phase is last and self._before_last is not None:
+                self._before_last()
             for child in reversed(phase):
                 if child.proc is not None and child.term_at is None:
                     log.info("stopping %s (SIGTERM to pid %d and its group)", child.spec.name, child.proc.pid)

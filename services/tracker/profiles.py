@@ -121,6 +121,8 @@ class RecoveryConfig(BaseModel):
     probation_s: float = Field(default=_RE.probation_s, ge=0.0,
                                description="how long a recovery is checked again (s); 0: never undone")
     check_period_s: float = Field(default=_RE.check_period_s, gt=0.0, description="how often during probation (s)")
+    compete: bool = Field(default=_RE.compete, description="a detection near a coasting track that looks like a "
+                          "remembered person known to be someone else counts that as an alternative")
 
     @model_validator(mode="after")
     def _undo_below_recover(self) -> RecoveryConfig:

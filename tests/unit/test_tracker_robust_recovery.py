@@ -1,7 +1,8 @@
 """The robust profile's ID memory, open-set (core/recovery.py in the tracker): a stranger who
 looks like two remembered people gets a new ID, a person who could not have walked there
 gets a new ID, a recovery that drifts away is undone and the remembered person kept; the
-recovery state is in snapshots and forgotten with the person."""
+recovery state is in snapshots and forgotten with the person; a person back in view competes
+with a look-alike's coasting track (the memory in the association)."""
 
 from __future__ import annotations
 
@@ -136,3 +137,36 @@ def test_recovery_state_is_snapshotted_and_forgotten_with_the_person() -> None:
     assert a not in trk.state.recovery.departures and a not in trk.state.recovery.together
     trk.restart_clock()
     assert not trk.state.recovery.departures  # stamps of another clock say nothing of walking times
+
+
+#: two people whose looks are 0.5 apart: by appearance alone a coasting track could take either
+PLAIN, STRIPED = _E[0], (_E[0] + 0.55 * _E[1]) / np.linalg.norm(_E[0] + 0.55 * _E[1])
+
+
+@pytest.mark.parametrize("compete", [True, False])
+def test_a_person_back_in_view_keeps_their_id_instead_of_continuing_a_look_alikes_coasting_track(
+        compete: bool) -> None:
+    trk = tracker(compete=compete)
+    run(trk, 0.0, 2.0, [(PLAIN, (0.0, 0.0)), (STRIPED, (1.5, 0.0))])  # seen together: two people
+    plain, striped = id_at(trk, 0.0, 0.0), id_at(trk, 1.5, 0.0)
+    run(trk, 2.0, 3.0, [(PLAIN, (0.0, 0.0))])  # the second leaves and is remembered
+    assert striped in trk.memory.entries
+    run(trk, 3.0, 3.3, [])  # the first is missed: coasting
+    run(trk, 3.3, 4.3, [(STRIPED, (0.4, 0.0))])  # the second comes back next to where the first was
+    # the ID memory competes with the coasting track: the returning person's own ID, not the first's
+    assert id_at(trk, 0.4, 0.0) == (striped if compete else plain)
+
+
+def test_a_remembered_person_never_seen_with_the_track_does_not_compete_with_it() -> None:
+    """Two remembered IDs never detected together may be one person remembered twice: such a
+    one is no alternative to a coasting track (it may be that track's own person)."""
+    trk = tracker()
+    run(trk, 0.0, 1.0, [(STRIPED, (1.5, 0.0))])
+    striped = id_at(trk, 1.5, 0.0)
+    run(trk, 1.0, 2.0, [])  # remembered, never seen with anyone
+    run(trk, 2.0, 4.0, [(PLAIN, (8.0, 0.0))])  # someone too far to be them: a new ID
+    plain = id_at(trk, 8.0, 0.0)
+    assert striped in trk.memory.entries and plain != striped
+    run(trk, 4.0, 4.3, [])
+    run(trk, 4.3, 5.3, [(STRIPED, (8.4, 0.0))])  # reachable by now
+    assert id_at(trk, 8.4, 0.0) == plain  # position and a fair look keep the coasting track's ID

@@ -19,13 +19,18 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from services.tracker.core import classifier as clf
+from services.tracker.core import recovery as rec
+
+from services.tracker.core.types import TrackStatus
 
 if TYPE_CHECKING:
     from services.tracker.core.bank import GalleryBank
+    from services.tracker.core.robust_params import RobustParams
+    from services.tracker.core.tracks import RobustTrackerState
     from services.tracker.core.types import AppearanceModel
 
 __all__ = ["PairDistances", "appearance_log_odds", "classifier_log_odds", "logit", "measurement_covariance",
-           "position_log_odds", "usable_covariances"]
+           "memory_alternatives", "position_log_odds", "usable_covariances"]
 
 _LOG_2PI = math.log(2.0 * math.pi)
 
@@ -127,4 +132,50 @@ def classifier_log_odds(weights: np.ndarray | None, steps: list[int], u: np.ndar
     out = np.zeros((len(has_desc), len(steps)))
     if len(cols) and weights is not None:
         out[np.ix_(np.flatnonzero(has_desc), cols)] = clf.scores(weights[cols], u, clip)
+    return out
+
+
+def memory_alternatives(state: RobustTrackerState, p: RobustParams, positions: np.ndarray, r: np.ndarray,
+                        descriptors: np.ndarray, has_desc: np.ndarray, gated: np.ndarray) -> np.ndarray:
+    """(N, T) what to take off the log-odds of each gated pair of a detection and a coasting track:
+    the ID memory's alternative. A remembered person (not live, reachable from where they left)
+    known to be someone else than the track's person (the two were detected in one frame; a
+    remembered ID never seen with it may be the same person remembered twice) competes with the
+    track, by the association's appearance log-odds to their gallery less what a stranger
+    reaches here (:func:`recovery.stranger_llr <services.tracker.core.recovery.stranger_llr>`
+    of the detection against the other live tracks' galleries, certainly other people if the
+    detection is the track's person); at least 0. A person back in view then keeps their own ID
+    instead of continuing a look-alike's coasting track (Ban et al.: returning people compete
+    with the tracks)."""
+    t, bank, rp = state.tracks, state.bank, p.recovery
+    coasting = np.array([s is TrackStatus.COASTING for s in t.status], bool)
+    out = np.zeros(gated.shape)
+    rows = np.flatnonzero((gated & coasting[None, :]).any(axis=1) & has_desc)
+    if not len(rows) or p.appearance is None:
+        return out
+    model = p.appearance
+
+    def pair_llr(dist: np.ndarray) -> np.ndarray:
+        return p.appearance_weight * model.log_odds(model.from_euclidean(np.asarray(dist, np.float64)))
+
+    live = [(t.id[c], t.slot[c]) for c in range(len(t)) if t.id[c] and bank.size(t.slot[c])]
+    slots = np.array([s for _, s in live], np.int64)
+    stamp = state.last_stamp or 0.0
+    for d in rows.tolist():
+        ids_a, dist = state.memory.distances(descriptors[d], exclude=state.live_ids())
+        if not len(ids_a):
+            continue
+        ids = ids_a.tolist()
+        var = 0.5 * float(r[d, 0, 0] + r[d, 1, 1])
+        reach = rec.reachable(stamp, float(positions[d, 0]), float(positions[d, 1]), var,
+                              [state.recovery.departures.get(k) for k in ids], rp).tolist()
+        llr = pair_llr(dist).tolist()
+        cohort = pair_llr(np.sqrt(bank.pair_sq_distances(slots, np.repeat(descriptors[d][None], len(slots), axis=0))
+                                  .min(axis=1))).tolist() if len(slots) else []
+        for j in np.flatnonzero(gated[d] & coasting).tolist():
+            known = state.recovery.together.get(t.id[j], frozenset())
+            rivals = [v for k, v, ok in zip(ids, llr, reach) if ok and k in known]
+            if rivals:
+                others = [v for (i, _), v in zip(live, cohort) if i != t.id[j]]
+                out[d, j] = max(0.0, max(rivals) - (rec.stranger_llr(np.array(others)) if others else 0.0))
     return out

@@ -90,6 +90,10 @@ class RecoveryParams:
     probation_s: float = 3.0
     #: s: how often during probation
     check_period_s: float = 0.5
+    #: the ID memory competes in the association: a detection near a coasting track that looks
+    #: like a remembered person known to be someone else counts that as an alternative
+    #: (core/cues.py's :func:`memory_alternatives`)
+    compete: bool = True
 
     def __post_init__(self) -> None:
         if self.p_new is not None and not 0 < self.p_new < 1:

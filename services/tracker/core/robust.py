@@ -216,6 +216,8 @@ class RobustTracker(TrackerCore):
                 total = total + p.classifier.weight * cues.classifier_log_odds(t.clf, t.clf_steps, u, has_desc,
                                                                                p.classifier.clip)
         total = total + cues.logit(p_det)[:, None]
+        if descriptors is not None and p.recovery.compete and len(self.state.memory):  # returning people compete
+            total = total - cues.memory_alternatives(self.state, p, positions, r, descriptors, has_desc, gated)
         return np.where(gated, total, -np.inf), pairs
 
     def _associate(self, log_odds: np.ndarray, confident: np.ndarray) -> list[tuple[int, int]]:

@@ -26,7 +26,7 @@ from benchmarks.quality_sim import hash_code
 from services.localizer.core import FloorHomography, foot_points
 from services.tracker.offline import Detections
 
-__all__ = ["GT_SCALE", "PERSON_Z", "pets_gt_detections"]
+__all__ = ["GT_SCALE", "PERSON_Z", "load_detections", "pets_gt_detections", "store_detections"]
 
 ROOT = Path(__file__).resolve().parents[1]
 GT_SCALE = 0.625  # gt.txt boxes are in 768x576 pixels, the frames 480x360
@@ -97,19 +97,25 @@ def pets_gt_detections(root: Path, cache_dir: Path, log: Callable[[str], None] =
     ``conf`` 1 boxes only (the people the judge counts)."""
     path = cache_dir / f"pets09_dev_gtboxes_colour_{cache_key(root)}.npz"
     if path.is_file():
-        z = np.load(path)
-        dets = Detections(z["frames"], z["stamps"], z["positions"], z["scores"], z["descriptors"])
+        dets = load_detections(path)
     else:
         log("  pets09 (ground-truth boxes): describing the crops (first run; cached afterwards)")
-        dets = _store(describe(root), cache_dir, path)
+        dets = store_detections(describe(root), path)
     keep = dets.scores > 0 if care_only else np.ones(len(dets.frames), bool)
     assert dets.descriptors is not None
     return Detections(dets.frames[keep], dets.stamps[keep], dets.positions[keep], np.ones(int(keep.sum())),
                       dets.descriptors[keep])
 
 
-def _store(dets: Detections, cache_dir: Path, path: Path) -> Detections:
-    cache_dir.mkdir(parents=True, exist_ok=True)
+def load_detections(path: Path) -> Detections:
+    """Detections with descriptors cached by :func:`store_detections`."""
+    with np.load(path) as z:
+        return Detections(z["frames"], z["stamps"], z["positions"], z["scores"], z["descriptors"])
+
+
+def store_detections(dets: Detections, path: Path) -> Detections:
+    """Cache ``dets`` at ``path`` (``.npz``, written whole then renamed); returns them."""
+    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp.npz")
     np.savez_compressed(tmp, frames=dets.frames, stamps=dets.stamps, positions=dets.positions, scores=dets.scores,
                         descriptors=dets.descriptors)

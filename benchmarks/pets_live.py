@@ -25,7 +25,6 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -173,13 +172,7 @@ def run_offline(root: Path, n_frames: int, cache_dir: Path | None) -> list[Any]:
 
 def judge(root: Path, n_frames: int, rows: list[Any]) -> Any:
     q = quality_module()
-    gt = np.loadtxt(root / "gt.txt", delimiter=",", ndmin=2)
-    gt = gt[gt[:, 0] <= n_frames]
-    care = gt[:, 6] > 0
-    from tools.evaluation.readers import TrackTable
-
-    table = TrackTable.from_arrays(gt[care, 0].astype(np.int64), gt[care, 1].astype(np.int64), gt[care, 7:9])
-    ignore = TrackTable.from_arrays(gt[~care, 0].astype(np.int64), gt[~care, 1].astype(np.int64), gt[~care, 7:9])
+    table, ignore = q.pets_truth(root, n_frames)
     return q.judge(table, rows, ignore)
 
 

@@ -509,17 +509,10 @@ def pets_detections(root: Path, cache_dir: Path, log: Callable[[str], None] = pr
     """The PETS detections with descriptors, from the cache when its key matches."""
     path = cache_dir / f"pets09_dev_hog_colour_{pets_cache_key(root)}.npz"
     if path.is_file():
-        z = np.load(path)
         log(f"  pets09: detections from cache {path}")
-        return Detections(z["frames"], z["stamps"], z["positions"], z["scores"], z["descriptors"])
+        return pets_gt.load_detections(path)
     log("  pets09: detecting and embedding (first run; cached afterwards)")
-    dets = detect_pets(root, log)
-    cache_dir.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp.npz")
-    np.savez_compressed(tmp, frames=dets.frames, stamps=dets.stamps, positions=dets.positions, scores=dets.scores,
-                        descriptors=dets.descriptors)
-    tmp.replace(path)
-    return dets
+    return pets_gt.store_detections(detect_pets(root, log), path)
 
 
 def pets_live_section(root: Path, cache_dir: Path) -> str:
@@ -541,15 +534,21 @@ def pets_live_section(root: Path, cache_dir: Path) -> str:
     return "\n".join(lines)
 
 
-def load_pets(root: Path, cache_dir: Path, log: Callable[[str], None] = print, boxes: str = "hog") -> list[Sequence]:
-    """One sequence: HOG+colour detections (``boxes`` "hog") or the ground truth's boxes (``boxes``
-    "gt", ``benchmarks/pets_gt.py``), ground truth (conf 1 rows) and its conf 0 rows as ignore."""
+def pets_truth(root: Path, n_frames: int) -> tuple[TrackTable, TrackTable]:
+    """The ground truth of frames 1 to ``n_frames`` on the ground plane: the ``conf`` 1 rows (the
+    people judged) and the ``conf`` 0 rows (ignore regions)."""
     gt = np.loadtxt(root / "gt.txt", delimiter=",", ndmin=2)
-    n_frames = len(list((root / "frames").glob("frame_*.jpg")))
     gt = gt[gt[:, 0] <= n_frames]
     care = gt[:, 6] > 0
     table = TrackTable.from_arrays(gt[care, 0].astype(np.int64), gt[care, 1].astype(np.int64), gt[care, 7:9])
     ignore = TrackTable.from_arrays(gt[~care, 0].astype(np.int64), gt[~care, 1].astype(np.int64), gt[~care, 7:9])
+    return table, ignore
+
+
+def load_pets(root: Path, cache_dir: Path, log: Callable[[str], None] = print, boxes: str = "hog") -> list[Sequence]:
+    """One sequence: HOG+colour detections (``boxes`` "hog") or the ground truth's boxes (``boxes``
+    "gt", ``benchmarks/pets_gt.py``), ground truth (conf 1 rows) and its conf 0 rows as ignore."""
+    table, ignore = pets_truth(root, len(list((root / "frames").glob("frame_*.jpg"))))
     dets = pets_detections(root, cache_dir, log) if boxes == "hog" else pets_gt.pets_gt_detections(
         root, cache_dir, log, care_only=True)
     return [Sequence("S2L1-0001-0400", dets, table, ignore)]

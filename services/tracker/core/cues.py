@@ -160,9 +160,9 @@ def memory_alternatives(state: RobustTrackerState, p: RobustParams, positions: n
 
     live = [(t.id[c], t.slot[c]) for c in range(len(t)) if t.id[c] and bank.size(t.slot[c])]
     slots = np.array([s for _, s in live], np.int64)
-    stamp = state.last_stamp or 0.0
+    stamp, live_ids = state.last_stamp or 0.0, state.live_ids()
     for d in rows.tolist():
-        ids_a, dist = state.memory.distances(descriptors[d], exclude=state.live_ids())
+        ids_a, dist = state.memory.distances(descriptors[d], exclude=live_ids)
         if not len(ids_a):
             continue
         ids = ids_a.tolist()

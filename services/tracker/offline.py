@@ -21,6 +21,7 @@ import numpy as np
 from common.runtime.progress import progress
 from services.tracker.config import TrackerConfig
 from services.tracker.core import TrackerCore
+from services.tracker.core.view import View
 
 __all__ = ["Detections", "OUTPUT_HEADER", "Row", "read_detections", "track", "track_config", "write_tracks"]
 
@@ -110,12 +111,13 @@ def frame_stamps(dets: Detections) -> tuple[np.ndarray, np.ndarray]:
     return all_frames, np.interp(all_frames, known, dets.stamps[first_row])
 
 
-def track(dets: Detections, tracker: TrackerCore, show_progress: bool = False) -> list[Row]:
+def track(dets: Detections, tracker: TrackerCore, show_progress: bool = False, view: View | None = None) -> list[Row]:
     """Run ``tracker`` over every frame; one row ``(frame, stamp, id, x, y, z, status)`` per
     reported track per frame (Confirmed, and for the robust profile recently coasting ones).
 
     Each detection's score is passed on (the robust profile uses it). ``show_progress``: a
-    bar on a terminal (``common.runtime.progress``).
+    bar on a terminal (``common.runtime.progress``). ``view``: what the (fixed) camera sees, in
+    every frame (e.g. a :class:`~services.tracker.core.view.FloorView`; None: not known).
     """
     frames, stamps = frame_stamps(dets)
     starts = np.searchsorted(dets.frames, frames, side="left")
@@ -124,18 +126,20 @@ def track(dets: Detections, tracker: TrackerCore, show_progress: bool = False) -
     steps = zip(frames.tolist(), stamps.tolist(), starts.tolist(), ends.tolist())
     for frame, stamp, a, b in progress(steps, total=len(frames), desc="track", unit="frame") if show_progress else steps:
         desc = dets.descriptors[a:b] if dets.descriptors is not None else None
-        result = tracker.update(stamp, dets.positions[a:b], desc, None, dets.scores[a:b])
-        for view in tracker.reported(result):
-            x, y, z = view.mean[:3].tolist()
-            rows.append((frame, stamp, view.id, x, y, z, view.status.value))
+        result = tracker.update(stamp, dets.positions[a:b], desc, None, dets.scores[a:b], view)
+        for seen in tracker.reported(result):
+            x, y, z = seen.mean[:3].tolist()
+            rows.append((frame, stamp, seen.id, x, y, z, seen.status.value))
     return rows
 
 
-def track_config(dets: Detections, config: TrackerConfig, embedding_model: str | None = None) -> list[Row]:
+def track_config(dets: Detections, config: TrackerConfig, embedding_model: str | None = None,
+                 view: View | None = None) -> list[Row]:
     """Track ``dets`` as ``perception track`` does with ``config`` (its profile included).
 
     The descriptors, if any, are compared with ``embedding_model``'s thresholds from the
     config; ValueError if it has none. Without descriptors the tracking is position-only.
+    ``view``: the fixed camera's view, as :func:`track` takes it.
     """
     thresholds = None
     if dets.descriptors is not None:
@@ -143,7 +147,7 @@ def track_config(dets: Detections, config: TrackerConfig, embedding_model: str |
         if thresholds is None:
             known = ", ".join(sorted(config.appearance)) or "none"
             raise ValueError(f"no appearance thresholds for embedding model {embedding_model!r} (configured: {known})")
-    return track(dets, config.build_tracker(thresholds))
+    return track(dets, config.build_tracker(thresholds), view=view)
 
 
 def write_tracks(path: str | Path, rows: list[Row], status: bool = False) -> None:

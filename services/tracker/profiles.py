@@ -123,6 +123,12 @@ class RecoveryConfig(BaseModel):
     check_period_s: float = Field(default=_RE.check_period_s, gt=0.0, description="how often during probation (s)")
     compete: bool = Field(default=_RE.compete, description="a detection near a coasting track that looks like a "
                           "remembered person known to be someone else counts that as an alternative")
+    left_weight: float = Field(default=_RE.left_weight, gt=0.0, le=1.0,
+                               description="prior weight of a remembered person who walked out of the cameras' view, "
+                                           "against one lost inside it; 1: no difference")
+    exit_horizon_s: float = Field(default=_RE.exit_horizon_s, ge=0.0,
+                                  description="a person walked out when their walk from the last fix in view left it "
+                                              "within this time (s)")
 
     @model_validator(mode="after")
     def _undo_below_recover(self) -> RecoveryConfig:

@@ -10,6 +10,7 @@ from pathlib import Path
 from common.runtime.cli_util import CliError, check_input_file
 from common.runtime.node import load_node_config
 from services.tracker.config import DEFAULT_EMBEDDING_MODEL, PROFILES, TrackerConfig
+from services.tracker.core.view import FloorView
 from services.tracker.offline import FormatError, read_detections, track, write_tracks
 
 log = logging.getLogger(__name__)
@@ -23,7 +24,14 @@ Input CSV, with a header row: frame,stamp,x,y,z,score[,e0,e1,...]
   without rows have no detections, and their stamps are interpolated.
   Without e-columns the tracker runs position-only; with them it uses the thresholds
   of --embedding-model (default {DEFAULT_EMBEDDING_MODEL!r}) from the config.
-Output CSV: frame,stamp,id,x,y,z, one row per Confirmed track per frame."""
+Output CSV: frame,stamp,id,x,y,z, one row per Confirmed track per frame.
+
+A fixed camera's view (--floor-view, its floor homography): a coasting person whose feet
+leave the image is no longer reported, and the ID memory tells a person who walked out of
+the image from one lost inside it (hidden, missed). In an open place, where those who walk
+out seldom come straight back, set robust.recovery.left_weight below 1 (e.g. 0.3) in
+--service-config: a stranger walking in is then less readily given the ID of someone who
+walked out."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,8 +50,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "'thesis': Pinto's thesis exactly")
     parser.add_argument("--birth-score", type=float, default=None, metavar="S",
                         help="robust: detections scoring below S update tracks but never start one (default: the settings')")
+    parser.add_argument("--floor-view", type=Path, default=None, metavar="FILE",
+                        help="a fixed camera's floor homography (the localizer's --floor-homography file, with its "
+                             "image_size): what the camera sees, so a coasting person who walked out of the image is "
+                             "not reported, and the ID memory knows who walked out (robust: recovery.left_weight)")
     parser.add_argument("--status", action="store_true",
                         help="add a status column: confirmed, or coasting (robust: reported through a short miss)")
+
+
+def floor_view(path: Path) -> FloorView:
+    """The :class:`FloorView` of a floor homography file (CliError naming what is missing)."""
+    from services.localizer.files import read_floor_homography  # the localizer's format; OpenCV only when asked
+
+    check_input_file(path, 'expected a floor homography file: {"H": 3x3, "image_size": [width, height]}')
+    hom = read_floor_homography(path)
+    if hom.image_size is None:
+        raise CliError(f"floor homography {path} has no image_size: the view needs the image's [width, height]; "
+                       "add \"image_size\": [width, height] of the pixels H was fitted in")
+    return FloorView(hom.H, *hom.image_size)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -69,8 +93,9 @@ def main(args: argparse.Namespace) -> int:
                 "or pick another --embedding-model")
     else:
         log.info("no embedding columns: tracking position-only")
+    view = floor_view(args.floor_view) if args.floor_view is not None else None
     start = time.perf_counter()
-    rows = track(dets, config.build_tracker(thresholds), show_progress=True)
+    rows = track(dets, config.build_tracker(thresholds), show_progress=True, view=view)
     elapsed = time.perf_counter() - start
     try:
         write_tracks(args.output, rows, status=args.status)

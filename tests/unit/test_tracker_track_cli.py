@@ -159,3 +159,19 @@ def test_empty_file_gives_header_only(tmp_path: Path) -> None:
     dets.write_text("frame,stamp,x,y,z,score\n")
     assert main(["track", "--detections", str(dets), "--output", str(out)]) == 0
     assert out.read_text() == "frame,stamp,id,x,y,z\n"
+
+
+def test_a_floor_view_hides_a_coasting_person_outside_the_image(tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    dets, out, hom = tmp_path / "dets.csv", tmp_path / "tracks.csv", tmp_path / "floor.json"
+    write_detections(dets)
+    # the camera sees x in [-5, 5] m and y in [-1, 1] m: the lane at y = 0, not the one at y = 2
+    hom.write_text('{"H": [[0.01, 0, -5], [0, 0.01, -1], [0, 0, 1]], "image_size": [1000, 200]}')
+    assert main(["track", "--detections", str(dets), "--output", str(out), "--status", "--floor-view", str(hom)]) == 0
+    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]
+    lanes = {int(r[2]): round(float(r[4]) / 2.0) for r in rows}
+    coasting = {lanes[int(r[2])] for r in rows if int(r[0]) in (130, 131)}
+    assert coasting == {0}  # frames 130 and 131 have no detections: only the person in view is reported
+    hom.write_text('{"H": [[0.01, 0, -5], [0, 0.01, -1], [0, 0, 1]]}')
+    assert main(["track", "--detections", str(dets), "--output", str(out), "--floor-view", str(hom)]) == 2
+    assert "image_size" in capsys.readouterr().err

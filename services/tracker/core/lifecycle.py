@@ -31,9 +31,9 @@ import numpy as np
 from services.tracker.core import classifier as clf
 from services.tracker.core import recovery as rec
 from services.tracker.core.robust_params import RobustParams
-from services.tracker.core.tracks import RobustTrackerState
+from services.tracker.core.tracks import RobustTrackerState, TrackTable
 from services.tracker.core.types import FrameResult, TrackStatus
-from services.tracker.core.view import FieldOfView, Views
+from services.tracker.core.view import View
 
 _TENTATIVE, _CONFIRMED, _COASTING = TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.COASTING
 
@@ -48,7 +48,7 @@ def bayes(p: float, q: float) -> float:
 
 
 def age(state: RobustTrackerState, p: RobustParams, stamp: float, previous: float | None,
-        view: FieldOfView | Views | None) -> tuple[list[int], list[bool]]:
+        view: View | None) -> tuple[list[int], list[bool]]:
     """Coasting, the tracks' view flags and the end of tracks at ``stamp`` (``previous``: the
     last frame's stamp). Returns the rows to delete (in order) and the rows to keep (neither:
     tentative tracks that did not go on, clutter)."""
@@ -86,8 +86,10 @@ def age(state: RobustTrackerState, p: RobustParams, stamp: float, previous: floa
     return ended, keep
 
 
-def archive(state: RobustTrackerState, j: int) -> None:
-    """Track ``j``'s gallery and classifier go to the ID memory (a forgotten person's do not)."""
+def archive(state: RobustTrackerState, j: int, view: View | None = None, horizon_s: float = 0.0) -> None:
+    """Track ``j``'s gallery and classifier go to the ID memory (a forgotten person's do not), and
+    where and when they left: whether they walked out of ``view`` (their last fix in it, and
+    their walk out of it within ``horizon_s``)."""
     t = state.tracks
     if t.forgotten[j]:
         return
@@ -99,9 +101,21 @@ def archive(state: RobustTrackerState, j: int) -> None:
         state.classifiers = {i: w for i, w in state.classifiers.items() if i in state.memory}
     fix, r = t.fix[j], state.recovery
     if fix is not None and t.id[j] in state.memory:  # where and when they left, for reachability
-        r.departures[t.id[j]] = rec.Departure(t.last_update[j], *fix)
+        r.departures[t.id[j]] = rec.Departure(t.last_update[j], *fix, left=walked_out(t, j, view, horizon_s))
     if len(r.departures) > len(state.memory) or len(r.together) > 2 * len(state.memory) + 64:
         r.forget(keep=set(state.memory.entries) | state.live_ids())
+
+
+def walked_out(t: TrackTable, j: int, view: View | None, horizon_s: float) -> bool:
+    """Whether track ``j``, at its last fix in ``view``, was walking out of it within ``horizon_s``."""
+    fix = t.fix[j]
+    if view is None or fix is None or horizon_s <= 0:
+        return False
+    here = np.array([fix[0], fix[1], float(t.mean[j, 2])])
+    ahead = here.copy()
+    ahead[:2] += horizon_s * t.mean[j, 3:5]
+    inside = view.contains(np.stack([here, ahead]))
+    return bool(inside[0] and not inside[1])
 
 
 def births(free: list[int], matched: set[int], positions: np.ndarray, p_det: np.ndarray,

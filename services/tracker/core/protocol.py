@@ -19,7 +19,7 @@ from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, ScoreModel, TrackView
 
 if TYPE_CHECKING:
-    from services.tracker.core.view import FieldOfView, Views
+    from services.tracker.core.view import View
 
 __all__ = ["TrackerCore"]
 
@@ -36,7 +36,7 @@ class TrackerCore(Protocol):
 
     def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
                measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
-               view: FieldOfView | Views | None = None, aspects: np.ndarray | None = None,
+               view: View | None = None, aspects: np.ndarray | None = None,
                orientations: np.ndarray | None = None, score_model: ScoreModel | None = None,
                camera: str = "", postures: np.ndarray | None = None) -> FrameResult:
         """:meth:`step` on loose arrays (see :class:`FrameInput` for each)."""

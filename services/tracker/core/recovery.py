@@ -94,6 +94,13 @@ class RecoveryParams:
     #: like a remembered person known to be someone else counts that as an alternative
     #: (core/cues.py's :func:`memory_alternatives`)
     compete: bool = True
+    #: prior weight of a remembered person who walked out of the cameras' view, against one lost
+    #: inside it (hidden, missed): someone lost in view is still about, while people who walk out
+    #: of a camera's ground seldom turn straight back, and those who walk in are often strangers
+    left_weight: float = 1.0
+    #: s: a person walked out when their last fix was in view and their walk carried them out of
+    #: it within this time
+    exit_horizon_s: float = 1.0
 
     def __post_init__(self) -> None:
         if self.p_new is not None and not 0 < self.p_new < 1:
@@ -104,6 +111,9 @@ class RecoveryParams:
             raise ValueError("need max_speed > 0, n_sigma >= 0 and prior_window >= 1")
         if not (self.prior_new > 0 and self.prior_returned > 0):
             raise ValueError("need prior_new > 0 and prior_returned > 0")
+        if not (0 < self.left_weight <= 1 and self.exit_horizon_s >= 0):
+            raise ValueError(f"need 0 < left_weight <= 1 and exit_horizon_s >= 0, got {self.left_weight}, "
+                             f"{self.exit_horizon_s}")
         if not (self.probation_s >= 0 and self.check_period_s > 0):
             raise ValueError("need probation_s >= 0 and check_period_s > 0")
 
@@ -111,12 +121,14 @@ class RecoveryParams:
 @dataclass(frozen=True)
 class Departure:
     """Where and when a remembered person was last detected: ``stamp`` (s), ``x``, ``y`` (m) and
-    the variance ``var`` (m^2, per axis) of that position."""
+    the variance ``var`` (m^2, per axis) of that position; ``left``: they walked out of the
+    cameras' view there (else they were lost inside it, or the view was not known)."""
 
     stamp: float
     x: float
     y: float
     var: float
+    left: bool = False
 
 
 #: the arrays of :meth:`RecoveryState.to_arrays`, as the ID memory's file stores them
@@ -151,8 +163,8 @@ class RecoveryState:
         ids = sorted(deps)
         groups = sorted(self.together)
         return {"recovery_departure_ids": np.array(ids, np.int64),
-                "recovery_departures": np.array([[deps[i].stamp, deps[i].x, deps[i].y, deps[i].var] for i in ids],
-                                                np.float64).reshape(-1, 4),
+                "recovery_departures": np.array([[deps[i].stamp, deps[i].x, deps[i].y, deps[i].var, float(deps[i].left)]
+                                                 for i in ids], np.float64).reshape(-1, 5),
                 "recovery_together_ids": np.array(groups, np.int64),
                 "recovery_together_counts": np.array([len(self.together[i]) for i in groups], np.int64),
                 "recovery_together_with": np.array([o for i in groups for o in sorted(self.together[i])], np.int64),
@@ -165,9 +177,9 @@ class RecoveryState:
         def get(key: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
             return np.asarray(arrays.get(key, np.zeros(shape, dtype)))
 
-        ids, deps = get("recovery_departure_ids", (0,), np.int64), get("recovery_departures", (0, 4), np.float64)
-        if deps.ndim != 2 or deps.shape[1:] != (4,) or len(deps) != len(ids) or not np.all(np.isfinite(deps)):
-            raise ValueError(f"recovery departures: {len(ids)} ids, values of shape {deps.shape} (need finite (K, 4))")
+        ids, deps = get("recovery_departure_ids", (0,), np.int64), get("recovery_departures", (0, 5), np.float64)
+        if deps.ndim != 2 or deps.shape[1] not in (4, 5) or len(deps) != len(ids) or not np.all(np.isfinite(deps)):
+            raise ValueError(f"recovery departures: {len(ids)} ids, values of shape {deps.shape} (need finite (K, 5))")
         groups, counts = get("recovery_together_ids", (0,), np.int64), get("recovery_together_counts", (0,), np.int64)
         others = get("recovery_together_with", (0,), np.int64)
         if len(groups) != len(counts) or np.any(counts < 0) or int(counts.sum()) != len(others):
@@ -177,7 +189,8 @@ class RecoveryState:
             raise ValueError(f"recovery counts: {rates.tolist()} (need two non-negative numbers)")
         bounds = np.concatenate([[0], np.cumsum(counts)]).tolist()
         members = others.tolist()
-        return cls({int(i): Departure(*row) for i, row in zip(ids.tolist(), deps.tolist())},
+        return cls({int(i): Departure(*row[:4], bool(row[4]) if len(row) > 4 else False)
+                    for i, row in zip(ids.tolist(), deps.tolist())},
                    {int(i): frozenset(members[a:b]) for i, a, b in zip(groups.tolist(), bounds, bounds[1:])},
                    float(rates[0]), float(rates[1]))
 
@@ -373,7 +386,10 @@ def evidence(track: Candidate, memory: IdentityMemory, exclude: set[int], pair_l
         if cols:
             w = np.stack([classifiers[ids[i]] for i in cols])
             llr[cols] += classifier.weight * clf.scores(w, u, classifier.clip).mean(axis=0)
-    reach = reachable(track.stamp, track.x, track.y, track.var, [state.departures.get(k) for k in ids], params)
+    departures = [state.departures.get(k) for k in ids]
+    if params.left_weight < 1 and ids:  # who walked out seldom comes straight back
+        llr += math.log(params.left_weight) * np.array([d is not None and d.left for d in departures])
+    reach = reachable(track.stamp, track.x, track.y, track.var, departures, params)
     return Evidence(ids, llr, reach, new_llr, state.together)
 
 

@@ -60,7 +60,7 @@ from services.tracker.core.bank import GalleryBank
 from services.tracker.core.tracks import RobustTrackerState, TrackRow, TrackTable, track_rows
 from services.tracker.core.tracks import row_view, track_view, track_views
 from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, ScoreModel, TrackStatus, TrackView
-from services.tracker.core.view import FieldOfView, Views
+from services.tracker.core.view import View
 
 __all__ = ["AppearanceModel", "RobustParams", "RobustTracker", "RobustTrackerState", "ScoreModel"]
 
@@ -287,13 +287,13 @@ class RobustTracker(TrackerCore):
             None if orientations is None else orientations[d_idx], pp, fresh=moved,
             reported=None if reported is None else reported[d_idx])
 
-    def _age(self, stamp: float, result: FrameResult, view: FieldOfView | Views | None, previous: float | None) -> None:
+    def _age(self, stamp: float, result: FrameResult, view: View | None, previous: float | None) -> None:
         """Coasting and deletion (:func:`lifecycle.age`); a deleted track's appearance is archived."""
         ended, keep = lifecycle.age(self.state, self.params, stamp, previous, view)
         for j in ended:
             result.deleted.append(track_view(self.state, j, stamp, TrackStatus.DELETED, None, self._ukf,
                                               self.params.posture is not None))
-            lifecycle.archive(self.state, j)
+            lifecycle.archive(self.state, j, view, self.params.recovery.exit_horizon_s)
         self._remove({j for j, k in enumerate(keep) if not k})
 
     def _remove(self, rows: set[int]) -> None:

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Literal, NamedTuple
 import numpy as np
 
 if TYPE_CHECKING:
-    from services.tracker.core.view import FieldOfView, Views
+    from services.tracker.core.view import View
 
 __all__ = ["AppearanceModel", "FrameInput", "FrameResult", "ScoreModel", "TrackStatus", "TrackView"]
 
@@ -168,7 +168,7 @@ class FrameInput(NamedTuple):
     measurement_cov: np.ndarray | None = None
     cov_usable: np.ndarray | None = None
     scores: np.ndarray | None = None
-    view: FieldOfView | Views | None = None
+    view: View | None = None
     aspects: np.ndarray | None = None
     orientations: np.ndarray | None = None
     score_model: ScoreModel | None = None
@@ -178,7 +178,7 @@ class FrameInput(NamedTuple):
     @classmethod
     def of(cls, positions: np.ndarray, descriptors: np.ndarray | None = None,
            measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
-           view: FieldOfView | Views | None = None, aspects: np.ndarray | None = None,
+           view: View | None = None, aspects: np.ndarray | None = None,
            orientations: np.ndarray | None = None, score_model: ScoreModel | None = None,
            camera: str = "", postures: np.ndarray | None = None) -> FrameInput:
         """Convert one frame's arrays (ValueError for descriptors of the wrong shape)."""

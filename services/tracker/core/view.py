@@ -9,7 +9,8 @@ now is a false positive for every consumer that reads the output as "people in v
 Such a track is kept (their ID is still theirs when they come back), but not reported.
 
 :class:`FieldOfView` is a pinhole camera's view in the tracking frame: its pose, its
-intrinsics and image size, and the range its depth reaches. :class:`Views` is what several
+intrinsics and image size, and the range its depth reaches. :class:`FloorView` is a fixed camera's
+view of the floor from its floor homography (no intrinsics needed). :class:`Views` is what several
 cameras see together (TU Ilmenau's two cameras): a person is in view when any of them could
 see them, so a person behind the robot, seen by the back camera a moment ago, stays
 reported while the head camera's frames come in. Pure numpy.
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FieldOfView", "Views"]
+__all__ = ["FieldOfView", "FloorView", "View", "Views"]
 
 
 @dataclass(frozen=True)
@@ -64,10 +65,45 @@ class FieldOfView:
 
 
 @dataclass(frozen=True)
+class FloorView:
+    """A fixed camera's view of the floor, from its floor homography: ``image_to_floor`` (3, 3)
+    maps a foot pixel ``(u, v, 1)`` to the floor ``(x, y, w)`` (the localizer's
+    ``FloorHomography.H``), ``width`` x ``height`` pixels. A point is in view when its foot
+    (its ``x, y``; the height is not used) projects inside the image."""
+
+    image_to_floor: np.ndarray
+    width: int
+    height: int
+
+    def __post_init__(self) -> None:
+        h = np.asarray(self.image_to_floor, np.float64).reshape(3, 3)
+        if not np.all(np.isfinite(h)) or not np.linalg.cond(h) < 1e12:
+            raise ValueError("image_to_floor must be a finite, invertible 3x3 homography")
+        if self.width <= 0 or self.height <= 0:
+            raise ValueError("width and height must be positive")
+        object.__setattr__(self, "image_to_floor", h)
+        object.__setattr__(self, "_to_image", np.linalg.inv(h))
+
+    def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Whether each point (N, 3) (or (N, 2)) stands inside the image less a border of
+        ``margin`` times its width (and height) on the left, right and top: the foot is the
+        body's lowest point, so a person whose feet are near the image's lower edge is in full
+        view above them."""
+        p = np.asarray(points, np.float64)
+        p = p.reshape(-1, p.shape[-1] if p.ndim > 1 else 3)[:, :2]
+        g = p @ self._to_image[:, :2].T + self._to_image[:, 2]  # type: ignore[attr-defined]
+        w = g[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u, v = g[:, 0] / w, g[:, 1] / w
+        mu, mv = margin * self.width, margin * self.height
+        return (w > 0) & (u >= mu) & (u <= self.width - mu) & (v >= mv) & (v <= self.height)
+
+
+@dataclass(frozen=True)
 class Views:
     """The union of several cameras' views: a point is in view when any of them contains it."""
 
-    views: tuple[FieldOfView, ...]
+    views: tuple[FieldOfView | FloorView, ...]
 
     def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
         p = np.asarray(points, np.float64).reshape(-1, 3)
@@ -75,3 +111,7 @@ class Views:
         for view in self.views:
             seen |= view.contains(p, margin)
         return seen
+
+
+#: any view the tracker takes
+View = FieldOfView | FloorView | Views

@@ -67,6 +67,9 @@ def _perception(*args: str) -> list[str]:
 #: The tracker as the offline chain runs it: its fixed measurement noise instead of each
 #: detection's covariance (the offline chain's detections carry none).
 LIKE_OFFLINE = {"PERCEPTION_TRACKER__ROBUST__USE_DETECTION_COVARIANCE": "false"}
+#: quality.py's PETS_SITE as the services' settings: the open place's ID-memory prior and the view's
+#: border (the localizer sends the camera's floor view through the homography by itself)
+SITE = {"PERCEPTION_TRACKER__ROBUST__VIEW_MARGIN": "0.05", "PERCEPTION_TRACKER__ROBUST__RECOVERY__LEFT_WEIGHT": "0.3"}
 
 
 def run_live(root: Path, n_frames: int, workdir: Path, timeout_s: float = 900.0,
@@ -189,7 +192,8 @@ def main() -> int:
         return 2
     offline = run_offline(root, args.frames, args.cache_dir)
     runs = {}
-    for name, env in (("live, as offline", LIKE_OFFLINE), ("live, defaults", {})):
+    for name, env in (("live, as offline", LIKE_OFFLINE), ("live, defaults", {}),
+                      ("live, as offline, site", {**LIKE_OFFLINE, **SITE})):
         with tempfile.TemporaryDirectory() as tmp:
             runs[name] = run_live(root, args.frames, Path(tmp), env=env)
     for name, rows in (("offline chain", offline), *((n, r.rows) for n, r in runs.items())):
@@ -199,7 +203,8 @@ def main() -> int:
         print(f"{name}: {run.frames} frames in {run.seconds:.1f} s, {run.fps:.1f} frames/s "
               "(camera --max -> HOG -> localizer -> embedder -> tracker, each a process)")
     print("'as offline': the tracker's fixed measurement noise, as the offline chain's detections carry no "
-          "covariance; 'defaults': each detection's covariance from the floor homography (robust profile)")
+          "covariance; 'defaults': each detection's covariance from the floor homography (robust profile); "
+          "'site': as offline, with quality.py's PETS_SITE (an open place's ID-memory prior, the view's border)")
     return 0
 
 

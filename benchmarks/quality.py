@@ -549,7 +549,8 @@ def pets_live_section(root: Path, cache_dir: Path) -> str:
     offline = live_mod.judge(root, n, live_mod.run_offline(root, n, cache_dir))
     lines.append(f"| offline (this section's PETS table) | {offline.mota:.3f} | {offline.idf1:.3f} | {offline.id_switches} | |")
     for label, env in (("live, tracker as offline (fixed R)", live_mod.LIKE_OFFLINE),
-                       ("live, defaults (R from the floor homography)", {})):
+                       ("live, defaults (R from the floor homography)", {}),
+                       ("live, as offline, the site's settings (PETS_SITE)", {**live_mod.LIKE_OFFLINE, **live_mod.SITE})):
         with tempfile.TemporaryDirectory() as tmp:
             run = live_mod.run_live(root, n, Path(tmp), env=env)
         r = live_mod.judge(root, n, run.rows)

@@ -10,6 +10,7 @@ from common.messages.schemas import (
     AppearanceThresholds,
     CameraInfo,
     CameraView,
+    FloorCameraView,
     Detection,
     Detections,
     AttentionReply,
@@ -134,6 +135,8 @@ def example_messages(stamp_ns: int = 1_700_000_000_000_000_000, n_people: int = 
             view=CameraView(camera_to_frame=np.array([[0.0, 0, 1, 0.1], [-1, 0, 0, 0], [0, -1, 0, 1.2], [0, 0, 0, 1]]),
                             K=np.array([[525.0, 0, 320], [0, 525.0, 240], [0, 0, 1]]), width=640, height=480,
                             max_range_m=10.0),
+            floor_view=FloorCameraView(image_to_frame=np.array([[0.01, 0, -3.2], [0, -0.01, 6.0], [0, 0, 1]]),
+                                       width=640, height=480),
         ),
         Embeddings(header=cam, model=card, indices=np.arange(n_people, dtype=np.int32), vectors=vectors),
         Tracks(

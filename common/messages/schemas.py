@@ -30,6 +30,7 @@ __all__ = [
     "AppearanceThresholds",
     "CameraInfo",
     "CameraView",
+    "FloorCameraView",
     "Detection",
     "AttentionReply",
     "Detections",
@@ -405,6 +406,22 @@ class CameraView(_Model):
         return self
 
 
+class FloorCameraView(_Model):
+    """What a fixed camera placed on the floor by a homography sees (no intrinsics needed):
+    ``image_to_frame`` (3, 3) maps a foot pixel ``(u, v, 1)`` to ``(x, y, w)`` in the frame of
+    the positions (metres after dividing by ``w``); a person is in view when their feet project
+    inside the ``width`` x ``height`` image."""
+
+    image_to_frame: NDArray(np.float64, (3, 3))  # type: ignore[valid-type]
+    width: int = Field(gt=0)
+    height: int = Field(gt=0)
+
+    @model_validator(mode="after")
+    def _check(self) -> FloorCameraView:
+        _finite(self.image_to_frame, "image_to_frame")
+        return self
+
+
 @message("perception.LocalizedDetections", 1)
 class LocalizedDetections(Message):
     """People positions of one source frame.
@@ -419,6 +436,8 @@ class LocalizedDetections(Message):
     detections: list[LocalizedDetection] = Field(default_factory=list)
     rejected: dict[str, int] = Field(default_factory=dict, description="boxes rejected in this frame, by reason")
     view: CameraView | None = Field(default=None, description="the camera's view at this frame (None: not known)")
+    floor_view: FloorCameraView | None = Field(
+        default=None, description="a fixed camera's view through its floor homography (None: not placed by one)")
     detector: str = Field(default="", description="the detector whose boxes these are (Detections.detector)")
 
 

@@ -49,6 +49,7 @@ from common.runtime.service import Counters
 from common.messages.schemas import (
     CameraView,
     Detections,
+    FloorCameraView,
     Header,
     Image,
     LocalizedDetection,
@@ -63,6 +64,7 @@ from services.localizer.core import (
     FloorHomography,
     Localization,
     camera_pose_from_homography,
+    homography_in_frame,
     localize,
     localize_on_floor,
     localize_on_floor_homography,
@@ -196,7 +198,7 @@ class LocalizerService(Node):
         return False
 
     def _on_depth(self, msg: Detections, frame: _Frame, boxes: np.ndarray, tf: RigidTransform
-                  ) -> tuple[Localization, CameraView | None] | None:
+                  ) -> tuple[Localization, CameraView | None, None] | None:
         """The boxes at their depth, in the target frame, and the camera's view; None when dropped."""
         assert frame.depth is not None
         try:
@@ -207,13 +209,14 @@ class LocalizerService(Node):
         if self._size_mismatch(msg, depth.shape[1], depth.shape[0], "depth"):
             return None
         loc = localize(depth, frame.camera, boxes, self.params, frame=frame.camera_frame)
-        return loc.transformed(tf, self.config.target_frame), self._view(frame.camera, tf, self.params.max_depth_m)
+        return loc.transformed(tf, self.config.target_frame), self._view(frame.camera, tf, self.params.max_depth_m), None
 
     def _on_floor(self, msg: Detections, frame: _Frame, boxes: np.ndarray, tf: RigidTransform
-                  ) -> tuple[Localization, CameraView | None] | None:
+                  ) -> tuple[Localization, CameraView | None, FloorCameraView | None] | None:
         """The boxes on the floor (no depth image), in the target frame, and the camera's view; None when
         dropped. ``tf`` maps the camera frame (without a homography) or the homography's frame into the target."""
         cam, target, p = frame.camera, self.config.target_frame, self.floor
+        floor: FloorCameraView | None = None
         if self._size_mismatch(msg, cam.width, cam.height, "the camera"):
             return None
         if self.homography is None:
@@ -227,15 +230,18 @@ class LocalizerService(Node):
             pose = camera_pose_from_homography(hom, cam.K, p.floor_z_m)
             loc = localize_on_floor_homography(hom, boxes, p, cam.width, cam.height, pose, frame=self.config.floor_frame)
             loc, cam_to_target = loc.transformed(tf, target), tf @ pose.camera_to_floor
+            h = homography_in_frame(hom, tf)
+            if h is not None:
+                floor = FloorCameraView(image_to_frame=h, width=cam.width, height=cam.height)
             if not pose.mismatch <= MISMATCH_TOLERANCE:
                 # the positions come from the homography alone; the camera's pose (range, depth, view) is unsure
                 self.counters.count("homography_intrinsics_mismatch")
                 self._log.warning("homography_intrinsics_mismatch", "the camera's K does not fit the floor homography "
                                   "(mismatch %.2f > %.2f): ranges and depths are rough, no view is sent",
                                   pose.mismatch, MISMATCH_TOLERANCE)
-                return loc, None
+                return loc, None, floor
         height = float(cam_to_target.translation[2]) - p.floor_z_m - p.centre_height_m
-        return loc, self._view(cam, cam_to_target, float(np.hypot(p.max_floor_range_m, height)))
+        return loc, self._view(cam, cam_to_target, float(np.hypot(p.max_floor_range_m, height))), floor
 
     @staticmethod
     def _view(cam: PinholeCamera, cam_to_target: RigidTransform, max_range_m: float) -> CameraView:
@@ -248,7 +254,7 @@ class LocalizerService(Node):
         got = self._on_depth(msg, frame, boxes, tf) if frame.depth is not None else self._on_floor(msg, frame, boxes, tf)
         if got is None:
             return None
-        out, view = got
+        out, view, floor = got
         entries = []
         for k, i in enumerate(out.indices):
             d = dets[int(i)]
@@ -279,7 +285,7 @@ class LocalizerService(Node):
             source=self.config.stream or msg.header.source,
         )
         return LocalizedDetections(
-            header=header, camera_frame=frame.camera_frame, detections=entries, rejected=rejected, view=view,
+            header=header, camera_frame=frame.camera_frame, detections=entries, rejected=rejected, view=view, floor_view=floor,
             detector=msg.detector,
         )
 

@@ -6,17 +6,20 @@ import numpy as np
 
 from common.messages.schemas import Embeddings, Header, LocalizedDetections, TrackState, Tracks
 from services.tracker.core.types import FrameResult, TrackView
-from services.tracker.core.view import FieldOfView
+from services.tracker.core.view import FieldOfView, FloorView
 
 __all__ = ["descriptors_for", "field_of_view", "orientations_for", "positions_of", "track_state", "tracks_message"]
 
 
-def field_of_view(loc: LocalizedDetections) -> FieldOfView | None:
-    """The camera's view at a frame, if the localizer sent it."""
-    v = loc.view
-    if v is None:
-        return None
-    return FieldOfView(v.camera_to_frame, v.K, v.width, v.height, v.max_range_m)
+def field_of_view(loc: LocalizedDetections) -> FieldOfView | FloorView | None:
+    """The camera's view at a frame, if the localizer sent it: its pinhole view, else the view
+    of a fixed camera through its floor homography."""
+    v, f = loc.view, loc.floor_view
+    if v is not None:
+        return FieldOfView(v.camera_to_frame, v.K, v.width, v.height, v.max_range_m)
+    if f is not None:
+        return FloorView(f.image_to_frame, f.width, f.height)
+    return None
 
 
 def positions_of(loc: LocalizedDetections) -> tuple[np.ndarray, np.ndarray]:

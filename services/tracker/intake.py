@@ -28,7 +28,7 @@ from services.tracker.convert import descriptors_for, field_of_view, orientation
 from services.tracker.core import FrameInput
 from services.tracker.core.cues import usable_covariances
 from services.tracker.core.posture import codes as posture_codes
-from services.tracker.core.view import FieldOfView, Views
+from services.tracker.core.view import FieldOfView, FloorView, View, Views
 from services.tracker.reorder import ClockJumps, InputKey
 
 __all__ = ["Arrival", "Frame", "Intake"]
@@ -116,7 +116,7 @@ class Intake:
         self.clock_jumps = ClockJumps(int(config.clock_jump_s * 1e9))
         self._score_models = config.score_models()  # by Detections.detector
         #: each camera's newest view, (stamp_ns, view): a coasting track in any recent one is in view
-        self._views: dict[str, tuple[int, FieldOfView]] = {}
+        self._views: dict[str, tuple[int, FieldOfView | FloorView]] = {}
 
     # ------------------------------------------------------------- arrival
     def localized(self, loc: LocalizedDetections) -> tuple[Arrival | None, int]:
@@ -195,7 +195,7 @@ class Intake:
             out.append((j.key, self.convert(j.anchor, j.get("embeddings"))))
         return out
 
-    def convert(self, arrival: Arrival, emb: Embeddings | None, view: FieldOfView | Views | None = None) -> Frame:
+    def convert(self, arrival: Arrival, emb: Embeddings | None, view: View | None = None) -> Frame:
         """The core's input for ``arrival`` with its embeddings ``emb`` (None: none came);
         ``view``: the cameras' view when known (a frame converted again), else from the frame."""
         loc = arrival.loc
@@ -213,12 +213,18 @@ class Intake:
                            self._score_models.get(loc.detector), loc.camera_frame, arrival.postures)
         return Frame(arrival, emb is not None, frame)
 
-    def view(self, loc: LocalizedDetections) -> FieldOfView | Views | None:
+    def view(self, loc: LocalizedDetections) -> View | None:
         """What the cameras could see at this frame: its own camera's view at this frame, and
         with several cameras the union with each other camera's newest view within
         ``view_age_s``. Two detectors' streams of one camera (one ``camera_frame``) are one
         camera: its view at another time is not what it sees now (it may have turned)."""
-        view = field_of_view(loc)
+        try:
+            view = field_of_view(loc)
+        except ValueError as exc:  # e.g. a zero focal length or a singular homography: tracked without it
+            view = None
+            self.counters.count("bad_view")
+            self._log.warning("bad_view", "the camera's view of frame %s is unusable (%s): tracking it without one",
+                              loc.header.seq, exc)
         stamp = loc.header.stamp_ns
         camera = loc.camera_frame or loc.header.source
         if view is not None:

@@ -45,6 +45,10 @@ def boxes_at(pose: RigidTransform, feet: np.ndarray) -> list[tuple[float, float,
     return [(u - 25.0, v - 150.0, u + 25.0, v) for u, v in px.tolist()]
 
 
+def foot_pixels(pose: RigidTransform, feet: np.ndarray) -> np.ndarray:
+    return scene.camera().project(pose.inverse().apply(feet))
+
+
 def detections(f: RGBDFrame, boxes: list[tuple[float, float, float, float]]) -> Detections:
     return Detections(header=f.header, image_width=640, image_height=480, detector="test",
                       detections=[Detection(index=i, bbox_xyxy=b, score=0.9) for i, b in enumerate(boxes)])
@@ -100,6 +104,10 @@ def test_through_a_floor_homography_no_transform_is_needed(memory_bus: MemoryBus
     # the camera's K fits the homography: its pose, hence the view, comes from the two
     assert out.view is not None and np.allclose(out.view.camera_to_frame, FIXED.matrix, atol=1e-6)
     assert "homography_intrinsics_mismatch" not in rig.counters.extra
+    # and the fixed camera's floor view, the same homography, is sent with it
+    assert out.floor_view is not None and (out.floor_view.width, out.floor_view.height) == (640, 480)
+    assert np.allclose(FloorHomography(out.floor_view.image_to_frame).to_floor(foot_pixels(FIXED, feet))[0],
+                       feet[:, :2], atol=1e-6)
 
 
 def test_a_homography_for_another_resolution_is_scaled(memory_bus: MemoryBus, tmp_path: Path) -> None:
@@ -134,6 +142,7 @@ def test_homography_problems_are_counted(memory_bus: MemoryBus, tmp_path: Path) 
     [out] = rig2.service.poll(time.monotonic())
     assert np.allclose(out.detections[0].position, feet[0] + [0.0, 0.0, 0.9], atol=1e-6) and out.view is None
     assert rig2.counters.extra["homography_intrinsics_mismatch"] == 1
+    assert out.floor_view is not None  # the homography alone still tells what the camera sees of the floor
 
 
 def test_a_homography_in_another_frame(memory_bus: MemoryBus, tmp_path: Path) -> None:
@@ -148,6 +157,23 @@ def test_a_homography_in_another_frame(memory_bus: MemoryBus, tmp_path: Path) ->
     [out] = rig.service.poll(time.monotonic())
     assert out.header.frame_id == "map"
     assert np.allclose(out.detections[0].position, feet[0] + [10.0, -3.0, 0.9], atol=1e-6)
+    # the floor view is in the positions' frame (map), not the homography's (world)
+    assert out.floor_view is not None
+    assert np.allclose(FloorHomography(out.floor_view.image_to_frame).to_floor(foot_pixels(FIXED, feet))[0],
+                       feet[:, :2] + [10.0, -3.0], atol=1e-6)
+
+
+def test_a_tilted_homography_frame_sends_no_floor_view(memory_bus: MemoryBus, tmp_path: Path) -> None:
+    hom = homography_from_camera(scene.camera(), FIXED)
+    tilt = StaticTransformConfig(parent_frame="map", child_frame="world", translation=(0.0, 0.0, 0.0),
+                                 rotation_xyzw=tuple(Rotation.from_euler("x", 10, degrees=True).as_quat()))
+    rig = Rig(memory_bus, floor_homography=homography_file(tmp_path, hom), floor_homography_frame="world",
+              static_transforms=[tilt])
+    f = scene.frame(1, [], with_depth=False)
+    rig.frames.put(f)
+    rig.dets.put(detections(f, boxes_at(FIXED, on_floor(FIXED, [5.0]))))
+    [out] = rig.service.poll(time.monotonic())
+    assert out.floor_view is None and len(out.detections) == 1  # its floor is not the map's: no floor view
 
 
 def test_frames_with_depth_keep_the_depth_path(memory_bus: MemoryBus, tmp_path: Path) -> None:

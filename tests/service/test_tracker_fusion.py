@@ -11,10 +11,11 @@ import numpy as np
 
 from common.messages.keys import RELIABLE, Keys
 from common.transport.memory import MemoryBus
-from common.messages.schemas import CameraView, Embeddings, Header, LocalizedDetection, LocalizedDetections, ModelCard, Tracks
+from common.messages.schemas import (CameraView, Embeddings, FloorCameraView, Header, LocalizedDetection,
+                                     LocalizedDetections, ModelCard, Tracks)
 from services.tracker.config import ScoreConfig, TrackerConfig
 from services.tracker.core.robust import RobustParams, RobustTracker, ScoreModel
-from services.tracker.core.view import FieldOfView, Views
+from services.tracker.core.view import FieldOfView, FloorView, Views
 from services.tracker.service import TrackerService
 
 KEYS = Keys(robot="fuse")
@@ -181,3 +182,21 @@ def test_two_streams_of_one_camera_use_that_cameras_view_at_each_frame(tmp_path:
     assert isinstance(late, FieldOfView) and np.allclose(late.camera_to_frame, BACK)
     both = service._view(loc("back", 5, BACK, camera_frame="back_optical"))
     assert isinstance(both, Views) and len(both.views) == 2
+
+
+def test_a_fixed_cameras_floor_view_reaches_the_core_and_a_bad_one_is_counted(tmp_path: Path) -> None:
+    """A camera placed by a floor homography sends its floor view (no intrinsics): the tracker
+    takes it as a FloorView; a singular one is counted and the frame tracked without a view."""
+    service = TrackerService(MemoryBus().transport(), KEYS, _config(tmp_path), clock=lambda: 0.0)
+
+    def loc(seq: int, h: np.ndarray, view: CameraView | None = None) -> LocalizedDetections:
+        return LocalizedDetections(header=Header(stamp_ns=T0 + seq * PERIOD_NS, frame_id="map", seq=seq, source="cctv"),
+                                   camera_frame="cctv_optical", view=view,
+                                   floor_view=FloorCameraView(image_to_frame=h, width=640, height=480))
+
+    got = service._view(loc(1, np.diag([0.01, 0.01, 1.0])))
+    assert isinstance(got, FloorView) and got.contains(np.array([[3.0, 2.0, 1.0], [7.0, 2.0, 1.0]])).tolist() == [True, False]
+    pinhole = CameraView(camera_to_frame=FRONT, K=K, width=320, height=240, max_range_m=10.0)
+    assert isinstance(service._view(loc(2, np.diag([0.01, 0.01, 1.0]), pinhole)), FieldOfView)  # the pinhole's first
+    assert service._view(loc(3, np.zeros((3, 3)))) is None
+    assert service.counters.extra["bad_view"] == 1

@@ -15,6 +15,7 @@ from services.localizer.core.homography import (
     HomographyPose,
     camera_pose_from_homography,
     homography_from_camera,
+    homography_in_frame,
     localize_on_floor_homography,
 )
 from services.localizer.core.localize import (
@@ -49,6 +50,7 @@ __all__ = [
     "camera_pose_from_homography",
     "foot_points",
     "homography_from_camera",
+    "homography_in_frame",
     "localize",
     "localize_on_floor",
     "localize_on_floor_homography",

@@ -36,6 +36,7 @@ __all__ = [
     "HomographyPose",
     "camera_pose_from_homography",
     "homography_from_camera",
+    "homography_in_frame",
     "localize_on_floor_homography",
 ]
 
@@ -105,6 +106,16 @@ class HomographyPose:
     camera_to_floor: RigidTransform
     scale: float
     mismatch: float
+
+
+def homography_in_frame(hom: FloorHomography, floor_to_frame: RigidTransform, tol: float = 1e-6) -> np.ndarray | None:
+    """``hom.H`` carried into another frame: foot pixel ``(u, v, 1)`` -> ``(x, y, w)`` there, for
+    ``floor_to_frame`` a turn about z and a shift (the floor stays level); None when it tilts the
+    floor, where the floor's points no longer map to that frame's ``(x, y)`` by a homography."""
+    m = floor_to_frame.matrix
+    if max(abs(m[2, 0]), abs(m[2, 1]), abs(m[0, 2]), abs(m[1, 2])) > tol:
+        return None
+    return np.array([[m[0, 0], m[0, 1], m[0, 3]], [m[1, 0], m[1, 1], m[1, 3]], [0.0, 0.0, 1.0]]) @ hom.H
 
 
 def homography_from_camera(camera: PinholeCamera, camera_to_floor: RigidTransform, floor_z_m: float = 0.0

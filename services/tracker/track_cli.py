@@ -7,7 +7,10 @@ import logging
 import time
 from pathlib import Path
 
+import numpy as np
+
 from common.runtime.cli_util import CliError, check_input_file
+from common.runtime.config import ConfigError, read_config_file
 from common.runtime.node import load_node_config
 from services.tracker.config import DEFAULT_EMBEDDING_MODEL, PROFILES, TrackerConfig
 from services.tracker.core.view import FloorView
@@ -59,15 +62,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def floor_view(path: Path) -> FloorView:
-    """The :class:`FloorView` of a floor homography file (CliError naming what is missing)."""
-    from services.localizer.files import read_floor_homography  # the localizer's format; OpenCV only when asked
-
+    """The :class:`FloorView` of a floor homography file, the localizer's ``--floor-homography``
+    format (``{"H": 3x3, "image_size": [width, height]}``, JSON or YAML); CliError naming what
+    is wrong."""
     check_input_file(path, 'expected a floor homography file: {"H": 3x3, "image_size": [width, height]}')
-    hom = read_floor_homography(path)
-    if hom.image_size is None:
+    try:
+        data = read_config_file(path)
+    except ConfigError as exc:
+        raise CliError(f"floor homography: {exc}") from exc
+    if "H" not in data:
+        raise CliError(f'floor homography {path} has no "H" (a 3x3 matrix: foot pixel (u, v, 1) -> floor (x, y, w))')
+    size = data.get("image_size")
+    if not isinstance(size, (list, tuple)) or len(size) != 2:
         raise CliError(f"floor homography {path} has no image_size: the view needs the image's [width, height]; "
-                       "add \"image_size\": [width, height] of the pixels H was fitted in")
-    return FloorView(hom.H, *hom.image_size)
+                       'add "image_size": [width, height] of the pixels H was fitted in')
+    try:
+        return FloorView(np.asarray(data["H"], np.float64).reshape(3, 3), int(size[0]), int(size[1]))
+    except (TypeError, ValueError) as exc:
+        raise CliError(f"floor homography {path}: {exc}") from exc
 
 
 def main(args: argparse.Namespace) -> int:

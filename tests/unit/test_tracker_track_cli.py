@@ -175,3 +175,6 @@ def test_a_floor_view_hides_a_coasting_person_outside_the_image(tmp_path: Path,
     hom.write_text('{"H": [[0.01, 0, -5], [0, 0.01, -1], [0, 0, 1]]}')
     assert main(["track", "--detections", str(dets), "--output", str(out), "--floor-view", str(hom)]) == 2
     assert "image_size" in capsys.readouterr().err
+    hom.write_text('{"H": [[0, 0, 0], [0, 0, 0], [0, 0, 0]], "image_size": [1000, 200]}')
+    assert main(["track", "--detections", str(dets), "--output", str(out), "--floor-view", str(hom)]) == 2
+    assert "invertible" in capsys.readouterr().err

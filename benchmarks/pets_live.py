@@ -3,6 +3,9 @@ beside the offline chain of ``benchmarks/quality.py`` on the same frames.
 
     python benchmarks/pets_live.py [--frames 400] [--data ../shared/data]
 
+It prints one markdown table (``benchmarks/quality.py --only pets-live`` runs this script and
+prints the same table; this module uses quality.py's chain and judge, never the other way).
+
 ``perception camera`` plays ``pets09_dev/frames`` (a folder; ``--max``: each frame once the
 detector has answered the previous one) -> the HOG detector (quality.py's upsampling for 50 px
 people) -> the localizer on the floor through ``ground_homography.json`` (no depth) -> the colour
@@ -35,14 +38,14 @@ from common.transport.router_process import RouterProcess  # noqa: E402
 from common.transport.zenoh import open_transport  # noqa: E402
 from common.transport.zenoh_config import ZenohOptions  # noqa: E402
 
-__all__ = ["LiveRun", "quality_module", "run_live", "run_offline"]
+__all__ = ["RUNS", "LiveRun", "judge", "quality_module", "run_live", "run_offline", "table"]
 
 SERVICES = ("detector", "localizer", "embedder", "tracker")
 
 
 def quality_module() -> ModuleType:
-    """benchmarks/quality.py (its settings and judge are the reference), imported when first
-    needed: it imports this module too."""
+    """benchmarks/quality.py: its PETS chain's settings and its judge are the reference (imported
+    when first needed: it is large, and the live run alone does not need it)."""
     from benchmarks import quality
 
     return quality
@@ -179,6 +182,33 @@ def judge(root: Path, n_frames: int, rows: list[Any]) -> Any:
     return q.judge(table, rows, ignore)
 
 
+#: the live runs of :func:`table`: label and the services' settings
+RUNS = (("live, tracker as offline (fixed R)", LIKE_OFFLINE),
+        ("live, defaults (R from the floor homography)", {}),
+        ("live, as offline, the site's settings (PETS_SITE)", {**LIKE_OFFLINE, **SITE}))
+
+
+def table(root: Path, n_frames: int, cache_dir: Path | None) -> str:
+    """The first ``n_frames`` through the live services (each of :data:`RUNS`), beside the offline
+    chain, as a markdown table with its notes."""
+    lines = [f"### PETS09-S2L1 frames 1-{n_frames} through the live services (robust), beside the offline chain", "",
+             "| chain | MOTA | IDF1 | IDSW | frames/s |", "|---|---|---|---|---|"]
+    offline = judge(root, n_frames, run_offline(root, n_frames, cache_dir))
+    lines.append(f"| offline (quality.py's PETS chain) | {offline.mota:.3f} | {offline.idf1:.3f} | {offline.id_switches} | |")
+    for label, env in RUNS:
+        with tempfile.TemporaryDirectory() as tmp:
+            run = run_live(root, n_frames, Path(tmp), env=env)
+        r = judge(root, n_frames, run.rows)
+        lines.append(f"| {label} | {r.mota:.3f} | {r.idf1:.3f} | {r.id_switches} | {run.fps:.1f} |")
+    lines += ["", "(camera --max -> HOG -> localizer -> embedder -> tracker, each a process over a real router; "
+              "'as offline': the tracker's fixed measurement noise, as the offline chain's detections carry no "
+              "covariance; 'defaults': each detection's covariance from the floor homography; 'the site's settings': "
+              "quality.py's PETS_SITE, an open place's ID-memory prior and the view's border. Live, the tracker has the "
+              "camera's floor view the localizer sends (offline it has none): a coasting person in the image's border "
+              "is not reported, which the ground truth still counts.)"]
+    return "\n".join(lines)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=400)
@@ -190,21 +220,7 @@ def main() -> int:
     if not root.is_dir():
         print(f"PETS09 not found at {root}")
         return 2
-    offline = run_offline(root, args.frames, args.cache_dir)
-    runs = {}
-    for name, env in (("live, as offline", LIKE_OFFLINE), ("live, defaults", {}),
-                      ("live, as offline, site", {**LIKE_OFFLINE, **SITE})):
-        with tempfile.TemporaryDirectory() as tmp:
-            runs[name] = run_live(root, args.frames, Path(tmp), env=env)
-    for name, rows in (("offline chain", offline), *((n, r.rows) for n, r in runs.items())):
-        r = judge(root, args.frames, rows)
-        print(f"{name:17s} frames 1-{args.frames}: MOTA {r.mota:.3f}  IDF1 {r.idf1:.3f}  IDSW {r.id_switches}")
-    for name, run in runs.items():
-        print(f"{name}: {run.frames} frames in {run.seconds:.1f} s, {run.fps:.1f} frames/s "
-              "(camera --max -> HOG -> localizer -> embedder -> tracker, each a process)")
-    print("'as offline': the tracker's fixed measurement noise, as the offline chain's detections carry no "
-          "covariance; 'defaults': each detection's covariance from the floor homography (robust profile); "
-          "'site': as offline, with quality.py's PETS_SITE (an open place's ID-memory prior, the view's border)")
+    print(table(root, args.frames, args.cache_dir))
     return 0
 
 

@@ -94,6 +94,7 @@ import hashlib  # noqa: E402
 import inspect  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
@@ -539,23 +540,15 @@ def pets_detections(root: Path, cache_dir: Path, log: Callable[[str], None] = pr
 
 
 def pets_live_section(root: Path, cache_dir: Path) -> str:
-    """The same 400 frames through the live services (benchmarks/pets_live.py), beside the offline chain."""
-    import tempfile
-
-    from benchmarks import pets_live as live_mod
+    """The same frames through the live services: ``benchmarks/pets_live.py``'s table (run as its
+    own process: it builds on this module's chain and judge)."""
     n = len(list((root / "frames").glob("frame_*.jpg")))
-    lines = ["### PETS09-S2L1 frames 1-%d through the live services (robust), beside the offline chain" % n, "",
-             "| chain | MOTA | IDF1 | IDSW | frames/s |", "|---|---|---|---|---|"]
-    offline = live_mod.judge(root, n, live_mod.run_offline(root, n, cache_dir))
-    lines.append(f"| offline (this section's PETS table) | {offline.mota:.3f} | {offline.idf1:.3f} | {offline.id_switches} | |")
-    for label, env in (("live, tracker as offline (fixed R)", live_mod.LIKE_OFFLINE),
-                       ("live, defaults (R from the floor homography)", {}),
-                       ("live, as offline, the site's settings (PETS_SITE)", {**live_mod.LIKE_OFFLINE, **live_mod.SITE})):
-        with tempfile.TemporaryDirectory() as tmp:
-            run = live_mod.run_live(root, n, Path(tmp), env=env)
-        r = live_mod.judge(root, n, run.rows)
-        lines.append(f"| {label} | {r.mota:.3f} | {r.idf1:.3f} | {r.id_switches} | {run.fps:.1f} |")
-    return "\n".join(lines)
+    cmd = [sys.executable, str(ROOT / "benchmarks" / "pets_live.py"), "--frames", str(n), "--data", str(root.parent),
+           "--cache-dir", str(cache_dir)]
+    done = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, check=False)
+    if done.returncode != 0:
+        return f"PETS09 through the live services failed (exit {done.returncode}):\n{done.stderr[-3000:]}"
+    return done.stdout.rstrip()
 
 
 def pets_truth(root: Path, n_frames: int) -> tuple[TrackTable, TrackTable]:

@@ -29,7 +29,7 @@ from common.messages.schemas import CameraInfo, Header, Image, RGBDFrame, TrackS
 from common.transport.base import RawSample, RawSubscription, Transport
 from services.ros2.config import Ros2Config
 from services.ros2.core.images import ImageError, Intrinsics, Pixels, compressed_pixels, intrinsics, raw_pixels
-from services.ros2.core.pairing import Pairer
+from common.runtime.pairing import StampPairer
 from services.ros2.core.people import PeopleWriter, Person
 from services.ros2.core.types import CdrError, known_hashes, types_of
 from services.ros2.core.wire import Qos, dds_to_ros, parse_attachment
@@ -74,9 +74,9 @@ class Ros2Service(Node):
         self._static_sent = -1e9
         # an RGB-only camera: each colour image goes out at once
         # colour items carry the image's frame id along with its pixels
-        self.pairer: Pairer[tuple[str, Pixels], Pixels] = Pairer(slop_s=config.slop_s,
-                                                     wait_s=config.pair_wait_s if config.depth_topic else 0.0,
-                                                     queue=config.image_queue)
+        self.pairer: StampPairer[tuple[str, Pixels], Pixels] = StampPairer(
+            int(config.slop_s * 1e9), wait_s=config.pair_wait_s, queue=config.image_queue,
+            expect_depth=bool(config.depth_topic), depth_queue=4 * config.image_queue)
         if config.camera_in:
             self.frames_pub = self.io.publisher(keys.frames(config.camera), RGBDFrame, FRAMES)
             colour_type = "sensor_msgs/msg/CompressedImage" if config.colour_compressed else "sensor_msgs/msg/Image"

@@ -7,7 +7,6 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from tools.replay.core.mapping import parse_remap, plan_topics, remap_key
-from tools.replay.core.pairing import RgbdPairer
 from tools.replay.core.timeline import Pacer, RateMeter, Reorderer, TimeWindow, reorder
 
 MS = 1_000_000
@@ -122,46 +121,6 @@ def test_rate_meter() -> None:
     msgs, bps = meter.rates()
     assert msgs == pytest.approx(10.0, rel=0.01)
     assert bps == pytest.approx(11_000, rel=0.01)
-
-
-# ------------------------------------------------------------------------- pairing
-
-
-def test_pairing_picks_the_nearest_depth_within_tolerance() -> None:
-    p: RgbdPairer[str] = RgbdPairer(tolerance_ns=10 * MS)
-    assert p.add_rgb(100 * MS, "rgb0") == []
-    assert p.add_depth(95 * MS, "d-5") == []  # before: a nearer one may still come
-    assert p.add_depth(102 * MS, "d+2") == [(100 * MS, "rgb0", "d+2")]
-    assert p.stats.depth_unused == 1
-
-
-def test_pairing_without_a_depth_in_tolerance_gives_rgb_only() -> None:
-    p: RgbdPairer[str] = RgbdPairer(tolerance_ns=10 * MS)
-    p.add_rgb(100 * MS, "rgb0")
-    assert p.add_depth(150 * MS, "far") == [(100 * MS, "rgb0", None)]
-    assert p.add_rgb(149 * MS, "rgb1") == [(149 * MS, "rgb1", "far")]
-    assert p.stats.rgb_without_depth == 1 and p.stats.paired == 1
-
-
-def test_pairing_depth_before_colour_and_flush() -> None:
-    p: RgbdPairer[str] = RgbdPairer(tolerance_ns=10 * MS)
-    p.add_depth(100 * MS, "d0")
-    assert p.add_rgb(101 * MS, "rgb0") == []
-    assert p.flush() == [(101 * MS, "rgb0", "d0")]
-
-
-def test_pairing_gives_up_on_missing_depth_after_the_hold_time() -> None:
-    p: RgbdPairer[str] = RgbdPairer(tolerance_ns=10 * MS, hold_ns=300 * MS)
-    out = []
-    for i in range(5):
-        out += p.add_rgb(i * 100 * MS, f"rgb{i}")
-    assert [(s, d) for s, _, d in out] == [(0, None)]
-    assert [s for s, _, _ in p.flush()] == [100 * MS, 200 * MS, 300 * MS, 400 * MS]
-
-
-def test_pairing_without_a_depth_stream() -> None:
-    p: RgbdPairer[str] = RgbdPairer(expect_depth=False)
-    assert p.add_rgb(5, "a") == [(5, "a", None)]
 
 
 # ------------------------------------------------------------------------- mapping

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from services.ros2.core.images import ImageError, compressed_pixels, intrinsics, raw_pixels
-from services.ros2.core.pairing import Pairer
 from services.ros2.core.people import PeopleWriter, Person
 from services.ros2.core.types import CdrError, known_hashes, types_of
 from services.ros2.core.wire import (GraphEntity, Qos, attachment, data_key, dds_to_ros, parse_attachment, parse_token,
@@ -171,25 +170,6 @@ def test_camera_info() -> None:
     assert intrinsics(make(k, [0, 0, 0, 0, 0])).distortion_model == "none"
     with pytest.raises(ImageError):
         intrinsics(make([0.0] * 9, []))  # an uncalibrated camera
-
-
-def test_pairing_waits_for_the_nearest_depth_and_releases_stragglers() -> None:
-    p: Pairer[str, str] = Pairer(slop_s=0.02, wait_s=0.5, queue=2)
-    ms = 1_000_000
-    p.add_depth(90 * ms, "d90")
-    p.add_colour(100 * ms, "c100", now=0.0)
-    assert p.ready(0.0) == []  # a nearer depth image may still come
-    p.add_depth(103 * ms, "d103")
-    (pair,) = p.ready(0.01)
-    assert (pair.colour, pair.depth) == ("c100", "d103")
-    p.add_colour(200 * ms, "c200", now=0.02)
-    p.add_depth(260 * ms, "d260")
-    (pair,) = p.ready(0.03)
-    assert pair.depth is None and pair.why == "no_depth_near"
-    p.add_colour(300 * ms, "c300", now=0.04)
-    assert p.ready(0.1) == []
-    (pair,) = p.ready(0.6)
-    assert pair.depth is None and pair.why == "no_depth"
 
 
 def test_people_writer_ids_posture_and_facing() -> None:

@@ -19,7 +19,7 @@ from common.messages.keys import Keys
 from common.messages.schemas import CameraInfo, Image, Message, RGBDFrame, TransformBatch
 from tools.replay import rosconv
 from tools.replay.core.mapping import TopicPlan, plan_topics
-from tools.replay.core.pairing import RgbdPairer
+from common.runtime.pairing import Pair, StampPairer
 from tools.replay.source_base import Item, Source, SourceError, StreamSummary, Summary
 
 __all__ = ["BagOptions", "BagSource"]
@@ -51,7 +51,7 @@ class BagOptions:
 @dataclass
 class _Camera:
     name: str
-    pairer: RgbdPairer[tuple[Image, int]]
+    pairer: StampPairer[tuple[Image, int], tuple[Image, int]]
     info: CameraInfo | None = None
     waiting: deque[tuple[int, Image, Image | None, int]] = field(default_factory=deque)
     seq: int = 0
@@ -104,7 +104,9 @@ class BagSource(Source):
         for name, roles in self.plan.cameras().items():
             if "rgb" not in roles:
                 continue
-            pairer: RgbdPairer[tuple[Image, int]] = RgbdPairer(self.options.pair_tolerance_ns, expect_depth="depth" in roles)
+            # a recording: a colour image waits until the colour stream is a second ahead of it
+            pairer: StampPairer[tuple[Image, int], tuple[Image, int]] = StampPairer(
+                self.options.pair_tolerance_ns, hold_ns=1_000_000_000, expect_depth="depth" in roles)
             cams[name] = _Camera(name, pairer)
         conns = [c for c in self._reader.connections if c.topic in self.plan.routes]
         try:
@@ -134,12 +136,14 @@ class BagSource(Source):
                     elif route.role == "rgb":
                         conv = rosconv.compressed_image if conn.msgtype.endswith("CompressedImage") else rosconv.image
                         img = conv(msg, cam.name)
-                        yield from self._frames(cam, cam.pairer.add_rgb(img.header.stamp_ns, (img, log_ns)))
+                        cam.pairer.add_colour(img.header.stamp_ns, (img, log_ns))
+                        yield from self._frames(cam, cam.pairer.ready())
                     else:
                         img = rosconv.image(msg, cam.name)
                         if not img.is_depth:
                             raise rosconv.ConversionError(f"depth topic carries {img.encoding} images")
-                        yield from self._frames(cam, cam.pairer.add_depth(img.header.stamp_ns, (img, log_ns)))
+                        cam.pairer.add_depth(img.header.stamp_ns, (img, log_ns))
+                        yield from self._frames(cam, cam.pairer.ready())
                 except rosconv.ConversionError as exc:
                     self.problem(conn.topic, str(exc))
         except SourceError:
@@ -147,16 +151,17 @@ class BagSource(Source):
         except Exception as exc:  # rosbags' readers raise their own and OS errors on damaged files
             raise SourceError(self.path, f"damaged or truncated ({type(exc).__name__}: {exc})") from exc
         for c in cams.values():
-            yield from self._frames(c, c.pairer.flush())
+            yield from self._frames(c, c.pairer.ready(final=True))
             if c.waiting:
                 self.problem(c.name, f"{len(c.waiting)} frames dropped: no camera info received")
-            if c.pairer.stats.rgb_without_depth:
+            if c.pairer.expect_depth and c.pairer.unpaired:
                 self.problem(c.name, f"colour images without a depth image within "
                              f"{self.options.pair_tolerance_ns / 1e6:g} ms (published without depth)")
 
-    def _frames(self, cam: _Camera, pairs: list[tuple[int, tuple[Image, int], tuple[Image, int] | None]]) -> Iterator[Item]:
-        for stamp, (rgb_img, rgb_log_ns), paired in pairs:
-            cam.waiting.append((stamp, rgb_img, paired[0] if paired else None, rgb_log_ns))
+    def _frames(self, cam: _Camera, pairs: list[Pair[tuple[Image, int], tuple[Image, int]]]) -> Iterator[Item]:
+        for pair in pairs:
+            (rgb_img, rgb_log_ns), paired = pair.colour, pair.depth
+            cam.waiting.append((pair.stamp_ns, rgb_img, paired[0] if paired else None, rgb_log_ns))
         if cam.info is None:
             while len(cam.waiting) > self.options.max_waiting_frames:
                 cam.waiting.popleft()

@@ -1,1 +1,1 @@
-"""Replay logic without I/O: stamp ordering and pacing, RGB-D pairing, topic mapping."""
+"""Replay logic without I/O: stamp ordering and pacing, topic mapping (RGB-D pairing: common/runtime/pairing.py)."""

@@ -237,7 +237,8 @@ class LocalizerService(Node):
                 # the positions come from the homography alone; the camera's pose (range, depth, view) is unsure
                 self.counters.count("homography_intrinsics_mismatch")
                 self._log.warning("homography_intrinsics_mismatch", "the camera's K does not fit the floor homography "
-                                  "(mismatch %.2f > %.2f): ranges and depths are rough, no view is sent",
+                                  "(mismatch %.2f > %.2f): ranges and depths are rough and only the floor view is "
+                                  "sent (give the camera's calibration, --camera-info, for the full view)",
                                   pose.mismatch, MISMATCH_TOLERANCE)
                 return loc, None, floor
         height = float(cam_to_target.translation[2]) - p.floor_z_m - p.centre_height_m

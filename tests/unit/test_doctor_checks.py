@@ -230,6 +230,32 @@ def test_a_fixed_camera_needs_no_dynamic_transforms() -> None:
     assert "tf_static" in the(checks, "tf").figure
 
 
+def test_a_camera_placed_on_the_floor_by_its_homography_needs_no_depth_and_no_transforms() -> None:
+    obs = healthy()
+    for key in ("tf", "tf_static"):
+        del obs.streams[key]
+    obs.edges = []
+    obs.frames = {"head": [dataclasses.replace(f, depth_hw=None, depth_encoding="", depth_sample=None)
+                           for f in obs.frames["head"]]}
+    broken = run_checks(obs)  # a camera without depth or transforms, as far as the doctor knows: failures
+    assert {c.name for c in broken if c.status != "ok"} >= {"tf", "depth registered (head)", "chain map ← camera"}
+    obs.floor_cameras, obs.floor_camera_frames = ["head"], ["camera"]  # its people came with a floor view
+    checks = run_checks(obs)
+    assert [c for c in checks if c.status != "ok"] == []
+    assert "homography" in the(checks, "tf").figure and "homography" in the(checks, "chain map ← camera").figure
+
+
+def test_the_collector_notes_cameras_placed_by_a_floor_homography() -> None:
+    from common.messages.schemas import FloorCameraView, LocalizedDetections
+
+    observer = Observer()
+    for k, floor in enumerate((None, FloorCameraView(image_to_frame=np.eye(3), width=640, height=480))):
+        observer.message("localized/head", LocalizedDetections(header=Header(stamp_ns=T0 + k, frame_id="map"),
+                                                               camera_frame="head_optical", floor_view=floor), T0 + k)
+    obs = observer.observation(3.0)
+    assert (obs.floor_cameras, obs.floor_camera_frames) == (["head"], ["head_optical"])
+
+
 def test_a_warning_gives_exit_status_1_and_a_replay_explains_old_stamps() -> None:
     obs = healthy()
     _old_stamps(obs)

@@ -129,6 +129,8 @@ class Observer:
         self.track_models: set[str] = set()
         self.track_frames: set[str] = set()
         self.localized_frames: set[str] = set()
+        self.floor_cameras: set[str] = set()
+        self.floor_camera_frames: set[str] = set()
         self.position_only = self.tracks_total = self.boxes_total = 0
         self.first_ns = self.last_ns = 0
         self.ros2_tokens: set[str] = set()
@@ -186,6 +188,10 @@ class Observer:
             self.boxes_total += len(msg.detections)
         elif isinstance(msg, LocalizedDetections):
             self.localized_frames.add(msg.header.frame_id)
+            if msg.floor_view is not None:  # placed on the floor by the camera's homography
+                self.floor_cameras.add(camera)
+                if msg.camera_frame:
+                    self.floor_camera_frames.add(msg.camera_frame)
             if msg.view is not None and len(self.people) < PEOPLE_KEPT:
                 pose = np.asarray(msg.view.camera_to_frame, dtype=np.float64)
                 cam = pose[:3, 3]
@@ -268,7 +274,8 @@ class Observer:
             offsets_ns={k: list(v) for k, v in self.offsets.items()}, edges=list(self.edges.values()),
             stages={cam: {s: dict(keys) for s, keys in st.items()} for cam, st in self.stages.items()},
             cards=sorted(self.cards), track_models=sorted(self.track_models), track_frames=sorted(self.track_frames),
-            localized_frames=sorted(self.localized_frames), position_only=self.position_only,
+            localized_frames=sorted(self.localized_frames), floor_cameras=sorted(self.floor_cameras),
+            floor_camera_frames=sorted(self.floor_camera_frames), position_only=self.position_only,
             tracks_total=self.tracks_total, boxes_total=self.boxes_total, ros2_graph=_graph(self.ros2_tokens),
             other_robots={k: sorted(v) for k, v in sorted(self.other_robots.items())}, people=list(self.people),
             ros2_domain=self.ros2_domain)

@@ -123,6 +123,10 @@ def camera_checks(obs: Observation) -> list[Check]:
             out.append(Check(SECTION, f"camera ({cam})", "fail", f"frames cannot be read: {latest.error}",
                              "send RGBDFrame messages of this project's schema (perception replay converts ROS bags)"))
             continue
+        if latest.depth_hw is None and cam in obs.floor_cameras:
+            out += [_info(latest, cam), Check(SECTION, f"depth registered ({cam})", "ok",
+                                              "no depth, none needed: placed on the floor by its homography")]
+            continue
         out += [_info(latest, cam), _registration(latest, cam)]
         if latest.depth_hw is not None:
             out += [_unit(frames, cam), _valid(frames, cam)]

@@ -155,6 +155,10 @@ class Observation:
     track_models: list[str] = field(default_factory=list)
     track_frames: list[str] = field(default_factory=list)
     localized_frames: list[str] = field(default_factory=list)
+    #: cameras (and their frames) whose people the localizer placed through a floor homography:
+    #: they need no depth and no transforms
+    floor_cameras: list[str] = field(default_factory=list)
+    floor_camera_frames: list[str] = field(default_factory=list)
     position_only: int = 0
     tracks_total: int = 0
     boxes_total: int = 0
@@ -185,6 +189,10 @@ class Observation:
 
     def failed(self, service: str | None = None) -> list[NodeFacts]:
         return [n for n in self.nodes if n.state == "failed" and (service is None or n.service == service)]
+
+    def only_floor_cameras(self) -> bool:
+        """Whether every camera in play is placed on the floor by its homography (no transforms needed)."""
+        return bool(self.floor_cameras) and set(self.cameras()) <= set(self.floor_cameras)
 
     def cameras(self) -> list[str]:
         """The cameras in play: those with traffic, else those the nodes are set to, else ``head``."""

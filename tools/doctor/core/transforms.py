@@ -116,5 +116,10 @@ def transform_checks(obs: Observation) -> list[Check]:
     if not cameras:
         return [Check(SECTION, f"chain {target} ← camera", "fail", "no frame names its camera frame",
                       "set the frames' frame_id (or the localizer's camera_frame)"), _static(obs, False)]
-    out = [_chain(obs, parents, cam, stamp, target) for cam, stamp in sorted(cameras.items())]
+    floor = set(obs.floor_camera_frames)
+    out = [Check(SECTION, f"chain {target} ← {cam}", "ok", "none needed: placed on the floor by its homography")
+           if cam in floor else _chain(obs, parents, cam, stamp, target) for cam, stamp in sorted(cameras.items())]
+    if floor >= set(cameras):
+        return out + [Check(SECTION, "static transforms", "ok", "none needed: every camera is placed on the floor by "
+                                                                 "its homography")]
     return out + [_static(obs, all(c.status == "ok" for c in out))]

@@ -70,9 +70,9 @@ def _perception(*args: str) -> list[str]:
 #: The tracker as the offline chain runs it: its fixed measurement noise instead of each
 #: detection's covariance (the offline chain's detections carry none).
 LIKE_OFFLINE = {"PERCEPTION_TRACKER__ROBUST__USE_DETECTION_COVARIANCE": "false"}
-#: quality.py's PETS_SITE as the services' settings: the open place's ID-memory prior and the view's
-#: border (the localizer sends the camera's floor view through the homography by itself)
-SITE = {"PERCEPTION_TRACKER__ROBUST__VIEW_MARGIN": "0.05", "PERCEPTION_TRACKER__ROBUST__RECOVERY__LEFT_WEIGHT": "0.3"}
+#: quality.py's PETS_SITE as the services' settings: the open place's ID-memory prior (the
+#: localizer sends the camera's floor view through the homography by itself)
+SITE = {"PERCEPTION_TRACKER__ROBUST__RECOVERY__LEFT_WEIGHT": "0.3"}
 
 
 def run_live(root: Path, n_frames: int, workdir: Path, timeout_s: float = 900.0,
@@ -203,9 +203,8 @@ def table(root: Path, n_frames: int, cache_dir: Path | None) -> str:
     lines += ["", "(camera --max -> HOG -> localizer -> embedder -> tracker, each a process over a real router; "
               "'as offline': the tracker's fixed measurement noise, as the offline chain's detections carry no "
               "covariance; 'defaults': each detection's covariance from the floor homography; 'the site's settings': "
-              "quality.py's PETS_SITE, an open place's ID-memory prior and the view's border. Live, the tracker has the "
-              "camera's floor view the localizer sends (offline it has none): a coasting person in the image's border "
-              "is not reported, which the ground truth still counts.)"]
+              "quality.py's PETS_SITE, an open place's ID-memory prior. Live, the tracker has the camera's floor view "
+              "the localizer sends; offline it has none.)"]
     return "\n".join(lines)
 
 

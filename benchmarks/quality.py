@@ -188,11 +188,9 @@ def project_adapters(scores: dict[str, float] | None = None) -> list[TrackerAdap
 
 
 #: PETS09 as its site would be configured: the camera's floor view (``perception track
-#: --floor-view``) and what the place is. A public square, where people who walk out of the
-#: image seldom turn straight back (``left_weight``; a home is 1, the default), seen by a wide
-#: camera whose people are 30 to 40 px wide in a 480 px image: half a person is about 5 % of it
-#: (``view_margin``; the default 10 % is half a person in the simulator's 320 px images).
-PETS_SITE = {"view_margin": 0.05, "recovery": {"left_weight": 0.3}}
+#: --floor-view``) and what the place is: a public square, where people who walk out of the
+#: image seldom turn straight back (``left_weight``; a home is 1, the default).
+PETS_SITE = {"recovery": {"left_weight": 0.3}}
 
 
 def pets_site_adapter(root: Path) -> TrackerAdapter:

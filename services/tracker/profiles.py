@@ -174,7 +174,8 @@ class RobustConfig(BaseModel):
                                   description="coasting tracks are reported this long after their last hit (s)")
     view_margin: float = Field(default=_R.view_margin, ge=0.0, lt=0.5,
                                description="a coasting track projecting into this border of the image (share of its "
-                                           "width/height) or outside it is out of view: kept, not reported")
+                                           "width/height) or outside it is out of view: kept, not reported; a floor "
+                                           "view's border is half a body's width instead (0: none)")
     max_coast_s: float = Field(default=_R.max_coast_s, gt=0.0, description="coasting longer deletes the track (s)")
     max_position_var: float = Field(default=_R.max_position_var, gt=0.0,
                                     description="a track whose (x, y) variance trace passes this is deleted (m^2)")

@@ -26,10 +26,18 @@ VIEW = FloorView(np.diag([0.01, 0.01, 1.0]), 1000, 500)
 def test_a_floor_view_holds_the_feet_inside_the_image() -> None:
     pts = np.array([[5.0, 2.5, 1.0], [10.5, 2.5, 1.0], [-0.1, 1.0, 1.0], [5.0, 5.2, 1.0]])
     assert VIEW.contains(pts).tolist() == [True, False, False, False]
-    # a border of 10 % on the left, right and top; none at the bottom, where the body is above the feet
-    edge = np.array([[0.5, 2.5, 1.0], [9.5, 2.5, 1.0], [5.0, 0.3, 1.0], [5.0, 4.9, 1.0]])
+    # with a border: half a body (0.25 m, 25 px here) on the left, right and top; none at the
+    # bottom, where the body is above the feet
+    edge = np.array([[0.2, 2.5, 1.0], [9.8, 2.5, 1.0], [5.0, 0.2, 1.0], [5.0, 4.95, 1.0]])
     assert VIEW.contains(edge, 0.1).tolist() == [False, False, False, True]
-    assert VIEW.contains(edge[:, :2]).all()  # (N, 2) floor points read the same
+    assert VIEW.contains(edge + [[0.1, 0, 0], [-0.1, 0, 0], [0, 0.1, 0], [0, 0, 0]], 0.1).all()
+    assert VIEW.contains(edge[:, :2]).all()  # no border; (N, 2) floor points read the same
+    # the border follows the perspective: half a body is fewer pixels far away, so near and far
+    # alike 0.2 m from the image's left edge (x = 0) is outside it and 0.3 m inside
+    tilted = FloorView(np.linalg.inv(np.array([[100.0, 0, 0], [0, 100.0, 0], [0, 0.5, 1.0]])), 1000, 500)
+    pts = np.array([[0.2, 0.5, 1.0], [0.2, 4.0, 1.0], [0.3, 0.5, 1.0], [0.3, 4.0, 1.0]])
+    assert tilted.contains(pts, 0.1).tolist() == [False, False, True, True]
+    assert FloorView(tilted.image_to_floor, 1000, 500, half_width_m=0.0).contains(pts, 0.1).all()
     assert Views((VIEW, FloorView(np.diag([0.01, 0.01, 1.0]) + [[0, 0, 10], [0, 0, 0], [0, 0, 0]], 1000, 500))
                  ).contains(np.array([[15.0, 2.5, 1.0]])).tolist() == [True]  # a second camera beside it
 

@@ -38,7 +38,8 @@ class RobustParams:
     is_person_tau_s: float = 2.0
     tentative_timeout_s: float = 0.25
     report_coast_s: float = 0.3
-    view_margin: float = 0.1  # image border (share of its size) where a coasting person counts as out of view
+    # image border (share of its size) where a coasting person counts as out of view (a floor view: half a body)
+    view_margin: float = 0.1
     max_coast_s: float = 2.0
     max_position_var: float = 4.0  # m^2, trace of the (x, y) covariance
     #: the same two limits for a track coasting out of every camera's view (it cannot be

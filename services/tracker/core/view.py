@@ -69,34 +69,54 @@ class FloorView:
     """A fixed camera's view of the floor, from its floor homography: ``image_to_floor`` (3, 3)
     maps a foot pixel ``(u, v, 1)`` to the floor ``(x, y, w)`` (the localizer's
     ``FloorHomography.H``), ``width`` x ``height`` pixels. A point is in view when its foot
-    (its ``x, y``; the height is not used) projects inside the image."""
+    (its ``x, y``; the height is not used) projects inside the image.
+
+    The border a coasting person must be inside to count as in view is measured on the person,
+    not the image: ``half_width_m`` (half a body's width) at their place in the image. A wide
+    view's people are a few per cent of its width, so a share of the image would hide people
+    still in full view (the pinhole :class:`FieldOfView` keeps the share: its frames are
+    narrow)."""
 
     image_to_floor: np.ndarray
     width: int
     height: int
+    half_width_m: float = 0.25
 
     def __post_init__(self) -> None:
         h = np.asarray(self.image_to_floor, np.float64).reshape(3, 3)
         if not np.all(np.isfinite(h)) or not np.linalg.cond(h) < 1e12:
             raise ValueError("image_to_floor must be a finite, invertible 3x3 homography")
-        if self.width <= 0 or self.height <= 0:
-            raise ValueError("width and height must be positive")
+        if self.width <= 0 or self.height <= 0 or not self.half_width_m >= 0:
+            raise ValueError("width and height must be positive, half_width_m not negative")
         object.__setattr__(self, "image_to_floor", h)
         object.__setattr__(self, "_to_image", np.linalg.inv(h))
 
     def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
-        """Whether each point (N, 3) (or (N, 2)) stands inside the image less a border of
-        ``margin`` times its width (and height) on the left, right and top: the foot is the
-        body's lowest point, so a person whose feet are near the image's lower edge is in full
-        view above them."""
+        """Whether each point (N, 3) (or (N, 2)) stands inside the image; with ``margin`` > 0
+        (the tracker's ``view_margin``: is there a border at all) at least half a body's width
+        inside it on the left, right and top. The foot is the body's lowest point, so a person
+        whose feet are near the image's lower edge is in full view above them."""
         p = np.asarray(points, np.float64)
         p = p.reshape(-1, p.shape[-1] if p.ndim > 1 else 3)[:, :2]
-        g = p @ self._to_image[:, :2].T + self._to_image[:, 2]  # type: ignore[attr-defined]
+        G = self._to_image  # type: ignore[attr-defined]
+        g = p @ G[:, :2].T + G[:, 2]
         w = g[:, 2]
         with np.errstate(divide="ignore", invalid="ignore"):
             u, v = g[:, 0] / w, g[:, 1] / w
-        mu, mv = margin * self.width, margin * self.height
-        return (w > 0) & (u >= mu) & (u <= self.width - mu) & (v >= mv) & (v <= self.height)
+            if margin > 0 and self.half_width_m > 0:
+                # pixels per metre along the floor's least foreshortened direction: the larger
+                # singular value of d(u, v)/d(x, y) = (G[:2, :2] - (u, v) G[2, :2]) / w
+                a = (G[0, 0] - u * G[2, 0]) / w
+                b = (G[0, 1] - u * G[2, 1]) / w
+                c = (G[1, 0] - v * G[2, 0]) / w
+                d = (G[1, 1] - v * G[2, 1]) / w
+                s2 = a * a + b * b + c * c + d * d
+                det = a * d - b * c
+                sigma = np.sqrt(0.5 * (s2 + np.sqrt(np.maximum(s2 * s2 - 4.0 * det * det, 0.0))))
+                border = self.half_width_m * sigma
+            else:
+                border = np.zeros(len(p))
+        return (w > 0) & (u >= border) & (u <= self.width - border) & (v >= border) & (v <= self.height)
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ centre that the depth path reports (the box centre's 3-D point), so both paths g
 tracker the same kind of point.
 
 The covariance is the foot point's pixel uncertainty (``foot_sigma_u_px``,
-``foot_sigma_v_px``: the box bottom is less certain than its centre column) carried to
+``foot_sigma_v_px``, 3 and 2 px: measured, below) carried to
 the floor to first order through the ray-plane intersection (or the homography's
 Jacobian), plus the spread of the body centre's height (``centre_height_sigma_m``) on z.
 A pixel at distance ``d`` from a camera ``h`` above the floor moves the foot about
@@ -66,7 +66,7 @@ class FloorParams:
     centre_height_sigma_m: float = 0.15
     max_floor_range_m: float = 10.0
     foot_sigma_u_px: float = 3.0
-    foot_sigma_v_px: float = 6.0
+    foot_sigma_v_px: float = 2.0
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.floor_z_m):

@@ -97,9 +97,14 @@ class LocalizerConfig(BaseModel):
         default=_F.max_floor_range_m, gt=0.0, le=1000.0,
         description="feet farther than this from the camera's point on the floor are rejected (beyond_floor_range)")
     foot_sigma_u_px: float = Field(
-        default=_F.foot_sigma_u_px, gt=0.0, le=100.0, description="sigma of the foot point's column (box centre)")
+        default=_F.foot_sigma_u_px, gt=0.0, le=100.0, description="sigma of the foot point's column (box centre), px")
     foot_sigma_v_px: float = Field(
-        default=_F.foot_sigma_v_px, gt=0.0, le=100.0, description="sigma of the foot point's row (box bottom)")
+        default=_F.foot_sigma_v_px, gt=0.0, le=100.0, description="sigma of the foot point's row (box bottom), px")
+    foot_sigma_share_u: float = Field(
+        default=_F.foot_sigma_share_u, ge=0.0, lt=1.0,
+        description="and in proportion to the box: the column's sigma as a share of the box's height")
+    foot_sigma_share_v: float = Field(
+        default=_F.foot_sigma_share_v, ge=0.0, lt=1.0, description="the row's sigma as a share of the box's height")
     static_transforms: list[StaticTransformConfig] = Field(
         default_factory=list, description="extra static transforms, e.g. the camera mount"
     )
@@ -139,6 +144,8 @@ class LocalizerConfig(BaseModel):
             max_floor_range_m=self.max_floor_range_m,
             foot_sigma_u_px=self.foot_sigma_u_px,
             foot_sigma_v_px=self.foot_sigma_v_px,
+            foot_sigma_share_u=self.foot_sigma_share_u,
+            foot_sigma_share_v=self.foot_sigma_share_v,
         )
 
     def params(self) -> LocalizerParams:

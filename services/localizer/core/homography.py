@@ -167,7 +167,8 @@ def localize_on_floor_homography(
     ``ValueError``: :meth:`FloorHomography.for_image`).
 
     The (x, y) covariance is ``J diag(s_u^2, s_v^2) J^T`` with ``J`` the homography's
-    Jacobian at the foot point. With the camera's ``pose`` (:func:`camera_pose_from_homography`),
+    Jacobian at the foot point and the foot pixel's variances of each box
+    (:func:`~services.localizer.core.floor.foot_variances`). With the camera's ``pose`` (:func:`camera_pose_from_homography`),
     feet farther than ``max_floor_range_m`` from the camera's point on the floor are
     rejected and ``depth_m`` is the foot point's depth; without it there is no range
     check and ``depth_m`` is NaN.
@@ -193,4 +194,4 @@ def localize_on_floor_homography(
     keep = ok[ahead]
     feet[keep, :2], feet[:, 2] = xy[ahead], params.floor_z_m
     jac[keep] = hom.jacobians(pixels[keep])
-    return floor_localization(frame, idx, pixels, reasons, feet, depth, jac, params)
+    return floor_localization(frame, idx, pixels, reasons, feet, depth, jac, params, boxes[:, 3] - boxes[:, 1])

@@ -62,8 +62,8 @@ class FloorParams:
     ``max_floor_range_m``: farthest foot point kept, horizontally from the camera;
     the foot pixel's standard deviation across (u) and down (v) is
     ``sqrt(foot_sigma_u_px^2 + (foot_sigma_share_u * h)^2)`` for a box ``h`` pixels high (v alike):
-    measured on PETS09's HOG boxes against its ground truth (0.044 h across, 0.032 h down, for
-    boxes 45 to 140 px high; services/localizer/README.md).
+    measured on PETS09's HOG boxes against its ground truth (about 0.043 h across, 0.022 to 0.032 h
+    down, for boxes 45 to 140 px high; services/localizer/README.md).
     """
 
     floor_z_m: float = 0.0

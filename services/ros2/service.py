@@ -23,13 +23,13 @@ from typing import Any, Callable
 from common.geometry.messages import transform_from_ros
 from common.messages.keys import FRAMES, RELIABLE, Delivery, Keys
 from common.runtime.node import Node
+from common.runtime.pairing import StampPairer
 from common.runtime.ratelog import RateLimitedLog
 from common.runtime.service import Counters
 from common.messages.schemas import CameraInfo, Header, Image, RGBDFrame, TrackState, TransformBatch, Tracks
 from common.transport.base import RawSample, RawSubscription, Transport
 from services.ros2.config import Ros2Config
 from services.ros2.core.images import ImageError, Intrinsics, Pixels, compressed_pixels, intrinsics, raw_pixels
-from common.runtime.pairing import StampPairer
 from services.ros2.core.people import PeopleWriter, Person
 from services.ros2.core.types import CdrError, known_hashes, types_of
 from services.ros2.core.wire import Qos, dds_to_ros, parse_attachment

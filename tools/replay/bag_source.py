@@ -17,9 +17,9 @@ from typing import Iterator
 
 from common.messages.keys import Keys
 from common.messages.schemas import CameraInfo, Image, Message, RGBDFrame, TransformBatch
+from common.runtime.pairing import Pair, StampPairer
 from tools.replay import rosconv
 from tools.replay.core.mapping import TopicPlan, plan_topics
-from common.runtime.pairing import Pair, StampPairer
 from tools.replay.source_base import Item, Source, SourceError, StreamSummary, Summary
 
 __all__ = ["BagOptions", "BagSource"]

@@ -120,13 +120,13 @@ def foot_variances(heights_px: np.ndarray, params: FloorParams) -> np.ndarray:
             + np.array([params.foot_sigma_share_u, params.foot_sigma_share_v]) ** 2 * h2)
 
 
-def floor_covariances(jac_xy: np.ndarray, params: FloorParams, heights_px: np.ndarray | None = None) -> np.ndarray:
+def floor_covariances(jac_xy: np.ndarray, params: FloorParams, heights_px: np.ndarray) -> np.ndarray:
     """Covariances (N, 3, 3) of floor positions whose (x, y) move with the foot pixel as
     ``jac_xy`` (N, 2, 2) ``d(x, y)/d(u, v)``: ``J diag(s_u^2, s_v^2) J^T`` on (x, y), with the
-    foot pixel's variances of boxes ``heights_px`` (N,) high (:func:`foot_variances`; None: the
-    pixel terms alone), and ``centre_height_sigma_m^2`` on z."""
+    foot pixel's variances of boxes ``heights_px`` (N,) high (:func:`foot_variances`), and
+    ``centre_height_sigma_m^2`` on z."""
     n = len(jac_xy)
-    var = foot_variances(np.zeros(n) if heights_px is None else heights_px, params)
+    var = foot_variances(heights_px, params)
     cov = np.zeros((n, 3, 3))
     cov[:, :2, :2] = np.einsum("nik,nk,njk->nij", jac_xy, var, jac_xy)
     cov[:, :2, :2] = 0.5 * (cov[:, :2, :2] + np.swapaxes(cov[:, :2, :2], 1, 2))

@@ -95,8 +95,7 @@ class RecoveryParams:
     #: (core/cues.py's :func:`memory_alternatives`)
     compete: bool = True
     #: prior weight of a remembered person who walked out of the cameras' view, against one lost
-    #: inside it (hidden, missed): someone lost in view is still about, while people who walk out
-    #: of a camera's ground seldom turn straight back, and those who walk in are often strangers
+    #: inside it (still about); below 1 for an open place, whose people seldom turn straight back
     left_weight: float = 1.0
     #: s: a person walked out when their last fix was in view and their walk carried them out of
     #: it within this time
@@ -179,7 +178,8 @@ class RecoveryState:
 
         ids, deps = get("recovery_departure_ids", (0,), np.int64), get("recovery_departures", (0, 5), np.float64)
         if deps.ndim != 2 or deps.shape[1] not in (4, 5) or len(deps) != len(ids) or not np.all(np.isfinite(deps)):
-            raise ValueError(f"recovery departures: {len(ids)} ids, values of shape {deps.shape} (need finite (K, 5))")
+            raise ValueError(f"recovery departures: {len(ids)} ids, values of shape {deps.shape} "
+                             "(need finite (K, 5), or (K, 4) from an older file)")
         groups, counts = get("recovery_together_ids", (0,), np.int64), get("recovery_together_counts", (0,), np.int64)
         others = get("recovery_together_with", (0,), np.int64)
         if len(groups) != len(counts) or np.any(counts < 0) or int(counts.sum()) != len(others):

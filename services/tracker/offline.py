@@ -13,6 +13,7 @@ coast through a short miss (status ``coasting``).
 from __future__ import annotations
 
 import io
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +22,7 @@ import numpy as np
 from common.runtime.progress import progress
 from services.tracker.config import TrackerConfig
 from services.tracker.core import TrackerCore
+from services.tracker.core.types import FrameResult
 from services.tracker.core.view import View
 
 __all__ = ["Detections", "OUTPUT_HEADER", "Row", "read_detections", "track", "track_config", "write_tracks"]
@@ -111,13 +113,15 @@ def frame_stamps(dets: Detections) -> tuple[np.ndarray, np.ndarray]:
     return all_frames, np.interp(all_frames, known, dets.stamps[first_row])
 
 
-def track(dets: Detections, tracker: TrackerCore, show_progress: bool = False, view: View | None = None) -> list[Row]:
+def track(dets: Detections, tracker: TrackerCore, show_progress: bool = False, view: View | None = None,
+          on_result: Callable[[int, FrameResult], None] | None = None) -> list[Row]:
     """Run ``tracker`` over every frame; one row ``(frame, stamp, id, x, y, z, status)`` per
     reported track per frame (Confirmed, and for the robust profile recently coasting ones).
 
     Each detection's score is passed on (the robust profile uses it). ``show_progress``: a
     bar on a terminal (``common.runtime.progress``). ``view``: what the (fixed) camera sees, in
     every frame (e.g. a :class:`~services.tracker.core.view.FloorView`; None: not known).
+    ``on_result(frame, result)``: called with each frame's result (e.g. its ID decisions).
     """
     frames, stamps = frame_stamps(dets)
     starts = np.searchsorted(dets.frames, frames, side="left")
@@ -127,6 +131,8 @@ def track(dets: Detections, tracker: TrackerCore, show_progress: bool = False, v
     for frame, stamp, a, b in progress(steps, total=len(frames), desc="track", unit="frame") if show_progress else steps:
         desc = dets.descriptors[a:b] if dets.descriptors is not None else None
         result = tracker.update(stamp, dets.positions[a:b], desc, None, dets.scores[a:b], view)
+        if on_result is not None:
+            on_result(frame, result)
         for seen in tracker.reported(result):
             x, y, z = seen.mean[:3].tolist()
             rows.append((frame, stamp, seen.id, x, y, z, seen.status.value))

@@ -202,6 +202,8 @@ class TrackerService(Node):
             self.counters.count("ids_recovered", len(result.recovered_ids))
         if result.recovery_undone:  # a recovery taken back (robust profile's ID memory)
             self.counters.count("ids_recovery_undone", len(result.recovery_undone))
+        for decision in result.id_decisions:  # why a new person got their ID: one line each, rare events
+            log.info("ID decision: %s", decision.summary())
         self.registry.record(result, self._epoch_ns)
         return result
 

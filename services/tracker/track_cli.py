@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import time
 from pathlib import Path
@@ -13,6 +14,7 @@ from common.runtime.cli_util import CliError, check_input_file
 from common.runtime.config import ConfigError, read_config_file
 from common.runtime.node import load_node_config
 from services.tracker.config import DEFAULT_EMBEDDING_MODEL, PROFILES, TrackerConfig
+from services.tracker.core.types import FrameResult
 from services.tracker.core.view import FloorView
 from services.tracker.offline import FormatError, read_detections, track, write_tracks
 
@@ -59,6 +61,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "not reported, and the ID memory knows who walked out (robust: recovery.left_weight)")
     parser.add_argument("--status", action="store_true",
                         help="add a status column: confirmed, or coasting (robust: reported through a short miss)")
+    parser.add_argument("--id-log", type=Path, default=None, metavar="IDS.jsonl",
+                        help="robust, with e-columns: write why each newly confirmed person got their ID, one JSON "
+                             "line per decision that weighed remembered people (the frame, the ID, recovered or new "
+                             "or undone, each candidate's log-odds and support, where and when they left)")
 
 
 def floor_view(path: Path) -> FloorView:
@@ -106,13 +112,25 @@ def main(args: argparse.Namespace) -> int:
     else:
         log.info("no embedding columns: tracking position-only")
     view = floor_view(args.floor_view) if args.floor_view is not None else None
+    decisions: list[dict[str, object]] = []
+
+    def keep_decisions(frame: int, result: FrameResult) -> None:
+        decisions.extend({"frame": frame, **d.as_dict()} for d in result.id_decisions)
+
     start = time.perf_counter()
-    rows = track(dets, config.build_tracker(thresholds), show_progress=True, view=view)
+    rows = track(dets, config.build_tracker(thresholds), show_progress=True, view=view,
+                 on_result=keep_decisions if args.id_log is not None else None)
     elapsed = time.perf_counter() - start
     try:
         write_tracks(args.output, rows, status=args.status)
+        if args.id_log is not None:
+            args.id_log.write_text("".join(json.dumps(d) + "\n" for d in decisions))
     except OSError as exc:
-        raise CliError(f"cannot write {args.output}: {exc}") from exc
+        raise CliError(f"cannot write {exc.filename or args.output}: {exc.strerror or exc}") from exc
+    if args.id_log is not None:
+        log.info("%d ID decisions -> %s%s", len(decisions), args.id_log,
+                 "" if dets.descriptors is not None and config.profile == "robust"
+                 else " (none: the robust profile decides IDs from descriptors, and there are none)")
     n_frames = int(dets.frames[-1] - dets.frames[0] + 1) if len(dets.frames) else 0
     log.info("%d frames, %d detections -> %d track rows in %.2f s (%.0f frames/s)", n_frames, len(dets.frames),
              len(rows), elapsed, n_frames / elapsed if elapsed > 0 else float("inf"))

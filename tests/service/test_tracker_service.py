@@ -316,7 +316,9 @@ def test_shipped_colour_thresholds_match_the_embedder_card() -> None:
 
 
 # ------------------------------------------------------------------ robust profile
-def test_robust_profile_publishes_coasting_tracks_then_recovers_the_id_after_a_restart(tmp_path: Path) -> None:
+def test_robust_profile_publishes_coasting_tracks_then_recovers_the_id_after_a_restart(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level("INFO", logger="services.tracker.service")
     cfg = config(tmp_path, profile="robust")
     rig = Rig(MemoryBus(), cfg)
     for k in range(5):
@@ -340,3 +342,5 @@ def test_robust_profile_publishes_coasting_tracks_then_recovers_the_id_after_a_r
         rig2.poll()
     assert [t.id for t in rig2.outputs()[-1].tracks] == [person0]
     assert rig2.service.counters.extra["ids_recovered"] == 1
+    [line] = [r.getMessage() for r in caplog.records if r.getMessage().startswith("ID decision")]
+    assert f"ID {person0} recovered" in line and f"candidates: {person0} (log-odds" in line  # why, in the log

@@ -30,6 +30,7 @@ import numpy as np
 
 from services.tracker.core import classifier as clf
 from services.tracker.core import recovery as rec
+from services.tracker.core.id_decisions import IdDecision, Outcome, explain
 from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.tracks import RobustTrackerState, TrackTable
 from services.tracker.core.types import FrameResult, TrackStatus
@@ -167,7 +168,7 @@ def confirm(state: RobustTrackerState, p: RobustParams, result: FrameResult) -> 
             result.new_ids.append(handed)
             result.recovered_ids.append(handed)
             continue
-        track_id, recovered = identity(state, j, removed, p)
+        track_id, recovered = identity(state, j, removed, p, result)
         t.id[j] = track_id
         result.new_ids.append(track_id)
         if recovered:
@@ -208,21 +209,34 @@ def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float |
     return t.id[best]
 
 
-def identity(state: RobustTrackerState, j: int, removed: set[int], p: RobustParams) -> tuple[int, bool]:
+def identity(state: RobustTrackerState, j: int, removed: set[int], p: RobustParams,
+             result: FrameResult | None = None) -> tuple[int, bool]:
     """Algorithm 2, open-set (core/recovery.py): a remembered person's ID when they are more
-    probable than "someone new" and their rivals together (probation starts), else a new ID."""
+    probable than "someone new" and their rivals together (probation starts), else a new ID.
+    A decision that weighed remembered people is explained in ``result.id_decisions``."""
     rp, t = p.recovery, state.tracks
     if p.appearance is None or not state.bank.size(t.slot[j]):
         return state.memory.new_id(), False
     ev = evidence(state, j, state.live_ids(removed), p)
-    decision = rec.decide(ev.llr, ev.reach, state.recovery.p_new(rp), rp, ev.new_llr, lambda i: ev.rivals(ev.ids[i]))
+    p_new = state.recovery.p_new(rp)
+    decision = rec.decide(ev.llr, ev.reach, p_new, rp, ev.new_llr, lambda i: ev.rivals(ev.ids[i]))
     state.recovery.count(decision, rp)
+    k, stamp = (state.memory.new_id() if decision.index is None else ev.ids[decision.index]), t.last_update[j]
+    if result is not None and ev.ids:
+        result.id_decisions.append(_explain(state, j, ev, p_new, k, "new" if decision.index is None else "recovered",
+                                            rp.p_recover))
     if decision.index is None:
-        return state.memory.new_id(), False
-    k, stamp = ev.ids[decision.index], t.last_update[j]
+        return k, False
     if rp.probation_s > 0:
         t.probation[j] = (k, stamp + rp.probation_s, stamp + rp.check_period_s, 1.0 - decision.p_new)
     return k, True
+
+
+def _explain(state: RobustTrackerState, j: int, ev: rec.Evidence, p_new: float, track_id: int, outcome: Outcome,
+             threshold: float, previous_id: int | None = None) -> IdDecision:
+    t = state.tracks
+    return explain(ev, p_new, t.last_update[j], float(t.mean[j, 0]), float(t.mean[j, 1]), track_id, outcome, threshold,
+                   state.recovery.departures, previous_id)
 
 
 def evidence(state: RobustTrackerState, j: int, exclude: set[int], p: RobustParams) -> rec.Evidence:
@@ -264,12 +278,14 @@ def probation(state: RobustTrackerState, p: RobustParams, stamp: float, result: 
         elif stamp >= check or stamp >= until:
             t.probation[j] = (k, until, stamp + rp.check_period_s, share) if stamp < until else None
             ev = evidence(state, j, state.live_ids() - {k}, p)
-            if not rec.keeps(ev, k, state.recovery.p_new(rp), rp):
+            p_new = state.recovery.p_new(rp)
+            if not rec.keeps(ev, k, p_new, rp):
                 t.id[j], t.probation[j] = state.memory.new_id(), None
                 state.recovery.undone += 1
                 state.recovery.revise(share)
                 result.recovery_undone.append((k, t.id[j]))
                 result.new_ids.append(t.id[j])
+                result.id_decisions.append(_explain(state, j, ev, p_new, t.id[j], "undone", rp.p_undo, k))
 
 
 def train_classifiers(state: RobustTrackerState, p: RobustParams, matches: list[tuple[int, int]], u: np.ndarray | None,

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Literal, NamedTuple
 import numpy as np
 
 if TYPE_CHECKING:
+    from services.tracker.core.id_decisions import IdDecision
     from services.tracker.core.view import View
 
 __all__ = ["AppearanceModel", "FrameInput", "FrameResult", "ScoreModel", "TrackStatus", "TrackView"]
@@ -81,6 +82,9 @@ class FrameResult:
     recovered_ids: list[int] = field(default_factory=list)
     #: recoveries taken back this frame (robust profile): (the remembered ID, the fresh ID the track got)
     recovery_undone: list[tuple[int, int]] = field(default_factory=list)
+    #: why this frame's newly confirmed tracks got their IDs, and why recoveries were undone
+    #: (robust profile's ID memory, when it weighed remembered people: core/id_decisions.py)
+    id_decisions: list[IdDecision] = field(default_factory=list)
     matches: int = 0
 
     @property

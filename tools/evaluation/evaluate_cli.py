@@ -12,6 +12,7 @@ from tools.evaluation.evaluate import (FORMATS, default_threshold, evaluate_sequ
                                       format_identity, format_table)
 from tools.evaluation.identity import DEFAULT_GAP, DEFAULT_MIN_FRAMES
 from tools.evaluation.readers import EvaluationInputError, read_table
+from tools.evaluation.why import format_reasons, id_logs, reasons
 
 DESCRIPTION = """\
 Compare tracker output with ground truth, frame by frame (CLEAR MOT, Bernardin and
@@ -77,6 +78,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--min-frames", type=int, default=DEFAULT_MIN_FRAMES, metavar="N",
                         help="--identity: matched frames a person needs for a track ID to count as covering them "
                              f"(default {DEFAULT_MIN_FRAMES})")
+    parser.add_argument("--id-log", type=Path, default=None, metavar="IDS",
+                        help="--identity: the tracker's ID decisions (perception track --id-log's file, or a "
+                             "directory of ids_SEQ.jsonl): says why each returning person and each false recovery "
+                             "got their ID")
     parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
                         help="also draw the tracks against the ground truth, one top-down panel per sequence, "
                              "with ID switches, misses and false positives marked and Table II in each title "
@@ -92,18 +97,29 @@ def main(args: argparse.Namespace) -> int:
         raise CliError(f"--threshold must be a positive number, got {args.threshold}")
     if args.gap < 1 or args.min_frames < 1:
         raise CliError(f"--gap and --min-frames must be >= 1, got {args.gap} and {args.min_frames}")
+    if args.id_log is not None and not args.identity:
+        raise CliError("--id-log explains the identity measures: add --identity")
     try:
         report = evaluate_sequences(args.gt, args.tracks, fmt=args.fmt, threshold=args.threshold,
                                     dims=args.dims or 2, ignore=args.gt_ignore, identity=args.identity,
                                     gap=args.gap, min_frames=args.min_frames)
+        explained = None
+        if args.id_log is not None:
+            logs = id_logs(args.id_log, [name for name, _ in report.identity or []])
+            explained = [(name, reasons(ident, logs[name])) for name, ident in report.identity or [] if name in logs]
     except EvaluationInputError as exc:
         raise CliError(str(exc)) from exc
     if args.json:
-        print(json.dumps(report.to_dict(), indent=2, allow_nan=False))
+        out = report.to_dict()
+        if explained is not None:
+            out["why"] = {name: [r.to_dict() for r in rs] for name, rs in explained}
+        print(json.dumps(out, indent=2, allow_nan=False))
     else:
         print(format_table(report))
         if args.identity:
             print("\n" + format_identity(report))
+        if explained is not None:
+            print("\n" + format_reasons(explained))
     if args.plot is not None:
         _plot(args, args.plot)
     return 0

@@ -100,6 +100,21 @@ class IdDecision:
                 c["log_odds"] = None
         return out
 
+    @classmethod
+    def from_dict(cls, data: dict[str, object]) -> IdDecision:
+        """The decision :meth:`as_dict` wrote (other keys, e.g. ``frame``, ignored); ValueError
+        naming what is missing or malformed."""
+        try:
+            cands = tuple(IdCandidate(**{**c, "log_odds": -math.inf if c.get("log_odds") is None else c["log_odds"]})
+                          for c in data["candidates"])  # type: ignore[union-attr]
+            known = {f for f in cls.__dataclass_fields__ if f != "candidates"}
+            out = cls(**{k: v for k, v in data.items() if k in known}, candidates=cands)  # type: ignore[arg-type]
+        except (KeyError, TypeError, AttributeError) as exc:
+            raise ValueError(f"not an ID decision ({type(exc).__name__}: {exc})") from exc
+        if out.outcome not in ("new", "recovered", "undone"):
+            raise ValueError(f"not an ID decision: outcome {out.outcome!r} (new, recovered or undone)")
+        return out
+
 
 def explain(ev: rec.Evidence, p_new: float, stamp: float, x: float, y: float, track_id: int, outcome: Outcome,
             threshold: float, departures: dict[int, rec.Departure], previous_id: int | None = None) -> IdDecision:

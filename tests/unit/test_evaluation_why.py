@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from perception.cli import main
-from services.tracker.core.id_decisions import IdCandidate, IdDecision
+from services.tracker.core.types import IdCandidate, IdDecision
 from tools.evaluation.identity import identity_measures
 from tools.evaluation.readers import EvaluationInputError
 from tools.evaluation.why import format_reasons, read_id_log, reasons

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from perception.cli import main
-from services.tracker.core.id_decisions import IdDecision
+from services.tracker.core.types import IdDecision
 from services.tracker.core.recovery import RecoveryParams
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
 

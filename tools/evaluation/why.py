@@ -20,7 +20,7 @@ import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
-from services.tracker.core.id_decisions import IdDecision
+from services.tracker.core.types import IdDecision
 from tools.evaluation.identity import FALSE, MISSED, TRUE, Appearance, Identity
 from tools.evaluation.readers import EvaluationInputError
 

@@ -30,10 +30,10 @@ import numpy as np
 
 from services.tracker.core import classifier as clf
 from services.tracker.core import recovery as rec
-from services.tracker.core.id_decisions import IdDecision, Outcome, explain
+from services.tracker.core.id_decisions import explain
 from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.tracks import RobustTrackerState, TrackTable
-from services.tracker.core.types import FrameResult, TrackStatus
+from services.tracker.core.types import FrameResult, IdDecision, IdOutcome, TrackStatus
 from services.tracker.core.view import View
 
 _TENTATIVE, _CONFIRMED, _COASTING = TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.COASTING
@@ -232,7 +232,7 @@ def identity(state: RobustTrackerState, j: int, removed: set[int], p: RobustPara
     return k, True
 
 
-def _explain(state: RobustTrackerState, j: int, ev: rec.Evidence, p_new: float, track_id: int, outcome: Outcome,
+def _explain(state: RobustTrackerState, j: int, ev: rec.Evidence, p_new: float, track_id: int, outcome: IdOutcome,
              threshold: float, previous_id: int | None = None) -> IdDecision:
     t = state.tracks
     return explain(ev, p_new, t.last_update[j], float(t.mean[j, 0]), float(t.mean[j, 1]), track_id, outcome, threshold,

@@ -1,5 +1,5 @@
-"""What every tracker core takes and gives: one frame's input, the tracks it reports, the
-embedding model's and the detector's calibrations. Shared by both profiles
+"""What every tracker core takes and gives: one frame's input, the tracks it reports, why they
+have their IDs, the embedding model's and the detector's calibrations. Shared by both profiles
 (:mod:`~services.tracker.core.tracker`, :mod:`~services.tracker.core.robust`) and by
 everything that drives them through :class:`~services.tracker.core.protocol.TrackerCore`.
 
@@ -9,17 +9,17 @@ Pure numpy; no I/O.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields
 from enum import Enum
 from typing import TYPE_CHECKING, Literal, NamedTuple
 
 import numpy as np
 
 if TYPE_CHECKING:
-    from services.tracker.core.id_decisions import IdDecision
     from services.tracker.core.view import View
 
-__all__ = ["AppearanceModel", "FrameInput", "FrameResult", "ScoreModel", "TrackStatus", "TrackView"]
+__all__ = ["AppearanceModel", "FrameInput", "FrameResult", "IdCandidate", "IdDecision", "IdOutcome", "ScoreModel",
+           "TrackStatus", "TrackView"]
 
 
 class TrackStatus(str, Enum):
@@ -70,6 +70,96 @@ class TrackView:
 _VIEW_FIELDS = tuple(f.name for f in fields(TrackView))
 
 
+#: what an ID decision did: a fresh ID, a remembered one, or a recovery taken back
+IdOutcome = Literal["new", "recovered", "undone"]
+
+
+@dataclass(frozen=True)
+class IdCandidate:
+    """A remembered person an ID decision weighed: ``log_odds`` that the track is them (the
+    appearance, their classifier and the walked-out prior: recovery's ``llr``), ``support``
+    (their probability against "new" and their rivals: what must reach ``p_recover``),
+    ``reachable`` (could have walked there since they left), and where they left:
+    ``walked_out`` of the cameras' view (False: lost inside it, or the view was not known),
+    ``away_s`` ago, ``distance_m`` from here (all three None when their departure is not
+    known, e.g. remembered from a file written before a clock jump)."""
+
+    id: int
+    log_odds: float
+    support: float
+    reachable: bool
+    walked_out: bool | None = None
+    away_s: float | None = None
+    distance_m: float | None = None
+
+    def describe(self) -> str:
+        where = ""
+        if self.away_s is not None and self.distance_m is not None:
+            how = "walked out of view" if self.walked_out else "last seen"
+            where = f", {how} {self.away_s:.1f} s ago {self.distance_m:.1f} m away"
+        if not self.reachable:
+            return f"{self.id} (log-odds {self.log_odds:.2f}, could not have walked here{where})"
+        return f"{self.id} (log-odds {self.log_odds:.2f}, support {self.support:.2f}{where})"
+
+
+@dataclass(frozen=True)
+class IdDecision:
+    """One ID decision at ``stamp`` (s) for the track at (``x``, ``y``): ``outcome`` "new" (a
+    fresh ``id``), "recovered" (the remembered ``id``) or "undone" (the recovery of
+    ``previous_id`` taken back during probation; the track now has ``id``). ``support`` is the
+    best candidate's, against ``threshold`` (``p_recover``, or ``p_undo`` for a check during
+    probation); ``p_new`` the posterior of someone new; ``stranger_log_odds`` what a stranger
+    reaches here (the people in view now); ``candidates`` the most probable first."""
+
+    stamp: float
+    id: int
+    outcome: IdOutcome
+    x: float
+    y: float
+    support: float
+    threshold: float
+    p_new: float
+    stranger_log_odds: float
+    candidates: tuple[IdCandidate, ...]
+    previous_id: int | None = None
+
+    def summary(self) -> str:
+        """One line for a log."""
+        listed = "; ".join(c.describe() for c in self.candidates) or "none"
+        head = {"new": f"new ID {self.id}", "recovered": f"ID {self.id} recovered",
+                "undone": f"recovery of ID {self.previous_id} undone, now ID {self.id}"}[self.outcome]
+        if not any(c.reachable for c in self.candidates):
+            why = "no remembered person could have walked here"
+        else:
+            op = ">=" if self.outcome == "recovered" else "<"
+            why = f"support {self.support:.2f} {op} {self.threshold:.2f}"
+        return (f"{head} at ({self.x:.2f}, {self.y:.2f}) m, t={self.stamp:.2f} s: {why}; P(new) {self.p_new:.2f}, "
+                f"a stranger's log-odds {self.stranger_log_odds:.2f}; candidates: {listed}")
+
+    def as_dict(self) -> dict[str, object]:
+        """Plain values for JSON (infinite log-odds as None)."""
+        out = asdict(self)
+        for c in out["candidates"]:  # type: ignore[union-attr]
+            if not math.isfinite(c["log_odds"]):
+                c["log_odds"] = None
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, object]) -> IdDecision:
+        """The decision :meth:`as_dict` wrote (other keys, e.g. ``frame``, ignored); ValueError
+        naming what is missing or malformed."""
+        try:
+            cands = tuple(IdCandidate(**{**c, "log_odds": -math.inf if c.get("log_odds") is None else c["log_odds"]})
+                          for c in data["candidates"])  # type: ignore[union-attr]
+            known = {f for f in cls.__dataclass_fields__ if f != "candidates"}
+            out = cls(**{k: v for k, v in data.items() if k in known}, candidates=cands)  # type: ignore[arg-type]
+        except (KeyError, TypeError, AttributeError) as exc:
+            raise ValueError(f"not an ID decision ({type(exc).__name__}: {exc})") from exc
+        if out.outcome not in ("new", "recovered", "undone"):
+            raise ValueError(f"not an ID decision: outcome {out.outcome!r} (new, recovered or undone)")
+        return out
+
+
 @dataclass
 class FrameResult:
     """What one update did."""
@@ -83,7 +173,7 @@ class FrameResult:
     #: recoveries taken back this frame (robust profile): (the remembered ID, the fresh ID the track got)
     recovery_undone: list[tuple[int, int]] = field(default_factory=list)
     #: why this frame's newly confirmed tracks got their IDs, and why recoveries were undone
-    #: (robust profile's ID memory, when it weighed remembered people: core/id_decisions.py)
+    #: (robust profile's ID memory, when it weighed remembered people: :class:`IdDecision`)
     id_decisions: list[IdDecision] = field(default_factory=list)
     matches: int = 0
 

@@ -112,10 +112,12 @@ from benchmarks import pets_gt, quality_sim  # noqa: E402
 from common.runtime.progress import Bar, progress_bar  # noqa: E402
 from services.localizer.core import FloorHomography, foot_points  # noqa: E402
 from services.tracker.config import TrackerConfig  # noqa: E402
+from services.tracker.core.types import IdDecision  # noqa: E402
 from services.tracker.core.view import FloorView  # noqa: E402
 from services.tracker.offline import Detections, Row, frame_stamps, read_detections, track_config  # noqa: E402
 from tools.evaluation.evaluate import evaluate_tables  # noqa: E402
 from tools.evaluation.identity import DEFAULT_GAP, DEFAULT_MIN_FRAMES, Identity, IdentityCollector  # noqa: E402
+from tools.evaluation.why import false_by_decision, reasons  # noqa: E402
 from tools.evaluation.metrics import ClearMot  # noqa: E402
 from tools.evaluation.readers import TrackTable  # noqa: E402
 
@@ -385,6 +387,9 @@ class Score:
     frames: int
     parts: list[tuple[float, int]] = field(default_factory=list)
     identities: list[Identity] = field(default_factory=list)  # per sequence, in the order of ``sequences``
+    #: this project's tracker in the simulator: (false recoveries its ID memory decided, those the
+    #: association made by continuing a track), from its ID decisions (tools/evaluation/why.py)
+    false_causes: tuple[int, int] | None = None
 
     @property
     def identity(self) -> Identity:
@@ -586,19 +591,27 @@ def score_sim(tracker: TrackerAdapter, captures: list[quality_sim.Capture], bar:
     others get the positions. frames/s counts every frame the tracker was given.
     ``bar`` counts the scenarios done.
     """
-    parts, times, identities = [], [], []
+    parts, times, identities, causes = [], [], [], []
     for cap in captures:
         dets = None if tracker.config is not None else _positions_only(quality_sim.detections(cap))
+        decisions: list[tuple[int, IdDecision]] = []
         t0 = time.perf_counter()
-        rows = quality_sim.replay(cap, tracker.config) if dets is None else tracker.run(dets)  # type: ignore[arg-type]
+        if dets is None:
+            rows = quality_sim.replay(cap, tracker.config,  # type: ignore[arg-type]
+                                      lambda seq, r: decisions.extend((seq, d) for d in r.id_decisions))
+        else:
+            rows = tracker.run(dets)
         times.append((time.perf_counter() - t0, cap.frames))
         collect = IdentityCollector()
         parts.append((cap.name, quality_sim.judge_demo(cap, rows, on_frame=collect)))
         identities.append(collect.result(cap.gt_seq, cap.gt_id))
+        causes.append(false_by_decision(reasons(identities[-1], decisions)))
         if bar is not None:
             bar.update()
+    explained = tracker.config is not None and tracker.config.profile == "robust"  # the profile that explains its IDs
+    by_cause = (sum(c[0] for c in causes), sum(c[1] for c in causes)) if explained else None
     return Score(ClearMot.combine(r for _, r in parts), parts, sum(t for t, _ in times), sum(n for _, n in times),
-                 times, identities)
+                 times, identities, by_cause)
 
 
 def chain_check(captures: list[quality_sim.Capture], replayed: Score | None) -> list[dict[str, object]]:
@@ -657,6 +670,16 @@ def machine() -> str:
 
 def _f(x: float, digits: int = 3) -> str:
     return f"{x:.{digits}f}" if np.isfinite(x) else "-"
+
+
+def format_false_causes(scores: dict[str, Score]) -> str:
+    """Who made this project's trackers' false recoveries: the ID memory's decision, or the
+    association continuing a track (tools/evaluation/why.py; ``perception evaluate --identity
+    --id-log`` says which, person by person)."""
+    lines = [f"{name}: {s.identity.false_recoveries} false recoveries, {s.false_causes[0]} given by the ID memory's "
+             f"decision, {s.false_causes[1]} by the association continuing a track"
+             for name, s in scores.items() if s.false_causes is not None]
+    return "(" + "; ".join(lines) + ")" if lines else ""
 
 
 def format_scores(title: str, scores: dict[str, Score]) -> str:
@@ -729,6 +752,8 @@ def score_dict(s: Score) -> dict[str, object]:
         seqs[n]["identity"] = identity.to_dict()
     overall = s.result.to_dict()
     overall["identity"] = {k: v for k, v in s.identity.to_dict().items() if k not in ("coverage", "events")}
+    if s.false_causes is not None:
+        overall["identity"]["false_by_decision"], overall["identity"]["false_by_association"] = s.false_causes
     return {"overall": overall, "sequences": seqs, "tracker_seconds": s.seconds, "frames": s.frames,
             "frames_per_s": s.fps}
 
@@ -847,6 +872,7 @@ def main(argv: list[str] | None = None) -> int:
         title, scores, check = run_sim(scenarios, seconds, args.cache_dir, trackers, args.refresh_sim)
         tables[title] = scores
         print(format_sequences(title, scores) + "\n")
+        print(format_false_causes(scores) + "\n")
         print(format_chain_check(check) + "\n")
         sim = {"scenarios": scenarios, "seconds": seconds, "fps": quality_sim.SIM_FPS, "size": quality_sim.SIM_SIZE,
                "seed": quality_sim.SIM_SEED, "judge": "counted people, (x, y, z) distance < 1 m (the demo's Table II)",

@@ -42,6 +42,7 @@ from common.runtime.progress import progress_bar
 from common.messages.schemas import Embeddings, LocalizedDetections, Message, PeopleGroundTruth, Tracks
 from services.tracker.config import TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of
+from services.tracker.core.types import FrameResult
 from services.tracker.core.view import FieldOfView
 from services.tracker.intake import R_EPS
 from services.tracker.offline import Detections, Row
@@ -274,8 +275,10 @@ def load_capture(scenario: str, seconds: float, cache_dir: Path, fps: float = SI
 # Offline: the project's core fed as the service feeds it, and the baselines' input
 # ------------------------------------------------------------------------------------
 
-def replay(cap: Capture, config: TrackerConfig) -> list[Row]:
-    """This project's tracker on the captured inputs, as TrackerService._update runs it; rows as ``offline.track``."""
+def replay(cap: Capture, config: TrackerConfig,
+           on_result: Callable[[int, FrameResult], None] | None = None) -> list[Row]:
+    """This project's tracker on the captured inputs, as TrackerService._update runs it; rows as
+    ``offline.track``. ``on_result(seq, result)``: each frame's result (e.g. its ID decisions)."""
     model = cap.meta["model"]
     thresholds = config.thresholds(model["name"]) if model else None
     tracker = config.build_tracker(None)
@@ -304,6 +307,8 @@ def replay(cap: Capture, config: TrackerConfig) -> list[Row]:
         except (ValueError, np.linalg.LinAlgError) as exc:  # the service counts and skips such a frame
             log.error("frame %d could not be tracked: %s", seq, exc)
             continue
+        if on_result is not None:
+            on_result(seq, result)
         for view in tracker.reported(result):
             x, y, z = view.mean[:3].tolist()
             rows.append((seq, stamp, view.id, x, y, z, view.status.value))

@@ -14,7 +14,7 @@ from perception.cli import main
 from services.tracker.core.types import IdCandidate, IdDecision
 from tools.evaluation.identity import identity_measures
 from tools.evaluation.readers import EvaluationInputError
-from tools.evaluation.why import format_reasons, read_id_log, reasons
+from tools.evaluation.why import false_by_decision, format_reasons, read_id_log, reasons
 
 
 def decision(track_id: int, outcome: str = "recovered", stamp: float = 6.0) -> IdDecision:
@@ -45,6 +45,9 @@ def test_each_return_and_false_recovery_gets_its_reason() -> None:
     assert "person 1 from frame 60 (return), missed recovery, ID 9:" in text
     assert all(len(line) <= 80 for line in text.splitlines())
     json.dumps([r.to_dict() for r in (second, back)], allow_nan=False)
+    assert false_by_decision([second, back]) == (0, 1)  # person 2's false recovery: the association's
+    given = reasons(ident, [(30, decision(7))])  # had the memory given person 2 track 7's ID at frame 30
+    assert given[0].decision is not None and false_by_decision(given) == (1, 0)
 
 
 def test_a_decision_round_trips_and_a_bad_line_is_named(tmp_path: Path) -> None:

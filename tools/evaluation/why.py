@@ -24,7 +24,7 @@ from services.tracker.core.types import IdDecision
 from tools.evaluation.identity import FALSE, MISSED, TRUE, Appearance, Identity
 from tools.evaluation.readers import EvaluationInputError
 
-__all__ = ["Reason", "read_id_log", "id_logs", "reasons", "format_reasons"]
+__all__ = ["Reason", "false_by_decision", "format_reasons", "id_logs", "read_id_log", "reasons"]
 
 log = logging.getLogger(__name__)
 
@@ -106,6 +106,14 @@ def reasons(identity: Identity, decisions: list[tuple[int, IdDecision]]) -> list
             out.append(Reason(e, f"no ID decision: track {e.track}'s ID was new with nobody remembered to weigh, "
                                  "handed over from another camera, or continued by the association"))
     return out
+
+
+def false_by_decision(found: list[Reason]) -> tuple[int, int]:
+    """(false recoveries the ID memory decided, those without a decision: the association
+    continued a track, or a hand-over) among ``found``."""
+    false = [r for r in found if r.event.outcome == FALSE]
+    decided = sum(r.decision is not None and r.decision.outcome == "recovered" for r in false)
+    return decided, len(false) - decided
 
 
 def format_reasons(per_sequence: list[tuple[str, list[Reason]]], width: int | None = 80) -> str:

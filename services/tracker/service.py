@@ -91,6 +91,7 @@ class TrackerService(Node):
         self._log = RateLimitedLog(log, clock=clock)
         self.intake = Intake(config, self.counters, self._log, model, dim, dim_why, self._thresholds)
         self._epoch_ns: int | None = None
+        self._decisions_logged: dict[tuple[float, float, float, bool], str] = {}  # the last ones, by when and where
         self.buffer: ReorderBuffer[Frame, object, FrameResult] = ReorderBuffer(
             apply=self._update, snapshot=self.tracker.snapshot, restore=self.tracker.restore,
             window_ns=int(config.reorder_window_s * 1e9))
@@ -202,10 +203,21 @@ class TrackerService(Node):
             self.counters.count("ids_recovered", len(result.recovered_ids))
         if result.recovery_undone:  # a recovery taken back (robust profile's ID memory)
             self.counters.count("ids_recovery_undone", len(result.recovery_undone))
-        for decision in result.id_decisions:  # why a new person got their ID: one line each, rare events
-            log.info("ID decision: %s", decision.summary())
+        self._log_decisions(result)
         self.registry.record(result, self._epoch_ns)
         return result
+
+    def _log_decisions(self, result: FrameResult) -> None:
+        """Why a new person got their ID: one line each (rare events). A rewind applies frames
+        again: a decision made again the same is not logged twice, a different one is, as revised."""
+        for d in result.id_decisions:
+            key, text = (d.stamp, round(d.x, 2), round(d.y, 2), d.outcome == "undone"), d.summary()
+            before = self._decisions_logged.get(key)
+            if before != text:
+                log.info("ID decision%s: %s", "" if before is None else " (revised by late inputs)", text)
+            self._decisions_logged[key] = text
+            while len(self._decisions_logged) > 256:  # far more than a reorder window holds
+                del self._decisions_logged[next(iter(self._decisions_logged))]
 
     def _publish(self, frame: Frame, result: FrameResult, views: list[TrackView] | None = None,
                  stamp_ns: int | None = None) -> Tracks:

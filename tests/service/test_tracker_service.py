@@ -20,6 +20,7 @@ from common.messages.schemas import (
     Tracks,
 )
 from services.tracker.config import TrackerConfig
+from services.tracker.core.types import FrameResult, IdCandidate, IdDecision
 from services.tracker.service import TrackerService
 
 KEYS = Keys(robot="r1")
@@ -344,3 +345,17 @@ def test_robust_profile_publishes_coasting_tracks_then_recovers_the_id_after_a_r
     assert rig2.service.counters.extra["ids_recovered"] == 1
     [line] = [r.getMessage() for r in caplog.records if r.getMessage().startswith("ID decision")]
     assert f"ID {person0} recovered" in line and f"candidates: {person0} (log-odds" in line  # why, in the log
+
+
+def test_an_id_decision_applied_again_by_a_rewind_is_logged_once(
+        tmp_path: Path, memory_bus: MemoryBus, caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level("INFO", logger="services.tracker.service")
+    service = Rig(memory_bus, config(tmp_path, profile="robust")).service
+    made = IdDecision(3.0, 7, "new", 1.0, 2.0, 0.3, 0.5, 0.6, 0.1, (IdCandidate(4, 1.2, 0.3, True),))
+    again = FrameResult(3.0, True, id_decisions=[made])
+    service._log_decisions(again)
+    service._log_decisions(again)  # the same frame re-applied after a late input: the same decision
+    revised = IdDecision(3.0, 4, "recovered", 1.0, 2.0, 0.6, 0.5, 0.2, 0.1, (IdCandidate(4, 2.4, 0.6, True),))
+    service._log_decisions(FrameResult(3.0, True, id_decisions=[revised]))  # with the late descriptors: another
+    lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith("ID decision")]
+    assert lines == [f"ID decision: {made.summary()}", f"ID decision (revised by late inputs): {revised.summary()}"]

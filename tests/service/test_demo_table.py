@@ -101,4 +101,21 @@ def test_the_closing_tables_fit_80_columns() -> None:
                    "ID histogram", "HOTA%", "LocA%"):
         assert column in text
     assert f"{100 * report['sequences']['people-following']['mota']:.2f}" in text
+    assert "identity: people came back 0 times" in text and report["identity"]["returns"] == 0
+
+
+def test_the_closing_text_says_what_the_people_who_came_back_were_given() -> None:
+    """Person 1 leaves for 5 s and comes back with their ID; person 2 leaves and comes back as
+    a new track; person 3 arrives later and is given person 2's first ID."""
+    def rows(who: int, frames: range, track: int) -> list[tuple[int, int, int, np.ndarray]]:
+        return [(f, who, track, np.array([who * 2.0, 0.0, 1.0])) for f in frames]
+
+    people = (rows(1, range(1, 50), 1) + rows(1, range(100, 150), 1) + rows(2, range(1, 50), 2)
+              + rows(2, range(100, 150), 5) + rows(3, range(160, 200), 2))
+    _, text = score_rows([(f, w, p) for f, w, _, p in people], [(f, t, p) for f, _, t, p in people], "still",
+                         width=WIDTH)
+    assert ("identity: people came back 2 times (after 10 frames or more out of view):\n"
+            "  1 got their own ID, 1 a new one, 0 someone else's\n"
+            "  newcomers given an old ID: 1; track IDs covering two people: 1") in text
+    assert _too_wide(text) == []
     assert text.count("final state") == 0

@@ -22,10 +22,12 @@ from common.messages.schemas import PeopleGroundTruth, Tracks
 from common.transport.base import Transport
 from tools.demo.monitor import Monitor
 from tools.evaluation.evaluate import evaluate_tables, format_table, make_report
+from tools.evaluation.identity import Identity, IdentityCollector
+from tools.evaluation.metrics import FrameEvents
 from tools.evaluation.plot import PlotUnavailable, SequencePlot, plot_sequences
 from tools.evaluation.readers import TrackTable
 
-__all__ = ["GroundTruthLog", "frame_outputs", "pose_scores", "score", "score_rows", "score_tracks"]
+__all__ = ["GroundTruthLog", "frame_outputs", "identity_line", "pose_scores", "score", "score_rows", "score_tracks"]
 
 _POSTURES = ("standing", "sitting", "lying")
 
@@ -155,7 +157,14 @@ def score_rows(gt_rows: list[tuple[int, int, np.ndarray]], hyp_rows: list[tuple[
     """
     gt, hyp = _table(gt_rows), _table(hyp_rows)
     panel = SequencePlot(name, gt, hyp)
-    mot = evaluate_tables(gt, hyp, on_frame=panel.on_frame if plot is not None else None)
+    collect = IdentityCollector()
+
+    def on_frame(frame: int, events: FrameEvents) -> None:
+        collect(frame, events)
+        if plot is not None:
+            panel.on_frame(frame, events)
+
+    mot = evaluate_tables(gt, hyp, on_frame=on_frame)
     if plot is not None:
         panel.result = mot
         try:
@@ -163,4 +172,17 @@ def score_rows(gt_rows: list[tuple[int, int, np.ndarray]], hyp_rows: list[tuple[
         except PlotUnavailable as exc:
             log.warning("no plot of the run: %s", exc)
     report = make_report([(name, mot)])
-    return report.to_dict(), format_table(report, width)
+    identity = collect.result(gt.frames, gt.ids)
+    out = report.to_dict()
+    out["identity"] = {k: v for k, v in identity.to_dict().items() if k not in ("coverage", "events")}
+    return out, format_table(report, width) + "\n\n" + identity_line(identity)
+
+
+def identity_line(i: Identity) -> str:
+    """The ID memory at work, in three lines of at most 80 columns: what the people who came back
+    were given, and IDs given to the wrong person (``perception evaluate --identity``'s measures)."""
+    lost = f", {i.unmatched_returns} not tracked" if i.unmatched_returns else ""
+    return (f"identity: people came back {i.returns} times (after {i.gap} frames or more out of view):\n"
+            f"  {i.true_recoveries} got their own ID, {i.missed_recoveries} a new one, "
+            f"{i.false_recoveries - i.false_newcomers} someone else's{lost}\n"
+            f"  newcomers given an old ID: {i.false_newcomers}; track IDs covering two people: {i.shared_tracks}")

@@ -387,9 +387,9 @@ class Score:
     frames: int
     parts: list[tuple[float, int]] = field(default_factory=list)
     identities: list[Identity] = field(default_factory=list)  # per sequence, in the order of ``sequences``
-    #: this project's tracker in the simulator: (false recoveries its ID memory decided, those the
-    #: association made by continuing a track), from its ID decisions (tools/evaluation/why.py)
-    false_causes: tuple[int, int] | None = None
+    #: this project's tracker in the simulator: its false recoveries by who made them (the ID memory,
+    #: a hand-over, the association continuing a track), from its ID decisions (tools/evaluation/why.py)
+    false_causes: dict[str, int] | None = None
 
     @property
     def identity(self) -> Identity:
@@ -609,7 +609,7 @@ def score_sim(tracker: TrackerAdapter, captures: list[quality_sim.Capture], bar:
         if bar is not None:
             bar.update()
     explained = tracker.config is not None and tracker.config.profile == "robust"  # the profile that explains its IDs
-    by_cause = (sum(c[0] for c in causes), sum(c[1] for c in causes)) if explained else None
+    by_cause = {k: sum(c[k] for c in causes) for k in causes[0]} if explained and causes else None
     return Score(ClearMot.combine(r for _, r in parts), parts, sum(t for t, _ in times), sum(n for _, n in times),
                  times, identities, by_cause)
 
@@ -676,9 +676,9 @@ def format_false_causes(scores: dict[str, Score]) -> str:
     """Who made this project's trackers' false recoveries: the ID memory's decision, or the
     association continuing a track (tools/evaluation/why.py; ``perception evaluate --identity
     --id-log`` says which, person by person)."""
-    lines = [f"{name}: {s.identity.false_recoveries} false recoveries, {s.false_causes[0]} given by the ID memory's "
-             f"decision, {s.false_causes[1]} by the association continuing a track"
-             for name, s in scores.items() if s.false_causes is not None]
+    lines = [f"{name}: {s.identity.false_recoveries} false recoveries, {s.false_causes['memory']} given by the ID "
+             f"memory's decision, {s.false_causes['handover']} by a hand-over, {s.false_causes['association']} by the "
+             "association continuing a track" for name, s in scores.items() if s.false_causes is not None]
     return "(" + "; ".join(lines) + ")" if lines else ""
 
 
@@ -753,7 +753,7 @@ def score_dict(s: Score) -> dict[str, object]:
     overall = s.result.to_dict()
     overall["identity"] = {k: v for k, v in s.identity.to_dict().items() if k not in ("coverage", "events")}
     if s.false_causes is not None:
-        overall["identity"]["false_by_decision"], overall["identity"]["false_by_association"] = s.false_causes
+        overall["identity"]["false_by"] = s.false_causes
     return {"overall": overall, "sequences": seqs, "tracker_seconds": s.seconds, "frames": s.frames,
             "frames_per_s": s.fps}
 

@@ -45,9 +45,9 @@ def test_each_return_and_false_recovery_gets_its_reason() -> None:
     assert "person 1 from frame 60 (return), missed recovery, ID 9:" in text
     assert all(len(line) <= 80 for line in text.splitlines())
     json.dumps([r.to_dict() for r in (second, back)], allow_nan=False)
-    assert false_by_decision([second, back]) == (0, 1)  # person 2's false recovery: the association's
+    assert false_by_decision([second, back]) == {"memory": 0, "handover": 0, "association": 1}  # person 2's
     given = reasons(ident, [(30, decision(7))])  # had the memory given person 2 track 7's ID at frame 30
-    assert given[0].decision is not None and false_by_decision(given) == (1, 0)
+    assert given[0].decision is not None and false_by_decision(given)["memory"] == 1
 
 
 def test_a_decision_round_trips_and_a_bad_line_is_named(tmp_path: Path) -> None:
@@ -89,3 +89,16 @@ def test_cli_tracks_then_explains(tmp_path: Path, capsys: pytest.CaptureFixture[
         "true recovery", "recovered", 1)
     assert main(argv[:-3] + ["--id-log", str(tmp_path / "ids.jsonl")]) == 2  # --id-log needs --identity
     assert "add --identity" in capsys.readouterr().err
+
+
+def test_a_decision_for_someone_else_just_before_is_not_this_persons() -> None:
+    """Track 7 is confirmed for person 3 at frame 40 (a new ID, weighed); person 2, back at frame
+    45, is then taken by the association onto track 7: the decision was person 3's."""
+    rows = ([(f, 2, 2) for f in range(20)] + [(f, 3, 7) for f in range(40, 44)] + [(f, 2, 7) for f in range(45, 60)])
+    mf, mg, mt = (np.array([r[k] for r in rows]) for k in range(3))
+    ident = identity_measures(mf, mg, mt, mf, mg)
+    [back] = [e for e in ident.events if e.person == 2]
+    assert (back.outcome, back.track, back.taken) == ("false recovery", 7, 40)
+    [why] = reasons(ident, [(40, decision(7, "new"))])
+    assert why.decision is None and "the association continued track 7" in why.text
+    assert false_by_decision([why])["association"] == 1

@@ -285,7 +285,7 @@ def test_a_person_walking_from_one_camera_into_the_other_keeps_their_id_with_the
     from services.tracker.config import SEVERAL_CAMERAS
 
     assert _walk_past(RobustParams()) == [1, 2]  # the blind stretch outlasts max_coast_s: a new ID
-    assert _walk_past(RobustParams(**SEVERAL_CAMERAS)) == [1]  # coasted out of view, handed over by motion
+    assert _walk_past(RobustParams(**SEVERAL_CAMERAS)) == [1]  # coasted out of view, taken up by the other camera
 
 
 def test_out_of_view_time_does_not_count_towards_max_coast_and_the_same_camera_does_not_hand_over() -> None:
@@ -312,6 +312,13 @@ def test_out_of_view_time_does_not_count_towards_max_coast_and_the_same_camera_d
             trk.update(k * 0.1, np.array([[3.0, 0.0, 1.0]]), view=fov, camera="head")
         for k in range(10, 40):
             trk.update(k * 0.1, np.zeros((0, 3)), view=away, camera="head")
+        decisions = []
         for k in range(40, 45):
             r = trk.update(k * 0.1, np.array([[3.0, 0.3, 1.0]]), view=away, camera=camera)
+            decisions += r.id_decisions
         assert sorted(v.id for v in r.tracks if v.status is TrackStatus.CONFIRMED) == expected, camera
+        if camera == "back":  # the hand-over says why
+            [d] = decisions
+            assert (d.outcome, d.id, d.handover.camera) == ("handover", 1, "head") and d.handover.d2 <= d.threshold
+            assert 3.0 < d.handover.away_s < 3.5 and d.handover.distance_m < 0.5
+            assert d.summary().startswith("ID 1 handed over from camera 'head' at (3.")

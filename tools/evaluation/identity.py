@@ -63,11 +63,14 @@ class Appearance:
     track: int | None = None
     previous: tuple[int, ...] = ()  # this person's track IDs before this appearance
     owners: tuple[int, ...] = ()
+    #: the last frame before ``frame`` in which another person was first matched with ``track``
+    #: (None: nobody else had it): a decision about the ID before then was about them
+    taken: int | None = None
 
     def to_dict(self) -> dict[str, object]:
         return {"person": self.person, "start": self.start, "returning": self.returning, "outcome": self.outcome,
                 "frame": self.frame, "track": self.track, "previous": list(self.previous),
-                "owners": list(self.owners)}
+                "owners": list(self.owners), "taken": self.taken}
 
 
 @dataclass(frozen=True)
@@ -162,7 +165,9 @@ def identity_measures(match_frames: ArrayLike, match_gt: ArrayLike, match_tracks
                     events.append(Appearance(person, start, True, UNMATCHED, previous=previous))
                 continue
             frame, track = int(pf[inside[0]]), int(pt[inside[0]])
-            owners = tuple(sorted(g for f, g in users.get(track, []) if g != person and f < frame))
+            others = [(f, g) for f, g in users.get(track, []) if g != person and f <= frame]
+            owners = tuple(sorted(g for f, g in others if f < frame))
+            taken = max((f for f, _ in others), default=None)
             if returning and track in previous:
                 outcome = TRUE
             elif owners:
@@ -173,7 +178,7 @@ def identity_measures(match_frames: ArrayLike, match_gt: ArrayLike, match_tracks
             counts[outcome] += 1
             counts["false_new"] += outcome == FALSE and not returning
             if returning or outcome == FALSE:
-                events.append(Appearance(person, start, returning, outcome, frame, track, previous, owners))
+                events.append(Appearance(person, start, returning, outcome, frame, track, previous, owners, taken))
 
     result = Identity(
         returns=counts["returns"], true_recoveries=counts[TRUE], missed_recoveries=counts[MISSED],

@@ -8,8 +8,9 @@ appearance, or, when there was none, that the track was continued by the associa
 decided earlier, for whoever it followed then) or that its ID was new with nobody to weigh.
 
 A decision belongs to an appearance when it gave the appearance's track ID no later than the
-first match and no earlier than ``gap`` frames before the person appeared (a track is confirmed a
-few frames after the detector first sees someone, who may be seen before the ground truth has them).
+first match, no earlier than ``gap`` frames before the person appeared (a track is confirmed a
+few frames after the detector first sees someone, who may be seen before the ground truth has
+them), and after anyone else was first matched with that ID (a decision before then was theirs).
 """
 
 from __future__ import annotations
@@ -94,7 +95,7 @@ def reasons(identity: Identity, decisions: list[tuple[int, IdDecision]]) -> list
         if e.track is None or e.frame is None or e.outcome not in (TRUE, MISSED, FALSE):
             continue
         given = [(f, d) for f, d in decisions if d.id == e.track and f <= e.frame]
-        mine = [(f, d) for f, d in given if f >= e.start - identity.gap]
+        mine = [(f, d) for f, d in given if f >= e.start - identity.gap and (e.taken is None or f > e.taken)]
         if mine:
             f, d = mine[-1]
             out.append(Reason(e, d.summary(), d, f))
@@ -104,16 +105,20 @@ def reasons(identity: Identity, decisions: list[tuple[int, IdDecision]]) -> list
                                  f"(its ID was decided at frame {f}, {d.outcome})"))
         else:
             out.append(Reason(e, f"no ID decision: track {e.track}'s ID was new with nobody remembered to weigh, "
-                                 "handed over from another camera, or continued by the association"))
+                                 "or the association continued the track to this person"))
     return out
 
 
-def false_by_decision(found: list[Reason]) -> tuple[int, int]:
-    """(false recoveries the ID memory decided, those without a decision: the association
-    continued a track, or a hand-over) among ``found``."""
-    false = [r for r in found if r.event.outcome == FALSE]
-    decided = sum(r.decision is not None and r.decision.outcome == "recovered" for r in false)
-    return decided, len(false) - decided
+def false_by_decision(found: list[Reason]) -> dict[str, int]:
+    """The false recoveries among ``found`` by who made them: ``memory`` (the ID memory's
+    decision), ``handover`` (a hand-over between cameras), ``association`` (no decision: the
+    association continued a track to another person)."""
+    out = {"memory": 0, "handover": 0, "association": 0}
+    for r in found:
+        if r.event.outcome == FALSE:
+            kind = "association" if r.decision is None else "handover" if r.decision.outcome == "handover" else "memory"
+            out[kind] += 1
+    return out
 
 
 def format_reasons(per_sequence: list[tuple[str, list[Reason]]], width: int | None = 80) -> str:

@@ -26,6 +26,8 @@ settings. Pure numpy.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from services.tracker.core import classifier as clf
@@ -33,7 +35,7 @@ from services.tracker.core import recovery as rec
 from services.tracker.core.id_decisions import explain
 from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.tracks import RobustTrackerState, TrackTable
-from services.tracker.core.types import FrameResult, IdDecision, IdOutcome, TrackStatus
+from services.tracker.core.types import FrameResult, HandOver, IdDecision, IdOutcome, TrackStatus
 from services.tracker.core.view import View
 
 _TENTATIVE, _CONFIRMED, _COASTING = TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.COASTING
@@ -164,9 +166,11 @@ def confirm(state: RobustTrackerState, p: RobustParams, result: FrameResult) -> 
         t.status[j], t.ever_confirmed[j] = _CONFIRMED, True
         handed = handover(state, j, removed, p.handover_gate_sq)
         if handed is not None:
-            t.id[j] = handed
-            result.new_ids.append(handed)
-            result.recovered_ids.append(handed)
+            row, d2 = handed
+            t.id[j] = t.id[row]
+            result.new_ids.append(t.id[j])
+            result.recovered_ids.append(t.id[j])
+            result.id_decisions.append(handed_over(t, j, row, d2, p.handover_gate_sq))  # type: ignore[arg-type]
             continue
         track_id, recovered = identity(state, j, removed, p, result)
         t.id[j] = track_id
@@ -176,11 +180,11 @@ def confirm(state: RobustTrackerState, p: RobustParams, result: FrameResult) -> 
     return removed
 
 
-def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float | None) -> int | None:
-    """Hand-over by motion: the ID of the track coasting out of view, last seen by another
-    camera than the one track ``j`` was born in, whose prediction the newly confirmed ``j``
-    is nearest (squared Mahalanobis distance on (x, y) within ``gate``), which ``j`` replaces
-    (it takes its gallery and classifier too; ``removed`` gets it); None when there is none.
+def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float | None) -> tuple[int, float] | None:
+    """Hand-over by motion: the track coasting out of view, last seen by another camera than the
+    one track ``j`` was born in, whose prediction the newly confirmed ``j`` is nearest (squared
+    Mahalanobis distance on (x, y) within ``gate``), which ``j`` replaces (it takes its gallery
+    and classifier too; ``removed`` gets it): (its row, that distance), None when there is none.
     A person leaving one camera's view and coming back into it is left to appearance."""
     if gate is None:
         return None
@@ -206,7 +210,15 @@ def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float |
     if t.clf_steps[best] and t.clf_steps[j] == 0 and t.clf is not None:
         t.clf[j], t.clf_steps[j] = t.clf[best], t.clf_steps[best]
     removed.add(best)
-    return t.id[best]
+    return best, best_d2
+
+
+def handed_over(t: TrackTable, j: int, row: int, d2: float, gate: float) -> IdDecision:
+    """The decision of a hand-over: track ``j`` took the ID of ``row``, ``d2`` from its prediction."""
+    x, y = float(t.mean[j, 0]), float(t.mean[j, 1])
+    away = math.hypot(x - float(t.mean[row, 0]), y - float(t.mean[row, 1]))
+    how = HandOver(t.camera[row], d2, max(0.0, t.last_update[j] - t.last_update[row]), away)
+    return IdDecision(t.last_update[j], t.id[row], "handover", x, y, 0.0, gate, 0.0, 0.0, (), handover=how)
 
 
 def identity(state: RobustTrackerState, j: int, removed: set[int], p: RobustParams,

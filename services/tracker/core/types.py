@@ -18,8 +18,8 @@ import numpy as np
 if TYPE_CHECKING:
     from services.tracker.core.view import View
 
-__all__ = ["AppearanceModel", "FrameInput", "FrameResult", "IdCandidate", "IdDecision", "IdOutcome", "ScoreModel",
-           "TrackStatus", "TrackView"]
+__all__ = ["AppearanceModel", "FrameInput", "FrameResult", "HandOver", "IdCandidate", "IdDecision", "IdOutcome",
+           "ScoreModel", "TrackStatus", "TrackView"]
 
 
 class TrackStatus(str, Enum):
@@ -70,8 +70,9 @@ class TrackView:
 _VIEW_FIELDS = tuple(f.name for f in fields(TrackView))
 
 
-#: what an ID decision did: a fresh ID, a remembered one, or a recovery taken back
-IdOutcome = Literal["new", "recovered", "undone"]
+#: what an ID decision did: a fresh ID, a remembered one, a recovery taken back, or the ID of a
+#: track another camera lost (a hand-over by motion)
+IdOutcome = Literal["new", "recovered", "undone", "handover"]
 
 
 @dataclass(frozen=True)
@@ -103,13 +104,26 @@ class IdCandidate:
 
 
 @dataclass(frozen=True)
+class HandOver:
+    """A hand-over by motion: the ID's track, last seen by ``camera`` ``away_s`` ago ``distance_m``
+    from here, had its prediction at squared Mahalanobis distance ``d2`` (the gate is the
+    decision's ``threshold``)."""
+
+    camera: str
+    d2: float
+    away_s: float
+    distance_m: float
+
+
+@dataclass(frozen=True)
 class IdDecision:
     """One ID decision at ``stamp`` (s) for the track at (``x``, ``y``): ``outcome`` "new" (a
     fresh ``id``), "recovered" (the remembered ``id``) or "undone" (the recovery of
     ``previous_id`` taken back during probation; the track now has ``id``). ``support`` is the
     best candidate's, against ``threshold`` (``p_recover``, or ``p_undo`` for a check during
     probation); ``p_new`` the posterior of someone new; ``stranger_log_odds`` what a stranger
-    reaches here (the people in view now); ``candidates`` the most probable first."""
+    reaches here (the people in view now); ``candidates`` the most probable first. "handover":
+    the ``id`` of a track another camera lost (``handover``; no candidates weighed)."""
 
     stamp: float
     id: int
@@ -122,9 +136,16 @@ class IdDecision:
     stranger_log_odds: float
     candidates: tuple[IdCandidate, ...]
     previous_id: int | None = None
+    handover: HandOver | None = None
 
     def summary(self) -> str:
         """One line for a log."""
+        where = f"at ({self.x:.2f}, {self.y:.2f}) m, t={self.stamp:.2f} s"
+        if self.handover is not None:
+            h = self.handover
+            return (f"ID {self.id} handed over from camera {h.camera!r} {where}: its track coasted out of that "
+                    f"camera's view {h.away_s:.1f} s ago {h.distance_m:.1f} m away, its prediction at squared "
+                    f"Mahalanobis distance {h.d2:.1f} (gate {self.threshold:.1f})")
         listed = "; ".join(c.describe() for c in self.candidates) or "none"
         head = {"new": f"new ID {self.id}", "recovered": f"ID {self.id} recovered",
                 "undone": f"recovery of ID {self.previous_id} undone, now ID {self.id}"}[self.outcome]
@@ -133,7 +154,7 @@ class IdDecision:
         else:
             op = ">=" if self.outcome == "recovered" else "<"
             why = f"support {self.support:.2f} {op} {self.threshold:.2f}"
-        return (f"{head} at ({self.x:.2f}, {self.y:.2f}) m, t={self.stamp:.2f} s: {why}; P(new) {self.p_new:.2f}, "
+        return (f"{head} {where}: {why}; P(new) {self.p_new:.2f}, "
                 f"a stranger's log-odds {self.stranger_log_odds:.2f}; candidates: {listed}")
 
     def as_dict(self) -> dict[str, object]:
@@ -151,12 +172,14 @@ class IdDecision:
         try:
             cands = tuple(IdCandidate(**{**c, "log_odds": -math.inf if c.get("log_odds") is None else c["log_odds"]})
                           for c in data["candidates"])  # type: ignore[union-attr]
-            known = {f for f in cls.__dataclass_fields__ if f != "candidates"}
-            out = cls(**{k: v for k, v in data.items() if k in known}, candidates=cands)  # type: ignore[arg-type]
+            known = {f for f in cls.__dataclass_fields__ if f not in ("candidates", "handover")}
+            how = data.get("handover")
+            out = cls(**{k: v for k, v in data.items() if k in known}, candidates=cands,  # type: ignore[arg-type]
+                      handover=None if how is None else HandOver(**how))  # type: ignore[arg-type]
         except (KeyError, TypeError, AttributeError) as exc:
             raise ValueError(f"not an ID decision ({type(exc).__name__}: {exc})") from exc
-        if out.outcome not in ("new", "recovered", "undone"):
-            raise ValueError(f"not an ID decision: outcome {out.outcome!r} (new, recovered or undone)")
+        if out.outcome not in ("new", "recovered", "undone", "handover"):
+            raise ValueError(f"not an ID decision: outcome {out.outcome!r} (new, recovered, undone or handover)")
         return out
 
 

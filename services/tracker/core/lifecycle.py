@@ -165,12 +165,12 @@ def confirm(state: RobustTrackerState, p: RobustParams, result: FrameResult) -> 
             continue
         t.status[j], t.ever_confirmed[j] = _CONFIRMED, True
         handed = handover(state, j, removed, p.handover_gate_sq)
-        if handed is not None:
+        if handed is not None and p.handover_gate_sq is not None:  # (none without a gate)
             row, d2 = handed
             t.id[j] = t.id[row]
             result.new_ids.append(t.id[j])
             result.recovered_ids.append(t.id[j])
-            result.id_decisions.append(handed_over(t, j, row, d2, p.handover_gate_sq))  # type: ignore[arg-type]
+            result.id_decisions.append(handed_over(t, j, row, d2, p.handover_gate_sq))
             continue
         track_id, recovered = identity(state, j, removed, p, result)
         t.id[j] = track_id

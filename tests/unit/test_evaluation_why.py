@@ -102,3 +102,16 @@ def test_a_decision_for_someone_else_just_before_is_not_this_persons() -> None:
     [why] = reasons(ident, [(40, decision(7, "new"))])
     assert why.decision is None and "the association continued track 7" in why.text
     assert false_by_decision([why])["association"] == 1
+
+
+def test_a_directory_of_logs_one_per_sequence(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    from tools.evaluation.why import id_logs
+
+    (tmp_path / "ids_a.jsonl").write_text(json.dumps({"frame": 5, **decision(4).as_dict()}) + "\n")
+    (tmp_path / "b.jsonl").write_text("")
+    logs = id_logs(tmp_path, ["a", "b", "c"])
+    assert logs == {"a": [(5, decision(4))], "b": []} and "no ID decisions for sequence c" in caplog.text
+    with pytest.raises(EvaluationInputError, match="one file, for 2 sequences"):
+        id_logs(tmp_path / "ids_a.jsonl", ["a", "b"])
+    with pytest.raises(EvaluationInputError, match="no such file"):
+        id_logs(tmp_path / "missing", ["a"])

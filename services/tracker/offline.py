@@ -22,7 +22,7 @@ import numpy as np
 from common.runtime.progress import progress
 from services.tracker.config import TrackerConfig
 from services.tracker.core import TrackerCore
-from services.tracker.core.types import FrameResult
+from services.tracker.core.types import FrameInput, FrameResult
 from services.tracker.core.view import View
 
 __all__ = ["Detections", "OUTPUT_HEADER", "Row", "read_detections", "track", "track_config", "write_tracks"]
@@ -126,11 +126,14 @@ def track(dets: Detections, tracker: TrackerCore, show_progress: bool = False, v
     frames, stamps = frame_stamps(dets)
     starts = np.searchsorted(dets.frames, frames, side="left")
     ends = np.searchsorted(dets.frames, frames, side="right")
+    # converted once, as the service converts each message once: each frame's input is a slice
+    whole = FrameInput.of(dets.positions, dets.descriptors, None, dets.scores)
+    positions, descriptors, scores = whole.positions, whole.descriptors, whole.scores
     rows: list[Row] = []
     steps = zip(frames.tolist(), stamps.tolist(), starts.tolist(), ends.tolist())
     for frame, stamp, a, b in progress(steps, total=len(frames), desc="track", unit="frame") if show_progress else steps:
-        desc = dets.descriptors[a:b] if dets.descriptors is not None else None
-        result = tracker.update(stamp, dets.positions[a:b], desc, None, dets.scores[a:b], view)
+        desc = descriptors[a:b] if descriptors is not None else None
+        result = tracker.step(stamp, FrameInput(positions[a:b], desc, None, None, scores[a:b], view))
         if on_result is not None:
             on_result(frame, result)
         for seen in tracker.reported(result):

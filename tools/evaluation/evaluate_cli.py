@@ -54,6 +54,9 @@ their first match on return had their own earlier ID (true recovery), an ID new 
 and unused (missed recovery) or an ID matched earlier to another person (false
 recovery); a newcomer first matched with another person's earlier ID is a false
 recovery too. Shared IDs: track IDs matched >= --min-frames (default 5) to two or more people.
+With --id-log (perception track --id-log's file), each return and false recovery also says
+why: the tracker's ID decision in that appearance (the candidates it weighed, their log-odds
+and support, where and when they left), or that there was none (the track was continued).
 """
 
 

@@ -103,6 +103,7 @@ STREAMS: tuple[Stream, ...] = (
     Stream("localized", "localized/{camera}", "LocalizedDetections", "", "", RELIABLE),
     Stream("embeddings", "embeddings/{camera}", "Embeddings", "", "", RELIABLE),
     Stream("tracks", "tracks", "Tracks", "", "navigation, HRI, recorder", RELIABLE),
+    Stream("id_decisions", "id_decisions", "IdDecisions", "", "HRI, recorder", RELIABLE),
     Stream("tf", "tf", "TransformBatch", "localization, odometry, simulator, replay", "", RELIABLE),
     Stream("tf_static", "tf_static", "TransformBatch", "robot description, simulator, replay", "", RELIABLE),
     Stream("groundtruth", "groundtruth", "PeopleGroundTruth", "simulator, replay", "perception demo, evaluation, recorder",
@@ -172,6 +173,10 @@ class Keys:
 
     def tracks(self) -> str:
         return self._join("tracks")
+
+    def id_decisions(self) -> str:
+        """Why the tracker gave IDs (:class:`~common.messages.schemas.IdDecisions`)."""
+        return self._join("id_decisions")
 
     def tf(self) -> str:
         return self._join("tf")

@@ -62,7 +62,8 @@ NODES: tuple[NodeEntry, ...] = (
               subscribes=("frames", "detections"), publishes=("embeddings",), stage=True),
     NodeEntry("tracker", "services.tracker", "services.tracker.service:TrackerService",
               "services.tracker.config:TrackerConfig", "keeps the tracks and the ID memory",
-              subscribes=("localized", "embeddings"), publishes=("tracks",), serves=("track_query", "forget_query"),
+              subscribes=("localized", "embeddings"), publishes=("tracks", "id_decisions"),
+              serves=("track_query", "forget_query"),
               stage=True),
     NodeEntry("attention", "services.attention", "services.attention.service:AttentionService",
               "services.attention.config:AttentionConfig", "turns the robot's head to keep a person in view",
@@ -76,7 +77,8 @@ NODES: tuple[NodeEntry, ...] = (
               subscribes=("tracks",), publishes=("frames", "tf", "tf_static"), ros2=True),
     NodeEntry("viewer", "tools.viewer", "tools.viewer.node:ViewerNode", "tools.viewer.config:ViewerConfig",
               "the operator's live page",
-              subscribes=("frames", "detections", "localized", "embeddings", "tracks", "tf", "tf_static", "status"),
+              subscribes=("frames", "detections", "localized", "embeddings", "tracks", "id_decisions", "tf", "tf_static",
+                          "status"),
               watches=("alive",)),
 )
 

@@ -36,8 +36,12 @@ __all__ = [
     "Detections",
     "Embeddings",
     "ForgetReply",
+    "HandOverState",
     "HeadCommand",
     "Header",
+    "IdCandidateState",
+    "IdDecisionState",
+    "IdDecisions",
     "Image",
     "LocalizedDetection",
     "LocalizedDetections",
@@ -527,6 +531,53 @@ class Tracks(Message):
     note: str = Field(default="", description="a query's answer when it has no track: why (e.g. not found)")
     input_stamp_ns: int = Field(default=0, ge=0, description="stamp of the newest input frame applied; at a fixed "
                                 "output rate header.stamp_ns is the publish time the tracks are predicted to")
+
+
+class IdCandidateState(_Model):
+    """A remembered person an ID decision weighed (the tracker core's ``IdCandidate``)."""
+
+    id: int = Field(ge=0)
+    log_odds: float = Field(description="that the track is them: appearance, their classifier, the walked-out prior")
+    support: float = Field(ge=0.0, le=1.0, description="their probability against someone new and their rivals")
+    reachable: bool = Field(description="whether they could have walked here since they left")
+    walked_out: bool | None = Field(default=None, description="left by walking out of the view (None: not known)")
+    away_s: float | None = Field(default=None, ge=0.0, description="since they left")
+    distance_m: float | None = Field(default=None, ge=0.0, description="from where they left")
+
+
+class HandOverState(_Model):
+    """A hand-over between cameras: the ID's track, last seen by ``camera``, predicted here."""
+
+    camera: str
+    d2: float = Field(ge=0.0, description="squared Mahalanobis distance of its prediction")
+    away_s: float = Field(ge=0.0)
+    distance_m: float = Field(ge=0.0)
+
+
+class IdDecisionState(_Model):
+    """Why a newly confirmed track got its ID, or lost a recovered one (the tracker core's ``IdDecision``)."""
+
+    id: int = Field(ge=0, description="the ID the track has now")
+    outcome: Literal["new", "recovered", "undone", "handover"]
+    x: float
+    y: float
+    support: float = Field(ge=0.0, le=1.0, description="the best candidate's (for 'undone': the one taken back)")
+    threshold: float = Field(ge=0.0, description="p_recover, p_undo during probation, or the hand-over's gate")
+    p_new: float = Field(ge=0.0, le=1.0, description="the posterior of someone new")
+    stranger_log_odds: float = 0.0
+    candidates: list[IdCandidateState] = Field(default_factory=list, description="the most probable first")
+    previous_id: int | None = Field(default=None, description="'undone': the remembered ID taken back")
+    handover: HandOverState | None = None
+    summary: str = Field(default="", description="the decision in one line, as the tracker logs it")
+
+
+@message("perception.IdDecisions", 1)
+class IdDecisions(Message):
+    """Why the tracker gave IDs in one frame (``keys.id_decisions()``): ``header`` is the frame's,
+    in the tracking frame. Sent only for frames with decisions (a few a minute where people come
+    and go); a decision made again, the same, when late inputs re-apply frames is not sent again."""
+
+    decisions: list[IdDecisionState] = Field(default_factory=list)
 
 
 @message("perception.ForgetReply", 1)

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from common.messages.schemas import Embeddings, Header, LocalizedDetections, TrackState, Tracks
-from services.tracker.core.types import FrameResult, TrackView
+from common.messages.schemas import (Embeddings, HandOverState, Header, IdCandidateState, IdDecisions, IdDecisionState,
+                                     LocalizedDetections, TrackState, Tracks)
+from services.tracker.core.types import FrameResult, IdDecision, TrackView
 from services.tracker.core.view import FieldOfView, FloorView
 
-__all__ = ["descriptors_for", "field_of_view", "orientations_for", "positions_of", "track_state", "tracks_message"]
+__all__ = ["descriptors_for", "field_of_view", "id_decisions_message", "orientations_for", "positions_of", "track_state",
+           "tracks_message"]
 
 
 def field_of_view(loc: LocalizedDetections) -> FieldOfView | FloorView | None:
@@ -94,3 +96,17 @@ def tracks_message(result: FrameResult, reported: list[TrackView], header: Heade
     the robust profile) as a Tracks message. Core stamps are seconds since ``epoch_ns``."""
     states = [track_state(v, result.appearance_available, epoch_ns) for v in reported]
     return Tracks(header=header, tracks=states, appearance_available=result.appearance_available, embedding_model=model)
+
+
+def id_decisions_message(decisions: list[IdDecision], header: Header) -> IdDecisions:
+    """The core's ID decisions of one frame as an IdDecisions message (``header``: the frame's)."""
+    return IdDecisions(header=header, decisions=[IdDecisionState(
+        id=d.id, outcome=d.outcome, x=d.x, y=d.y, support=d.support, threshold=d.threshold, p_new=d.p_new,
+        stranger_log_odds=d.stranger_log_odds, previous_id=d.previous_id, summary=d.summary(),
+        candidates=[IdCandidateState(id=c.id, log_odds=c.log_odds, support=c.support, reachable=c.reachable,
+                                     walked_out=c.walked_out, away_s=c.away_s, distance_m=c.distance_m)
+                    for c in d.candidates],
+        handover=None if d.handover is None else HandOverState(camera=d.handover.camera, d2=d.handover.d2,
+                                                               away_s=d.handover.away_s,
+                                                               distance_m=d.handover.distance_m))
+        for d in decisions])

@@ -36,13 +36,13 @@ from typing import Callable
 import numpy as np
 
 from common.messages.keys import RELIABLE, Keys
-from common.messages.schemas import Embeddings, ForgetReply, Header, LocalizedDetections, Tracks
+from common.messages.schemas import Embeddings, ForgetReply, Header, IdDecisions, LocalizedDetections, Tracks
 from common.runtime.node import Node
 from common.runtime.ratelog import RateLimitedLog
 from common.runtime.service import Counters
 from common.transport.base import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
-from services.tracker.convert import tracks_message
+from services.tracker.convert import id_decisions_message, tracks_message
 from services.tracker.core import FrameResult, TrackView
 from services.tracker.core.view import FieldOfView, Views
 from services.tracker.intake import Frame, Intake
@@ -101,6 +101,7 @@ class TrackerService(Node):
         self.loc_sub = self.io.subscribe(keys.localized(config.camera), LocalizedDetections, RELIABLE)
         self.emb_sub = self.io.subscribe(keys.embeddings(config.camera), Embeddings, RELIABLE)
         self.publisher = self.io.publisher(keys.tracks(), Tracks, RELIABLE)
+        self.decisions_pub = self.io.publisher(keys.id_decisions(), IdDecisions, RELIABLE)
         self.io.serve(keys.track_query(), self.registry.answer_query)
         self.io.serve(keys.forget_query(), self._answer_forget)
 
@@ -203,21 +204,28 @@ class TrackerService(Node):
             self.counters.count("ids_recovered", len(result.recovered_ids))
         if result.recovery_undone:  # a recovery taken back (robust profile's ID memory)
             self.counters.count("ids_recovery_undone", len(result.recovery_undone))
-        self._log_decisions(result)
+        self._report_decisions(result, frame.loc.header)
         self.registry.record(result, self._epoch_ns)
         return result
 
-    def _log_decisions(self, result: FrameResult) -> None:
-        """Why a new person got their ID: one line each (rare events). A rewind applies frames
-        again: a decision made again the same is not logged twice, a different one is, as revised."""
+    def _report_decisions(self, result: FrameResult, header: Header) -> None:
+        """Why a new person got their ID: one log line each (rare events), and the frame's decisions
+        on ``keys.id_decisions()``. A rewind applies frames again: a decision made again the same
+        is not reported twice, a different one is (logged as revised)."""
+        fresh = []
         for d in result.id_decisions:
             key, text = (d.stamp, round(d.x, 2), round(d.y, 2), d.outcome == "undone"), d.summary()
             before = self._decisions_logged.get(key)
             if before != text:
                 log.info("ID decision%s: %s", "" if before is None else " (revised by late inputs)", text)
+                fresh.append(d)
             self._decisions_logged[key] = text
             while len(self._decisions_logged) > 256:  # far more than a reorder window holds
                 del self._decisions_logged[next(iter(self._decisions_logged))]
+        if fresh:
+            self.decisions_pub.put(id_decisions_message(
+                fresh, Header(stamp_ns=header.stamp_ns, frame_id=self.config.frame_id, seq=header.seq,
+                              source=header.source)))
 
     def _publish(self, frame: Frame, result: FrameResult, views: list[TrackView] | None = None,
                  stamp_ns: int | None = None) -> Tracks:

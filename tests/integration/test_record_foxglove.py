@@ -65,10 +65,12 @@ def test_record_writes_the_live_streams_in_foxglove_schemas_too(tmp_path: Path, 
                                 for key, msg in scene_messages(0, 0.0, KEYS)}
         for p in pubs.values():
             assert p.wait_for_subscribers(TIMEOUT), "the recorder did not subscribe"
+        sent: dict[str, int] = {}
         for seq in range(FRAMES):
             for key, msg in scene_messages(seq, seq / 15, KEYS):
                 pubs[key].put(msg)
-        assert wait_recorded(client, KEYS, FRAMES * len(pubs), TIMEOUT) >= FRAMES * len(pubs)
+                sent[key] = sent.get(key, 0) + 1
+        assert wait_recorded(client, KEYS, sum(sent.values()), TIMEOUT) >= sum(sent.values())
         stdout, stderr = stop_recording(recorder, TIMEOUT)
     finally:
         if recorder.poll() is None:
@@ -78,7 +80,7 @@ def test_record_writes_the_live_streams_in_foxglove_schemas_too(tmp_path: Path, 
     assert f"into {fox}" in stdout, stdout
 
     native, _ = _mcap_counts(out)  # the replayable recording is unchanged: every message, msgpack
-    assert native == {key: FRAMES for key in pubs}, native
+    assert native == sent, native
     counts, schemas = _mcap_counts(fox)  # embeddings have no Foxglove topic
     assert schemas == EXPECTED, schemas
     assert counts == {topic: FRAMES for topic in EXPECTED}, counts

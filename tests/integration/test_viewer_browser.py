@@ -88,6 +88,9 @@ def test_the_page_shows_the_tracks_camera_and_health_in_a_real_browser(
                     f" if (Math.abs(d[i]-{rgb[0]}) < 4 && Math.abs(d[i+1]-{rgb[1]}) < 4 && Math.abs(d[i+2]-{rgb[2]}) < 4) n++;"
                     " return n; })()")
                 assert painted > 50, f"track {track_id} is not drawn on the map"
+            # the tracker's latest ID decisions, in words
+            why = browser.wait_for("document.querySelector('#id-decisions li[data-outcome=\"recovered\"]')?.textContent", 30)
+            assert f"ID {IDS[0]} recovered: support 0.85" in why and " s ago: " in why
             # stages with rates, and the publisher's health from its token and status
             assert browser.wait_for(
                 "+document.querySelector('[data-stage=\"tracker\"]').children[2].textContent > 5", 20)

@@ -14,6 +14,7 @@ from common.messages.schemas import (
     AppearanceThresholds,
     Embeddings,
     Header,
+    IdDecisions,
     LocalizedDetection,
     LocalizedDetections,
     ModelCard,
@@ -347,15 +348,27 @@ def test_robust_profile_publishes_coasting_tracks_then_recovers_the_id_after_a_r
     assert f"ID {person0} recovered" in line and f"candidates: {person0} (log-odds" in line  # why, in the log
 
 
-def test_an_id_decision_applied_again_by_a_rewind_is_logged_once(
+def test_an_id_decision_applied_again_by_a_rewind_is_reported_once(
         tmp_path: Path, memory_bus: MemoryBus, caplog: pytest.LogCaptureFixture) -> None:
     caplog.set_level("INFO", logger="services.tracker.service")
-    service = Rig(memory_bus, config(tmp_path, profile="robust")).service
+    rig = Rig(memory_bus, config(tmp_path, profile="robust"))
+    service = rig.service
+    sub = memory_bus.transport().subscribe(KEYS.id_decisions(), IdDecisions, RELIABLE)
     made = IdDecision(3.0, 7, "new", 1.0, 2.0, 0.3, 0.5, 0.6, 0.1, (IdCandidate(4, 1.2, 0.3, True),))
     again = FrameResult(3.0, True, id_decisions=[made])
-    service._log_decisions(again)
-    service._log_decisions(again)  # the same frame re-applied after a late input: the same decision
+    service._report_decisions(again, HDR)
+    service._report_decisions(again, HDR)  # the same frame re-applied after a late input: the same decision
     revised = IdDecision(3.0, 4, "recovered", 1.0, 2.0, 0.6, 0.5, 0.2, 0.1, (IdCandidate(4, 2.4, 0.6, True),))
-    service._log_decisions(FrameResult(3.0, True, id_decisions=[revised]))  # with the late descriptors: another
+    service._report_decisions(FrameResult(3.0, True, id_decisions=[revised]), HDR)  # with the late descriptors: another
     lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith("ID decision")]
     assert lines == [f"ID decision: {made.summary()}", f"ID decision (revised by late inputs): {revised.summary()}"]
+    sent = []
+    while (got := sub.try_recv()) is not None:
+        sent.append(got.msg)
+    assert [[(d.id, d.outcome, d.summary) for d in m.decisions] for m in sent] == [
+        [(7, "new", made.summary())], [(4, "recovered", revised.summary())]]
+    assert sent[0].header.stamp_ns == HDR.stamp_ns and sent[0].header.frame_id == "map"
+    assert sent[1].decisions[0].candidates[0].log_odds == 2.4
+
+
+HDR = Header(stamp_ns=T0 + 3_000_000_000, frame_id="camera", seq=30, source="head")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 from dataclasses import replace
 from typing import Any, Callable, Protocol
 
@@ -22,7 +23,8 @@ from common.messages.keys import RELIABLE, STATUS, Delivery, Keys
 from common.runtime.node import Node
 from common.messages.registry import stages
 from common.runtime.service import Counters, Shutdown
-from common.messages.schemas import (Detections, Embeddings, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
+from common.messages.schemas import (Detections, Embeddings, IdDecisions, IdDecisionState, LocalizedDetections, Message,
+                                     RGBDFrame, ServiceStatus, Tracks,
                                      TransformBatch)
 from common.transport.base import Subscription, Transport
 from tools.drawing.images import jpeg_of
@@ -38,6 +40,8 @@ __all__ = ["STAGES", "Sink", "ViewerNode"]
 # The viewer reads on its own schedule (``wake=False``): samples wait in the transport until
 # a poll, and no thread is woken per sample.
 #: Small messages the viewer reads: the newest 64 (it only needs the newest).
+#: the ID decisions the page lists
+_DECISIONS = 6
 _LOOSE = Delivery(latest=False, queue=64, congestion="drop", wake=False)
 #: Frames: the few that arrive between two polls, so the camera's rate counts each of them
 #: (only the newest is decoded); older ones are dropped uncounted.
@@ -89,11 +93,14 @@ class ViewerNode(Node):
             "tf": self.io.subscribe(keys.tf(), TransformBatch, _EVERY_TF),
             "tf_static": self.io.subscribe(keys.tf_static(), TransformBatch, _EVERY_TF),
             "status": self.io.subscribe(keys.status(), ServiceStatus, _EVERY_STATUS),
+            "id_decisions": self.io.subscribe(keys.id_decisions(), IdDecisions, _EVERY_STATUS),
         }
         self.meters = {stage: StageMeter() for stage in STAGES}
         self.trails = Trails(span_s=config.trail_s)
         self.buffer = TransformBuffer(history_s=10.0, tolerance_s=0.1)
         self.latest: dict[str, Any] = {}
+        #: the tracker's latest ID decisions, newest last: (when they arrived, the decision)
+        self.decisions: deque[tuple[float, IdDecisionState]] = deque(maxlen=_DECISIONS)
         self.nodes: dict[tuple[str, str], NodeSeen] = {}
         self._alive_events: list[tuple[str, bool]] = []
         self._alive_lock = threading.Lock()
@@ -135,6 +142,8 @@ class ViewerNode(Node):
                     self.latest[stream] = msg
                 if isinstance(msg, Tracks):
                     self._trail(msg, now)
+                elif isinstance(msg, IdDecisions):
+                    self.decisions.extend((now, d) for d in msg.decisions)
                 elif isinstance(msg, TransformBatch):
                     add_batch(self.buffer, msg, static=stream == "tf_static")
                 elif isinstance(msg, ServiceStatus):
@@ -228,6 +237,8 @@ class ViewerNode(Node):
             "boxes": self._boxes(),
             "stages": self._stages(now),
             "nodes": nodes,
+            "id_decisions": [{"id": d.id, "outcome": d.outcome, "text": d.summary, "age_s": round(now - at, 1)}
+                             for at, d in reversed(self.decisions)],
         }
 
     def _stages(self, now: float) -> list[dict[str, Any]]:

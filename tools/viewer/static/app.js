@@ -66,6 +66,7 @@ function render() {
   const confirmed = state.tracks.filter((t) => t.status === "confirmed").length;
   $("summary").textContent = `${confirmed} confirmed of ${state.tracks.length} tracks${mode}`;
   renderTracks();
+  renderDecisions();
   renderStages();
   renderNodes();
   drawMap();
@@ -77,6 +78,25 @@ function renderTracks() {
   body.replaceChildren(...state.tracks.map((t) => row(
     [swatch(t.colour, String(t.id)), fmt(t.x, 2), fmt(t.y, 2), fmt(Math.hypot(t.vx, t.vy), 2), t.status, t.hits, fmt(t.age_s)],
     { "data-track-id": t.id })));
+}
+
+// Why the tracker gave its recent IDs: one line each, as the tracker logs them.
+function renderDecisions() {
+  const list = $("id-decisions");
+  const items = (state.id_decisions || []).map((d) => {
+    const li = document.createElement("li");
+    li.dataset.outcome = d.outcome;
+    li.dataset.id = d.id;
+    li.textContent = `${fmt(d.age_s, 0)} s ago: ${d.text}`;
+    return li;
+  });
+  if (!items.length) {
+    const li = document.createElement("li");
+    li.className = "none";
+    li.textContent = "none yet (a returning or new person's ID is explained here)";
+    items.push(li);
+  }
+  list.replaceChildren(...items);
 }
 
 function renderStages() {

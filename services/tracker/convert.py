@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import asdict
+
 import numpy as np
 
-from common.messages.schemas import (Embeddings, HandOverState, Header, IdCandidateState, IdDecisions, IdDecisionState,
-                                     LocalizedDetections, TrackState, Tracks)
+from common.messages.schemas import (Embeddings, Header, IdDecisions, IdDecisionState, LocalizedDetections, TrackState,
+                                     Tracks)
 from services.tracker.core.types import FrameResult, IdDecision, TrackView
 from services.tracker.core.view import FieldOfView, FloorView
 
@@ -99,14 +101,7 @@ def tracks_message(result: FrameResult, reported: list[TrackView], header: Heade
 
 
 def id_decisions_message(decisions: list[IdDecision], header: Header) -> IdDecisions:
-    """The core's ID decisions of one frame as an IdDecisions message (``header``: the frame's)."""
-    return IdDecisions(header=header, decisions=[IdDecisionState(
-        id=d.id, outcome=d.outcome, x=d.x, y=d.y, support=d.support, threshold=d.threshold, p_new=d.p_new,
-        stranger_log_odds=d.stranger_log_odds, previous_id=d.previous_id, summary=d.summary(),
-        candidates=[IdCandidateState(id=c.id, log_odds=c.log_odds, support=c.support, reachable=c.reachable,
-                                     walked_out=c.walked_out, away_s=c.away_s, distance_m=c.distance_m)
-                    for c in d.candidates],
-        handover=None if d.handover is None else HandOverState(camera=d.handover.camera, d2=d.handover.d2,
-                                                               away_s=d.handover.away_s,
-                                                               distance_m=d.handover.distance_m))
-        for d in decisions])
+    """The core's ID decisions of one frame as an IdDecisions message (``header``: the frame's):
+    the same fields, nested alike, and each one's summary."""
+    return IdDecisions(header=header, decisions=[IdDecisionState.model_validate({**asdict(d), "summary": d.summary()})
+                                                 for d in decisions])

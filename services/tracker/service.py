@@ -223,9 +223,8 @@ class TrackerService(Node):
             while len(self._decisions_logged) > 256:  # far more than a reorder window holds
                 del self._decisions_logged[next(iter(self._decisions_logged))]
         if fresh:
-            self.decisions_pub.put(id_decisions_message(
-                fresh, Header(stamp_ns=header.stamp_ns, frame_id=self.config.frame_id, seq=header.seq,
-                              source=header.source)))
+            in_frame = header.model_copy(update={"frame_id": self.config.frame_id})
+            self.decisions_pub.put(id_decisions_message(fresh, in_frame))
 
     def _publish(self, frame: Frame, result: FrameResult, views: list[TrackView] | None = None,
                  stamp_ns: int | None = None) -> Tracks:

@@ -608,7 +608,7 @@ def score_sim(tracker: TrackerAdapter, captures: list[quality_sim.Capture], bar:
         causes.append(false_by_decision(reasons(identities[-1], decisions)))
         if bar is not None:
             bar.update()
-    explained = tracker.config is not None and tracker.config.profile == "robust"  # the profile that explains its IDs
+    explained = tracker.config is not None  # the project's profiles explain their IDs (the baselines do not)
     by_cause = {k: sum(c[k] for c in causes) for k in causes[0]} if explained and causes else None
     return Score(ClearMot.combine(r for _, r in parts), parts, sum(t for t, _ in times), sum(n for _, n in times),
                  times, identities, by_cause)

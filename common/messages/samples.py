@@ -170,7 +170,11 @@ def example_messages(stamp_ns: int = 1_700_000_000_000_000_000, n_people: int = 
                                                  away_s=5.6, distance_m=3.0)],
                             summary="ID 3 recovered at (2.20, 2.50) m: support 0.85 >= 0.50"),
             IdDecisionState(id=1, outcome="handover", x=-1.5, y=0.2, support=0.0, threshold=13.8, p_new=0.0,
-                            handover=HandOverState(camera="back", d2=2.1, away_s=2.4, distance_m=0.6))]),
+                            handover=HandOverState(camera="back", d2=2.1, away_s=2.4, distance_m=0.6)),
+            IdDecisionState(id=4, outcome="recovered", x=0.4, y=1.8, support=1.0, threshold=0.38, p_new=0.0,
+                            rule="nearest", candidates=[
+                                IdCandidateState(id=4, log_odds=3.1, support=1.0, reachable=True, distance=0.22)],
+                            summary="ID 4 recovered at (0.40, 1.80) m (Algorithm 2): descriptor distance 0.22 < 0.38")]),
         ForgetReply(header=Header(stamp_ns=stamp_ns, frame_id="map", source="tracker"), forgotten_ids=[2],
                     descriptors_removed=140, classifiers_removed=1, live_tracks_cleared=[2]),
         HeadCommand(header=Header(stamp_ns=stamp_ns, frame_id="base_link", source="attention"), pan_rate=0.21,

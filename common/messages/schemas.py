@@ -543,6 +543,8 @@ class IdCandidateState(_Model):
     walked_out: bool | None = Field(default=None, description="left by walking out of the view (None: not known)")
     away_s: float | None = Field(default=None, ge=0.0, description="since they left")
     distance_m: float | None = Field(default=None, ge=0.0, description="from where they left")
+    distance: float | None = Field(default=None, ge=0.0,
+                                   description="descriptor distance to their nearest remembered view ('nearest' rule)")
 
 
 class HandOverState(_Model):
@@ -561,13 +563,17 @@ class IdDecisionState(_Model):
     outcome: Literal["new", "recovered", "undone", "handover"]
     x: float
     y: float
-    support: float = Field(ge=0.0, le=1.0, description="the best candidate's (for 'undone': the one taken back)")
-    threshold: float = Field(ge=0.0, description="p_recover, p_undo during probation, or the hand-over's gate")
+    support: float = Field(ge=0.0, le=1.0, description="the best candidate's (for 'undone': the one taken back); "
+                                                       "'nearest' rule: 1 when an ID was given back, else 0")
+    threshold: float = Field(ge=0.0, description="p_recover, p_undo during probation, the hand-over's gate, or "
+                                                 "t_recover (a descriptor distance) for the 'nearest' rule")
     p_new: float = Field(ge=0.0, le=1.0, description="the posterior of someone new")
     stranger_log_odds: float = 0.0
     candidates: list[IdCandidateState] = Field(default_factory=list, description="the most probable first")
     previous_id: int | None = Field(default=None, description="'undone': the remembered ID taken back")
     handover: HandOverState | None = None
+    rule: Literal["open-set", "nearest"] = Field(
+        default="open-set", description="the robust profile's open-set posterior, or Pinto's Algorithm 2 (thesis profile)")
     summary: str = Field(default="", description="the decision in one line, as the tracker logs it")
 
 

@@ -62,9 +62,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--status", action="store_true",
                         help="add a status column: confirmed, or coasting (robust: reported through a short miss)")
     parser.add_argument("--id-log", type=Path, default=None, metavar="IDS.jsonl",
-                        help="robust, with e-columns: write why each newly confirmed person got their ID, one JSON "
-                             "line per decision that weighed remembered people (the frame, the ID, recovered or new "
-                             "or undone, each candidate's log-odds and support, where and when they left)")
+                        help="with e-columns: write why each newly confirmed person got their ID, one JSON line "
+                             "per decision that weighed remembered people (the frame, the ID, recovered or new or "
+                             "undone; robust: each candidate's log-odds and support, where and when they left; "
+                             "thesis: Algorithm 2's descriptor distances against t_recover, rule 'nearest')")
 
 
 def floor_view(path: Path) -> FloorView:
@@ -129,8 +130,8 @@ def main(args: argparse.Namespace) -> int:
         raise CliError(f"cannot write {exc.filename or args.output}: {exc.strerror or exc}") from exc
     if args.id_log is not None:
         log.info("%d ID decisions -> %s%s", len(decisions), args.id_log,
-                 "" if dets.descriptors is not None and config.profile == "robust"
-                 else " (none: the robust profile decides IDs from descriptors, and there are none)")
+                 "" if dets.descriptors is not None
+                 else " (none: IDs are decided from descriptors, and there are none)")
     n_frames = int(dets.frames[-1] - dets.frames[0] + 1) if len(dets.frames) else 0
     log.info("%d frames, %d detections -> %d track rows in %.2f s (%.0f frames/s)", n_frames, len(dets.frames),
              len(rows), elapsed, n_frames / elapsed if elapsed > 0 else float("inf"))

@@ -213,7 +213,8 @@ def test_other_models_are_refused(tmp_path: Path, memory_bus: MemoryBus) -> None
     assert not rig.outputs()[-1].appearance_available
 
 
-def test_identities_survive_a_restart(tmp_path: Path) -> None:
+def test_identities_survive_a_restart(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level("INFO", logger="services.tracker.service")
     cfg = config(tmp_path)
     bus = MemoryBus()
     rig = Rig(bus, cfg)
@@ -229,6 +230,7 @@ def test_identities_survive_a_restart(tmp_path: Path) -> None:
 
     bus2 = MemoryBus()
     rig2 = Rig(bus2, cfg)  # a new process: loads the file
+    why = bus2.transport().subscribe(KEYS.id_decisions(), IdDecisions, RELIABLE)
     for k in range(100, 104):  # both come back, in swapped places
         rig2.send(k, [(1, (2.0, 0.0, 1.0)), (0, (5.0, 0.0, 1.0))])
         rig2.poll()
@@ -236,6 +238,17 @@ def test_identities_survive_a_restart(tmp_path: Path) -> None:
     by_x = {round(float(t.position[0])): t.id for t in last.tracks}
     assert by_x == {2: 2, 5: 1}
     assert rig2.service.counters.extra["ids_recovered"] == 2
+    # why, for the thesis profile too: Algorithm 2's nearest remembered person, logged and published
+    lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith("ID decision")]
+    assert sorted(line.split(" at ")[0] for line in lines) == ["ID decision: ID 1 recovered", "ID decision: ID 2 recovered"]
+    assert all("(Algorithm 2)" in line and "< t_recover" in line for line in lines)
+    sent = []
+    while (got := why.try_recv()) is not None:
+        sent.append(got.msg)
+    [msg] = sent  # both confirmed in one frame
+    assert sorted((d.id, d.rule, d.outcome) for d in msg.decisions) == [(1, "nearest", "recovered"),
+                                                                         (2, "nearest", "recovered")]
+    assert all(d.candidates[0].distance is not None and d.candidates[0].distance < d.threshold for d in msg.decisions)
 
 
 def test_periodic_save_covers_a_crash(tmp_path: Path, memory_bus: MemoryBus) -> None:

@@ -1,7 +1,8 @@
 """Why a track has its ID (core/id_decisions.py in the tracker): each decision of the robust
 profile's open-set ID memory comes with its evidence, the same the decision weighed; a
 stranger's, a returning person's, an unreachable candidate's and an undone recovery's read
-as such; ``perception track --id-log`` writes them."""
+as such; the thesis profile's Algorithm 2 is explained by its descriptor distances against
+t_recover; ``perception track --id-log`` writes them for either profile."""
 
 from __future__ import annotations
 
@@ -12,9 +13,10 @@ import numpy as np
 import pytest
 
 from perception.cli import main
-from services.tracker.core.types import IdDecision
+from services.tracker.core import AppearanceGate, Tracker, TrackerParams
 from services.tracker.core.recovery import RecoveryParams
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
+from services.tracker.core.types import FrameInput, IdDecision
 
 DIM = 8
 COLOUR = AppearanceModel(0.35, 0.85, 0.40)
@@ -96,6 +98,49 @@ def test_an_undone_recovery_names_the_person_taken_back() -> None:
     assert f"recovery of ID {p0} undone, now ID {last.id}" in last.summary()
 
 
+def test_the_thesis_profile_explains_algorithm_2_when_the_track_is_confirmed() -> None:
+    """Pinto's Algorithm 2 decides at birth (nearest remembered person within t_recover); the
+    decision is told once, when the track is confirmed (its ID becomes visible), and survives
+    a snapshot and restore (a rewind) as the track does."""
+    trk = Tracker(TrackerParams(gate=AppearanceGate(COLOUR.t_lower, COLOUR.t_upper), t_recover=COLOUR.t_recover,
+                                n_init=3, max_misses=2))
+    told: list[tuple[float, IdDecision]] = []
+
+    def run(t0: float, t1: float, people: list[tuple[np.ndarray, tuple[float, float]]]) -> None:
+        for t in np.arange(t0, t1 - 1e-9, 0.1):
+            pos = np.array([[x, y, 1.0] for _, (x, y) in people]).reshape(-1, 3)
+            d = np.stack([v for v, _ in people]).astype(np.float32) if people else np.zeros((0, DIM), np.float32)
+            told.extend((float(t), d) for d in trk.step(float(t), FrameInput.of(pos, d)).id_decisions)
+
+    run(0.0, 1.0, [(DARK[0], (1.0, 0.0)), (RED, (4.0, 0.0))])
+    assert not told  # nobody remembered: new by necessity, nothing weighed
+    first = {round(float(t.mean[0])): t.id for t in trk.tracks}
+    run(1.0, 1.5, [])  # both leave; their galleries go to the memory
+    run(1.5, 1.6, [(DARK[2], (2.0, 0.0))])  # born: a look-alike of the first person
+    state = trk.snapshot()
+    run(1.6, 1.7, [(DARK[2], (2.0, 0.0))])
+    assert not told  # decided at birth, not told before the track is confirmed (its third hit)
+    run(1.7, 1.9, [(DARK[2], (2.0, 0.0))])
+    [(t, d)] = told
+    assert d.rule == "nearest" and d.outcome == "recovered" and d.id == first[1] and t == pytest.approx(1.7)
+    assert [c.id for c in d.candidates] == [first[1], first[4]] and d.candidates[0].distance < d.threshold
+    assert d.candidates[0].distance < d.candidates[1].distance and d.candidates[0].support == d.support == 1.0
+    assert d.stamp == pytest.approx(1.5) and d.p_new == 0.0
+    assert d.summary().startswith(f"ID {first[1]} recovered at (2.00, 0.00) m, t=1.50 s (Algorithm 2)")
+    assert f"descriptor distance {d.candidates[0].distance:.2f} < t_recover 0.40" in d.summary()
+    assert IdDecision.from_dict(json.loads(json.dumps(d.as_dict()))) == d
+    trk.restore(state)  # a rewind: the decision is told again, the same, on confirmation
+    del told[:]
+    run(1.6, 1.9, [(DARK[2], (2.0, 0.0))])
+    assert [d2 for _, d2 in told] == [d]
+    run(1.9, 2.5, [])
+    run(2.5, 2.9, [(_E[7], (3.0, 0.0))])  # someone like nobody remembered
+    d = told[-1][1]
+    assert d.outcome == "new" and d.support == 0.0 and d.p_new == 1.0 and d.id not in first.values()
+    assert d.candidates[0].distance >= d.threshold and d.candidates[0].log_odds < 0
+    assert f"new ID {d.id}" in d.summary() and ">= t_recover 0.40" in d.summary()
+
+
 def test_perception_track_writes_the_id_log(tmp_path: Path) -> None:
     """One person walks, is gone for 4 s, and comes back nearby: one line, a recovery."""
     rng = np.random.default_rng(0)
@@ -113,3 +158,9 @@ def test_perception_track_writes_the_id_log(tmp_path: Path) -> None:
     track_ids = set(np.loadtxt(out, delimiter=",", skiprows=1, ndmin=2)[:, 2].astype(int))
     assert entry["outcome"] == "recovered" and track_ids == {entry["id"]} and 180 <= entry["frame"] < 190
     assert entry["candidates"][0]["id"] == entry["id"] and entry["candidates"][0]["away_s"] > 3.5
+    thesis = tmp_path / "ids_thesis.jsonl"  # the thesis profile: Algorithm 2's line
+    assert main(["track", "--detections", str(dets), "--output", str(out), "--profile", "thesis",
+                 "--id-log", str(thesis)]) == 0
+    [entry] = [json.loads(line) for line in thesis.read_text().splitlines()]
+    assert (entry["rule"], entry["outcome"]) == ("nearest", "recovered") and 180 <= entry["frame"] < 190
+    assert entry["candidates"][0]["distance"] < entry["threshold"]

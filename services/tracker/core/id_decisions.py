@@ -1,4 +1,4 @@
-"""Why a track has its ID: the robust profile's ID decisions, explained.
+"""Why a track has its ID: the ID decisions of both profiles, explained.
 
 Each time the open-set ID memory (core/recovery.py) decides a newly confirmed person's ID, or
 takes back a recovery during probation, the tracker reports an
@@ -10,6 +10,9 @@ The service logs them, ``perception track --id-log`` writes them and ``perceptio
 --identity --id-log`` joins them to the ground truth, so that a wrong ID can be traced to its
 cause (a look-alike, a bar set too low, a walked-out person's weight) rather than guessed at.
 
+The thesis profile's Pinto's Algorithm 2 is explained by :func:`nearest`: the remembered people it
+weighed, the nearest first, with their descriptor distances against ``t_recover``.
+
 Built from the evidence the decision itself used (no second model). Pure numpy.
 """
 
@@ -20,9 +23,10 @@ import math
 import numpy as np
 
 from services.tracker.core import recovery as rec
-from services.tracker.core.types import IdCandidate, IdDecision, IdOutcome
+from services.tracker.core.association import AppearanceGate
+from services.tracker.core.types import AppearanceModel, IdCandidate, IdDecision, IdOutcome
 
-__all__ = ["TOP", "explain"]
+__all__ = ["TOP", "explain", "nearest"]
 
 #: how many candidates a decision lists, the most probable first
 TOP = 3
@@ -54,3 +58,20 @@ def explain(ev: rec.Evidence, p_new: float, stamp: float, x: float, y: float, tr
     best = candidates[0].support if candidates else 0.0
     return IdDecision(stamp, track_id, outcome, x, y, best, threshold, post_new, float(ev.new_llr), tuple(candidates),
                       previous_id)
+
+
+def nearest(stamp: float, x: float, y: float, track_id: int, recovered: bool, ids: np.ndarray, dist: np.ndarray,
+            t_recover: float, gate: AppearanceGate | None) -> IdDecision:
+    """The :class:`IdDecision` of Pinto's Algorithm 2 (the thesis profile) for a track born at
+    (``x``, ``y``): the remembered ``ids`` (K,) it weighed at descriptor distances ``dist`` (K,),
+    the nearest first; ``recovered``: the nearest was below ``t_recover`` and gave ``track_id``.
+    Each candidate's log-odds are the distance through the association's thresholds (``gate``:
+    t_lower, t_upper), what the distance means on the model's calibrated scale."""
+    model = None if gate is None else AppearanceModel(gate.t_lower, gate.t_upper, t_recover)
+    order = np.argsort(dist, kind="stable")[:TOP].tolist()
+    given = 1.0 if recovered else 0.0
+    candidates = tuple(IdCandidate(int(ids[i]), float(model.log_odds(np.array(dist[i]))) if model else 0.0,
+                                   given if k == 0 else 0.0, True, distance=float(dist[i]))
+                       for k, i in enumerate(order))
+    return IdDecision(stamp, track_id, "recovered" if recovered else "new", x, y, given, t_recover, 1.0 - given, 0.0,
+                      candidates, rule="nearest")

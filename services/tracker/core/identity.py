@@ -95,13 +95,21 @@ class IdentityMemory:
         IDs held by live tracks are skipped. If the closest remembered ID is nearer than
         ``t_recover`` it is reused; otherwise (or without a descriptor) ``next_id`` is taken.
         """
+        track_id, recovered, _, _ = self.assign_weighed(descriptor, live_ids, t_recover)
+        return track_id, recovered
+
+    def assign_weighed(self, descriptor: np.ndarray | None, live_ids: Iterable[int],
+                       t_recover: float) -> tuple[int, bool, np.ndarray, np.ndarray]:
+        """:meth:`assign`, with the remembered IDs it weighed and their distances ((K,) int64,
+        (K,); empty without a descriptor or anyone to weigh): what explains its decision."""
+        ids, dist = np.zeros(0, np.int64), np.zeros(0)
         if descriptor is not None and self.entries:
             ids, dist = self.distances(descriptor, exclude=live_ids)
             if len(ids):
                 best = int(np.argmin(dist))
                 if dist[best] < t_recover:
-                    return int(ids[best]), True
-        return self.new_id(), False
+                    return int(ids[best]), True, ids, dist
+        return self.new_id(), False, ids, dist
 
     def copy(self) -> IdentityMemory:
         """A snapshot sharing descriptor storage copy-on-write."""

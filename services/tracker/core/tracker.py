@@ -21,8 +21,7 @@ Time step (``TrackerParams.time_step``):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
-from typing import Literal
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -39,45 +38,13 @@ from services.tracker.core.association import (
 )
 from services.tracker.core.cues import usable_covariances
 from services.tracker.core.gallery import Gallery
+from services.tracker.core.id_decisions import nearest
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.protocol import TrackerCore
-from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, TrackStatus, TrackView
+from services.tracker.core.thesis_params import TrackerParams
+from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, IdDecision, TrackStatus, TrackView
 
 __all__ = ["FrameResult", "Track", "TrackStatus", "TrackView", "Tracker", "TrackerParams", "TrackerState"]
-
-_F6 = tuple[float, float, float, float, float, float]
-_F3 = tuple[float, float, float]
-#: Algorithm 1's S_max when the embedding model names none (Pinto's thesis, eq. 17)
-_S_MAX = next(f.default for f in fields(AppearanceGate) if f.name == "s_max")
-
-
-@dataclass(frozen=True)
-class TrackerParams:
-    """Everything the core needs; defaults are the thesis's values (see the README table)."""
-
-    sigma0: _F6 = (0.2, 0.2, 0.2, 1.0, 1.0, 1.0)
-    sigma_q: _F6 = (0.2, 0.2, 0.2, 1.0, 1.0, 1.0)
-    sigma_r: _F3 = (0.2, 0.2, 0.2)
-    gate: AppearanceGate | None = None
-    t_recover: float = 400.0
-    n_init: int = 3
-    max_misses: int = 5
-    time_step: Literal["time", "frame"] = "time"
-    frame_period_s: float = 1.0 / 30.0
-    gallery_size: int = 500
-    memory_size: int = 500
-    position_gate_probability: float = 0.95
-    inf: float = 1e5
-    #: S_max of the gate :meth:`Tracker.set_appearance` builds for a model that names none
-    s_max: float = _S_MAX
-
-    def __post_init__(self) -> None:
-        if self.n_init < 1 or self.max_misses < 1:
-            raise ValueError("n_init and max_misses must be at least 1")
-        if self.frame_period_s <= 0:
-            raise ValueError("frame_period_s must be positive")
-        if not 0 < self.position_gate_probability < 1:
-            raise ValueError("position_gate_probability must be in (0, 1)")
 
 
 @dataclass
@@ -95,11 +62,12 @@ class Track:
     misses: int = 0  # nominal frames since the last association
     total_hits: int = 1
     ever_confirmed: bool = False
+    decision: IdDecision | None = None  # why Algorithm 2 gave its ID, told when it is confirmed
 
     def copy(self) -> Track:
         return Track(self.id, self.mean.copy(), self.cov.copy(), self.gallery.copy() if self.gallery else None,
                      self.first_stamp, self.last_update, self.status, self.hits, self.misses, self.total_hits,
-                     self.ever_confirmed)
+                     self.ever_confirmed, self.decision)
 
 
 @dataclass
@@ -181,6 +149,10 @@ class Tracker(TrackerCore):
         result.deleted = self._age_missed(unmatched_t, frames, appearance, stamp)
         result.new_ids, result.recovered_ids = self._birth(unmatched_d, positions, used, has_desc, stamp)
         result.tracks = [_view(t, stamp) for t in self.tracks]
+        told = [t for t in self.tracks if t.decision is not None and t.status is TrackStatus.CONFIRMED]
+        for t in told:  # an ID becomes visible with its track's confirmation: so does why it was given
+            result.id_decisions.append(t.decision)  # type: ignore[arg-type]
+            t.decision = None
         return result
 
     def _predict(self, dt: float, q_scale: float) -> tuple[np.ndarray, np.ndarray]:
@@ -284,9 +256,13 @@ class Tracker(TrackerCore):
 
     def _new_track(self, position: np.ndarray, desc: np.ndarray | None, stamp: float) -> tuple[int, bool]:
         p = self.params
-        track_id, recovered = self.memory.assign(desc, self.live_ids() | {i for i, _ in self._pending}, p.t_recover)
+        exclude = self.live_ids() | {i for i, _ in self._pending}
+        track_id, recovered, ids, dist = self.memory.assign_weighed(desc, exclude, p.t_recover)
         mean, cov = kalman.initiate(position, np.asarray(p.sigma0))
         t = Track(track_id, mean, cov, None, stamp, stamp)
+        if len(ids):  # Algorithm 2 weighed remembered people: why, reported once the track is confirmed
+            t.decision = nearest(stamp, float(mean[0]), float(mean[1]), track_id, recovered, ids, dist, p.t_recover,
+                                 p.gate)
         if p.n_init <= 1:
             t.status, t.ever_confirmed = TrackStatus.CONFIRMED, True
         if desc is not None:

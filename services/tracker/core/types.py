@@ -18,7 +18,7 @@ import numpy as np
 if TYPE_CHECKING:
     from services.tracker.core.view import View
 
-__all__ = ["AppearanceModel", "FrameInput", "FrameResult", "HandOver", "IdCandidate", "IdDecision", "IdOutcome",
+__all__ = ["AppearanceModel", "FrameInput", "FrameResult", "HandOver", "IdCandidate", "IdDecision", "IdOutcome", "IdRule",
            "ScoreModel", "TrackStatus", "TrackView"]
 
 
@@ -73,6 +73,8 @@ _VIEW_FIELDS = tuple(f.name for f in fields(TrackView))
 #: what an ID decision did: a fresh ID, a remembered one, a recovery taken back, or the ID of a
 #: track another camera lost (a hand-over by motion)
 IdOutcome = Literal["new", "recovered", "undone", "handover"]
+#: how an ID decision was made: the robust profile's open-set posterior, or Pinto's Algorithm 2
+IdRule = Literal["open-set", "nearest"]
 
 
 @dataclass(frozen=True)
@@ -92,8 +94,13 @@ class IdCandidate:
     walked_out: bool | None = None
     away_s: float | None = None
     distance_m: float | None = None
+    #: the descriptor distance to their nearest remembered view (Pinto's Algorithm 2: the
+    #: ``nearest`` rule; None for the open-set decision, which weighs ``log_odds``)
+    distance: float | None = None
 
     def describe(self) -> str:
+        if self.distance is not None:
+            return f"{self.id} (descriptor distance {self.distance:.2f}, log-odds {self.log_odds:.2f})"
         where = ""
         if self.away_s is not None and self.distance_m is not None:
             how = "walked out of view" if self.walked_out else "last seen"
@@ -137,10 +144,21 @@ class IdDecision:
     candidates: tuple[IdCandidate, ...]
     previous_id: int | None = None
     handover: HandOver | None = None
+    #: "open-set": the robust profile's posterior against someone new; "nearest": Pinto's
+    #: Algorithm 2 (the thesis profile), the nearest remembered person if their descriptor
+    #: distance is below ``threshold`` (t_recover); ``support`` 1 for the ID it gave back, else 0
+    rule: IdRule = "open-set"
 
     def summary(self) -> str:
         """One line for a log."""
         where = f"at ({self.x:.2f}, {self.y:.2f}) m, t={self.stamp:.2f} s"
+        if self.rule == "nearest":
+            head = f"ID {self.id} recovered" if self.outcome == "recovered" else f"new ID {self.id}"
+            best = min(self.candidates, key=lambda c: c.distance if c.distance is not None else math.inf)
+            op = "<" if self.outcome == "recovered" else ">="
+            return (f"{head} {where} (Algorithm 2): the nearest remembered person, {best.id}, at descriptor "
+                    f"distance {best.distance:.2f} {op} t_recover {self.threshold:.2f}; candidates: "
+                    + "; ".join(c.describe() for c in self.candidates))
         if self.handover is not None:
             h = self.handover
             return (f"ID {self.id} handed over from camera {h.camera!r} {where}: its track coasted out of that "
@@ -180,6 +198,8 @@ class IdDecision:
             raise ValueError(f"not an ID decision ({type(exc).__name__}: {exc})") from exc
         if out.outcome not in ("new", "recovered", "undone", "handover"):
             raise ValueError(f"not an ID decision: outcome {out.outcome!r} (new, recovered, undone or handover)")
+        if out.rule not in ("open-set", "nearest") or (out.rule == "nearest" and not out.candidates):
+            raise ValueError(f"not an ID decision: rule {out.rule!r} (open-set, or nearest with its candidates)")
         return out
 
 

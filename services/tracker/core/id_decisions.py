@@ -10,7 +10,7 @@ The service logs them, ``perception track --id-log`` writes them and ``perceptio
 --identity --id-log`` joins them to the ground truth, so that a wrong ID can be traced to its
 cause (a look-alike, a bar set too low, a walked-out person's weight) rather than guessed at.
 
-The thesis profile's Pinto's Algorithm 2 is explained by :func:`nearest`: the remembered people it
+Pinto's Algorithm 2 (the thesis profile) is explained by :func:`nearest`: the remembered people it
 weighed, the nearest first, with their descriptor distances against ``t_recover``.
 
 Built from the evidence the decision itself used (no second model). Pure numpy.
@@ -66,7 +66,8 @@ def nearest(stamp: float, x: float, y: float, track_id: int, recovered: bool, id
     (``x``, ``y``): the remembered ``ids`` (K,) it weighed at descriptor distances ``dist`` (K,),
     the nearest first; ``recovered``: the nearest was below ``t_recover`` and gave ``track_id``.
     Each candidate's log-odds are the distance through the association's thresholds (``gate``:
-    t_lower, t_upper), what the distance means on the model's calibrated scale."""
+    t_lower, t_upper), what the distance means on the model's calibrated scale. Algorithm 2 weighs
+    neither where the candidates left nor when: every one is listed as reachable, with no departure."""
     model = None if gate is None else AppearanceModel(gate.t_lower, gate.t_upper, t_recover)
     order = np.argsort(dist, kind="stable")[:TOP].tolist()
     given = 1.0 if recovered else 0.0

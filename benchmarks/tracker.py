@@ -2,6 +2,8 @@
 
 Run: ``.venv/bin/python benchmarks/tracker.py`` (a few minutes on a 2-core VM;
 ``--reps`` trades precision for time). Prints median and p95 in milliseconds.
+``--without classifier posture`` times the robust profile with those per-track filters off,
+to show what they cost beyond the association, the Kalman filter and the galleries.
 
 ``perception track`` is timed on synthetic files with embeddings and, position-only, on
 the KITTI dev split (``kitti_ped_dev`` of the shared data, skipped when absent): as
@@ -133,7 +135,11 @@ def bench_kitti(profile: str, reps: int, data: Path) -> float | None:
 def bench_profile(profile: str, args: argparse.Namespace, bar: Bar) -> None:
     """The update table and the ``perception track`` throughput of one profile; ``bar`` counts the cases."""
     config = TrackerConfig(memory_path=None, profile=profile)
-    print(f"\nprofile {profile}\n")
+    off = args.without if profile == "robust" else []
+    if off:  # what the per-track filters beyond association cost: time the update without them
+        config = config.model_copy(update={"robust": config.robust.model_copy(update={
+            k: getattr(config.robust, k).model_copy(update={"enabled": False}) for k in off})})
+    print(f"\nprofile {profile}" + (f", without {' and '.join(off)}" if off else "") + "\n")
     print("| people | " + " | ".join(f"gallery {g}" for g in args.gallery) + " |")
     print("|---:|" + "---:|" * len(args.gallery))
     for n in args.people:
@@ -164,6 +170,9 @@ def main() -> None:
     parser.add_argument("--profiles", nargs="+", default=list(PROFILES), choices=PROFILES, help="tracker profiles to time")
     parser.add_argument("--kitti-reps", type=int, default=7, help="passes over the KITTI dev split (default 7)")
     parser.add_argument("--data", type=Path, default=SHARED, help=f"shared data folder (default {SHARED})")
+    parser.add_argument("--without", nargs="+", default=[], choices=("classifier", "posture"),
+                        help="robust: time it with these per-track filters off (Basso/Munaro's online classifiers, "
+                             "the TU Ilmenau posture and orientation filters), to see what they cost")
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
     print(f"tracker update, ms (median / p95), {DIM}-D descriptors, {args.reps} updates per case")

@@ -354,6 +354,10 @@ class Detection(_Model):
     class_name: str = "person"
     posture: Posture | None = Field(default=None, description="the posture the detector saw (the depth detector: "
                                     "standing or sitting); None: it cannot tell")
+    depth_m: float | None = Field(default=None, gt=0.0, allow_inf_nan=False,
+                                  description="the person's own depth (m) when the detector measured it from their "
+                                  "points (the depth detector): the localizer takes it instead of the box's depth, "
+                                  "which a nearer person overlapping the box can pull to theirs; None: not measured")
 
     @field_validator("bbox_xyxy")
     @classmethod

@@ -93,6 +93,11 @@ class DetectorService(Node):
         postures = list(self.detector.postures)
         return postures if len(postures) == n else [None] * n  # type: ignore[return-value]
 
+    def _depths(self, n: int) -> list[float | None]:
+        """Each of the ``n`` last detections' own depth (m), None where the backend did not measure it."""
+        depths = [float(d) for d in self.detector.depths]
+        return [d if np.isfinite(d) and d > 0 else None for d in depths] if len(depths) == n else [None] * n
+
     def _floor_agreement(self, floor: Plane | None) -> None:
         """Count frames whose depth shows no floor where the transforms put it, with the camera's
         height and tilt above each floor (for perception doctor: a wrong camera mount)."""
@@ -162,8 +167,10 @@ class DetectorService(Node):
         self.counters.count("frames_processed")
         msg = Detections(
             header=frame.header.model_copy(),
-            detections=[Detection(index=i, bbox_xyxy=tuple(float(v) for v in b), score=float(s), posture=posture)
-                        for i, (b, s, posture) in enumerate(zip(boxes, scores, self._postures(len(boxes))))],
+            detections=[Detection(index=i, bbox_xyxy=tuple(float(v) for v in b), score=float(s), posture=posture,
+                                  depth_m=z)
+                        for i, (b, s, posture, z) in enumerate(zip(boxes, scores, self._postures(len(boxes)),
+                                                                   self._depths(len(boxes))))],
             image_width=int(rgb.shape[1]),
             image_height=int(rgb.shape[0]),
             detector=self.detector.name,

@@ -52,6 +52,10 @@ class LocalizerConfig(BaseModel):
         default=_D.min_valid_pixels, ge=1, description="fewer valid depth pixels in a box rejects it"
     )
     depth_unit_m: float = Field(default=_D.depth_unit_m, gt=0.0, description="metres per unit of integer (16UC1) depth")
+    occluder_gap_m: float = Field(
+        default=_D.occluder_gap_m, ge=0.0, le=5.0,
+        description="a detector's own depth of a person (the depth detector's) replaces the box's when farther by "
+                    "more than this: a nearer person in the box filled its low percentiles")
     depth_noise_a_m: float = Field(
         default=_D.noise.axial_a_m, ge=0.0, le=1.0, description="axial sigma = a + b z^2: a, m"
     )
@@ -156,5 +160,6 @@ class LocalizerConfig(BaseModel):
             max_depth_m=self.max_depth_m,
             min_valid_pixels=self.min_valid_pixels,
             depth_unit_m=self.depth_unit_m,
+            occluder_gap_m=self.occluder_gap_m,
             noise=DepthNoiseModel(self.depth_noise_a_m, self.depth_noise_b_per_m, self.pixel_sigma_px),
         )

@@ -208,7 +208,11 @@ class LocalizerService(Node):
             return None
         if self._size_mismatch(msg, depth.shape[1], depth.shape[0], "depth"):
             return None
-        loc = localize(depth, frame.camera, boxes, self.params, frame=frame.camera_frame)
+        own = np.array([np.nan if d.depth_m is None else d.depth_m for d in msg.detections], dtype=np.float64)
+        loc = localize(depth, frame.camera, boxes, self.params, frame=frame.camera_frame,
+                       depths=own if np.isfinite(own).any() else None)
+        if loc.measured.any():  # the detector's own depth of the person, not the box's (an occluder may fill it)
+            self.counters.count("depth_from_detector", int(loc.measured.sum()))
         return loc.transformed(tf, self.config.target_frame), self._view(frame.camera, tf, self.params.max_depth_m), None
 
     def _on_floor(self, msg: Detections, frame: _Frame, boxes: np.ndarray, tf: RigidTransform

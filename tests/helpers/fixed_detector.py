@@ -15,6 +15,7 @@ class FixedDetector:
     name = "fixed"
     needs_depth = False
     postures = ("standing", "sitting")  # the posture of each of the two boxes
+    depths = (2.5, 4.0)  # each box's person's own depth (m), as the depth detector measures it
 
     def __init__(self, block_first: bool = False) -> None:
         self.entered = threading.Event()

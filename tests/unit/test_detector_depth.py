@@ -55,6 +55,20 @@ def test_finds_two_people_not_the_table(tilt: float) -> None:
     np.testing.assert_allclose(det.plane.offset, CAMERA_HEIGHT, atol=0.02)
 
 
+def test_each_person_has_their_own_depth_even_partly_hidden_behind_another() -> None:
+    """``depths``: each person's depth from their own points (their front), what the localizer
+    reads in a box, here for a person partly hidden behind a nearer one."""
+    front, behind = Block(-0.8, 3.0, 0.5, 1.75, 0.3), Block(-0.7, 4.5, 0.5, 1.7, 0.3)
+    rgb, depth, K = scene([front, behind], 0.0)
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT))
+    for _ in range(2):
+        boxes, _ = det.detect(rgb, depth, K)
+    assert len(boxes) == len(det.depths) == 2
+    by_x = sorted(zip(boxes[:, 0].tolist(), det.depths.tolist()))
+    # the front faces, 0.15 m before the blocks' centres (the 25th percentile of the points' z)
+    np.testing.assert_allclose([z for _, z in by_x], [front.z - 0.15, behind.z - 0.15], atol=0.08)
+
+
 def test_a_wall_end_seen_edge_on_is_flat_and_not_a_person() -> None:
     # a 2 m tall, 5 cm thick partition running away from the camera: person-tall and narrower
     # than max_width_m, but all its points lie on one vertical plane

@@ -214,3 +214,37 @@ def test_percentile_matches_numpy(n: int, q: float) -> None:
     assert np.isclose(_percentile(values, q), np.percentile(values, q), rtol=1e-6)
     ints = (values * 1000).astype(np.uint16)
     assert np.isclose(_percentile(ints, q), np.percentile(ints, q))
+
+
+def test_a_person_half_hidden_behind_another_is_placed_at_their_own_depth() -> None:
+    """A nearer person over half of the box fills its low percentiles: the box's depth puts the
+    hidden person at the front person's range, beside them. The detector's own depth of the
+    person (the depth detector measures it from their points) is taken instead."""
+    cam = PinholeCamera(K, 640, 480)
+    front, behind = Person((-0.1, 0.1, 2.0)), Person((0.35, 0.1, 4.0))
+    depth = render_depth(cam, [front, behind], wall_m=7.0)
+    boxes = np.stack([person_box(cam, front), person_box(cam, behind)])
+    plain = localize(depth, cam, boxes, PARAMS)
+    assert plain.depth_m[1] == pytest.approx(2.0)  # the front person's depth, the error being fixed
+    loc = localize(depth, cam, boxes, PARAMS, depths=np.array([2.0, 4.02]))
+    assert loc.depth_m[1] == pytest.approx(4.02) and list(loc.measured) == [False, True]
+    assert np.linalg.norm(loc.positions[1] - np.array(behind.center)) < 0.05
+    assert loc.depth_m[0] == pytest.approx(2.0)  # not farther than its box's: the box's depth stays
+    # a farther depth by no more than occluder_gap_m is not an occluder's doing: the box's depth stays
+    near = localize(depth, cam, boxes, PARAMS, depths=np.array([np.nan, 2.0 + 0.9 * PARAMS.occluder_gap_m]))
+    assert not near.measured.any() and near.depth_m[1] == pytest.approx(2.0)
+
+
+def test_a_box_wholly_inside_a_nearer_persons_box_keeps_its_depth() -> None:
+    """What a box wholly inside a nearer person's box shows is seen past that person, like the
+    wall around them: its own depth is not taken, and it stays on that person (the tracker
+    takes it for a second report of them)."""
+    cam = PinholeCamera(K, 640, 480)
+    front = Person((0.0, 0.1, 1.5))
+    depth = render_depth(cam, [front], wall_m=6.0)
+    outer = person_box(cam, front)
+    inner = np.array([outer[0] + 5.0, outer[1] + 60.0, outer[0] + 60.0, outer[3] - 5.0])
+    loc = localize(depth, cam, np.stack([outer, inner]), PARAMS, depths=np.array([1.5, 6.0]))
+    assert not loc.measured.any() and loc.depth_m[1] == pytest.approx(1.5)
+    with pytest.raises(ValueError, match="2 depths for 1 boxes|depths"):
+        localize(depth, cam, outer[None], PARAMS, depths=np.array([1.5, 6.0]))

@@ -23,11 +23,14 @@ class Detector(Protocol):
     intrinsics K, and returns ``(boxes (N, 4) float32 xyxy pixels, scores (N,)
     float32 in [0, 1])``, best score first. ``postures``: the posture each of the last
     detections showed ("standing", "sitting"), empty for a backend that cannot tell.
+    ``depths``: each of the last detections' own depth (m) measured from the person's points,
+    empty for a backend that has none (the localizer then reads the depth in the box).
     """
 
     name: str
     needs_depth: bool
     postures: Sequence[str]
+    depths: Sequence[float]
 
     def detect(self, rgb: np.ndarray, depth: np.ndarray | None = None,
                camera: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]: ...

@@ -105,6 +105,7 @@ class DarknetDetector:
     name = "darknet"
     needs_depth = False
     postures: tuple[str, ...] = ()  # boxes say nothing of the posture
+    depths: tuple[float, ...] = ()  # nor of a person's own depth: the localizer reads it in the box
 
     def __init__(self, params: DarknetParams) -> None:
         self.params = params

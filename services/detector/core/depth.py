@@ -24,9 +24,13 @@ from services.detector.core.ground import Plane, acquire_plane, initial_plane, r
 from services.detector.core.hog import HogDetector
 from services.detector.core.seated import find_seated
 
-__all__ = ["DepthClusterDetector", "DepthParams", "backproject", "cluster_points", "voxel_grid"]
+__all__ = ["DEPTH_PERCENTILE", "DepthClusterDetector", "DepthParams", "backproject", "cluster_points", "voxel_grid"]
 
 log = logging.getLogger(__name__)
+
+#: The percentile of a person's point depths reported as their depth: the localizer's default
+#: for a box (services/localizer: the person's front, not the wall behind them).
+DEPTH_PERCENTILE = 25.0
 
 
 def _extent(points: np.ndarray) -> float:
@@ -53,7 +57,10 @@ class DepthClusterDetector:
     float32 xyxy and scores (N,) float32: the HOG score when ``hog_confirm`` is on,
     otherwise the height plausibility (1 in the middle of the posture's height range, 0.5
     at its ends). The ground plane is state carried from frame to frame (``plane``);
-    ``heights`` and ``postures`` ("standing" or "sitting") describe the last detections.
+    ``heights``, ``postures`` ("standing" or "sitting") and ``depths`` describe the last
+    detections. ``depths`` (m) is each person's own depth, the :data:`DEPTH_PERCENTILE` of
+    their points' distance along the optical axis: what the localizer reads in the box, but
+    from the person's points alone, so a nearer person overlapping the box cannot pull it.
     """
 
     name = "depth"
@@ -69,6 +76,7 @@ class DepthClusterDetector:
         self.depth_floor: Plane | None = None
         self.heights = np.zeros(0)
         self.postures: list[str] = []
+        self.depths = np.zeros(0)
         self._hog = hog if hog is not None else (HogDetector() if self.params.hog_confirm else None)
         self._rng = np.random.default_rng(seed)
 
@@ -115,10 +123,11 @@ class DepthClusterDetector:
         cut_low = self._at_lower_edge(points, K, depth.shape[0])
         hidden = self._hidden_below(points, K, depth)
         count, labels = cluster_points(points, p.cluster_tolerance_m)
-        boxes, scores, heights, postures = [], [], [], []
+        boxes, scores, heights, postures, depths = [], [], [], [], []
         for member, posture, to_floor in self._postured(points, height, cut_low, hidden, count, labels, K, depth):
             top = float(height[member].max())
             cluster = points[member]
+            own_depth = float(np.percentile(cluster[:, 2], DEPTH_PERCENTILE))
             if to_floor:  # down to the foot point; a seated person with a hidden lap: what is seen of them
                 cluster = np.vstack([cluster, self.plane.project(cluster).mean(axis=0, keepdims=True)])
             box = self._project(cluster, K)
@@ -127,23 +136,25 @@ class DepthClusterDetector:
             boxes.append(box)
             heights.append(top)
             postures.append(posture)
+            depths.append(own_depth)
             low, high = (p.min_height_m, p.max_height_m) if posture == "standing" else \
                 (p.seated.min_height_m, p.seated.max_height_m)
             scores.append(1.0 - 0.5 * min(abs(top - (low + high) / 2) / ((high - low) / 2), 1.0))
         if not boxes:
-            self.heights, self.postures = np.zeros(0), []
+            self.heights, self.postures, self.depths = np.zeros(0), [], np.zeros(0)
             return empty_result()
         h, w = image.shape[:2]
         out_boxes = clip_boxes(np.array(boxes), w, h)
         out_scores = np.array(scores)
-        heights_arr, postures_arr = np.array(heights), np.array(postures)
+        heights_arr, postures_arr, depths_arr = np.array(heights), np.array(postures), np.array(depths)
         if self._hog is not None and p.hog_confirm:
             hog_scores = np.array([self._hog.score_window(image, b) for b in out_boxes])
             keep = hog_scores >= p.hog_min_score
             out_boxes, out_scores, heights_arr = out_boxes[keep], hog_scores[keep], heights_arr[keep]
-            postures_arr = postures_arr[keep]
+            postures_arr, depths_arr = postures_arr[keep], depths_arr[keep]
         order = np.argsort(-out_scores, kind="stable")
         self.heights, self.postures = heights_arr[order], [str(x) for x in postures_arr[order]]
+        self.depths = depths_arr[order]
         return out_boxes[order], out_scores[order].astype(np.float32)
 
     def _at_lower_edge(self, points: np.ndarray, K: np.ndarray, rows: int) -> np.ndarray:

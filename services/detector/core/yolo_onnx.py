@@ -161,6 +161,7 @@ class YoloOnnxDetector:
     name = "yolo-onnx"
     needs_depth = False
     postures: tuple[str, ...] = ()  # boxes say nothing of the posture
+    depths: tuple[float, ...] = ()  # nor of a person's own depth: the localizer reads it in the box
 
     def __init__(self, params: YoloParams) -> None:
         import onnxruntime as ort

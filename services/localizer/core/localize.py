@@ -5,6 +5,11 @@ For each box: take the valid depth pixels inside it (finite, non-zero, within
 depth (background behind the person is farther, so a low percentile picks the person),
 cast the ray through the box centre and scale it so that its z equals that depth.
 Boxes that cannot be localized are rejected with a reason, never dropped silently.
+
+A detector that measured a person's own depth from their points (the depth detector) sends it
+along (``depths`` of :func:`localize`). A nearer person overlapping the box of someone partly
+hidden behind them fills the low percentiles with their own depth, and would put the hidden
+person at the front person's range, beside them: there the person's own depth is taken.
 """
 
 from __future__ import annotations
@@ -50,6 +55,10 @@ class LocalizerParams:
     max_depth_m: float = 10.0
     min_valid_pixels: int = 20
     depth_unit_m: float = 0.001
+    #: A detector's own depth of a person replaces the box's percentile when it is farther by
+    #: more than this (m): something nearer in the box, another person, filled the low
+    #: percentiles (a body is about this deep, so the box's own person cannot do it).
+    occluder_gap_m: float = 0.3
     noise: DepthNoiseModel = field(default_factory=DepthNoiseModel)
 
     def __post_init__(self) -> None:
@@ -70,7 +79,8 @@ class Localization:
     ``indices`` (M,) int: detection index of each kept box; ``pixels`` (M, 2) the ray
     pixel (box centre); ``depth_m`` (M,) the chosen depth along the optical axis;
     ``valid_pixels`` (M,) int; ``positions`` (M, 3) m; ``covs`` (M, 3, 3) m^2;
-    ``rejected`` maps the index of each rejected box to its reason.
+    ``rejected`` maps the index of each rejected box to its reason; ``measured`` (M,) bool:
+    the depth is the detector's own measurement of the person, not the box's percentile.
     """
 
     frame: str
@@ -81,6 +91,7 @@ class Localization:
     positions: np.ndarray
     covs: np.ndarray
     rejected: dict[int, str] = field(default_factory=dict)
+    measured: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
     def __len__(self) -> int:
         return len(self.indices)
@@ -169,6 +180,27 @@ def box_depths(
     return depth_m, valid, pixels, reasons
 
 
+def _occluded(boxes: np.ndarray, box_depth: np.ndarray, own: np.ndarray, params: LocalizerParams) -> np.ndarray:
+    """(N,) bool: the boxes whose person's own depth (``own``, NaN: not measured) is to replace
+    the box's (``box_depth``): it is farther by more than ``occluder_gap_m``, i.e. something
+    nearer fills the box's low percentiles, and the box does not lie wholly inside the box of a
+    detection nearer by that much. What such a box shows is seen past that person and cannot
+    be told from the background around them; the box's depth keeps it on that person, where
+    the tracker takes it for a second report of them."""
+    with np.errstate(invalid="ignore"):  # NaN compares False
+        out = (own >= params.min_depth_m) & (own <= params.max_depth_m) & (own > box_depth + params.occluder_gap_m)
+    if not out.any():
+        return out
+    depth = np.where(np.isnan(own), box_depth, own)
+    for i in np.flatnonzero(out).tolist():
+        x1, y1, x2, y2 = boxes[i]
+        around = (boxes[:, 0] <= x1) & (boxes[:, 1] <= y1) & (boxes[:, 2] >= x2) & (boxes[:, 3] >= y2)
+        around[i] = False
+        with np.errstate(invalid="ignore"):
+            out[i] = not (around & (depth < own[i] - params.occluder_gap_m)).any()
+    return out
+
+
 def localize(
     depth: np.ndarray,
     camera: PinholeCamera,
@@ -176,10 +208,14 @@ def localize(
     params: LocalizerParams,
     indices: np.ndarray | None = None,
     frame: str = "camera",
+    depths: np.ndarray | None = None,
 ) -> Localization:
     """Localize ``boxes`` (N, 4) in the camera ``frame`` from ``depth`` (H, W).
 
     ``indices`` (N,) are the detection indices carried through (default 0..N-1).
+    ``depths`` (N,): each person's own depth (m) where the detector measured it (NaN where
+    not); where something nearer pulls the box's percentile (:func:`_occluded`) it replaces
+    it. A box is rejected for the same reasons either way.
     The depth image must match the camera size; a mismatch raises ``ValueError``.
     """
     if depth.ndim != 2 or depth.shape != (camera.height, camera.width):
@@ -189,6 +225,13 @@ def localize(
     if len(idx) != len(boxes):
         raise ValueError(f"{len(idx)} indices for {len(boxes)} boxes")
     depth_m, valid, pixels, reasons = box_depths(depth, boxes, params)
+    measured = np.zeros(len(boxes), bool)
+    if depths is not None:
+        own = np.asarray(depths, dtype=np.float64).reshape(-1)
+        if len(own) != len(boxes):
+            raise ValueError(f"{len(own)} depths for {len(boxes)} boxes")
+        measured = _occluded(boxes, depth_m, own, params)
+        depth_m = np.where(measured, own, depth_m)
     keep = np.array([r is None for r in reasons], dtype=bool)
     rejected = {int(idx[i]): r for i, r in enumerate(reasons) if r is not None}
     px, z = pixels[keep], depth_m[keep]
@@ -207,4 +250,5 @@ def localize(
         positions=positions,
         covs=covs,
         rejected=rejected,
+        measured=measured[keep],
     )

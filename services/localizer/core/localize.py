@@ -70,6 +70,8 @@ class LocalizerParams:
             raise ValueError(f"min_valid_pixels must be >= 1, got {self.min_valid_pixels}")
         if not self.depth_unit_m > 0:
             raise ValueError(f"depth_unit_m must be > 0, got {self.depth_unit_m}")
+        if not self.occluder_gap_m >= 0:
+            raise ValueError(f"occluder_gap_m must be >= 0, got {self.occluder_gap_m}")
 
 
 @dataclass(frozen=True)

@@ -56,6 +56,9 @@ class LocalizerConfig(BaseModel):
         default=_D.occluder_gap_m, ge=0.0, le=5.0,
         description="a detector's own depth of a person (the depth detector's) replaces the box's when farther by "
                     "more than this: a nearer person in the box filled its low percentiles")
+    occluder_max_gap_m: float = Field(
+        default=_D.occluder_max_gap_m, ge=0.0, le=50.0,
+        description="... and by at most this: farther behind a near person, a box shows the room past them")
     depth_noise_a_m: float = Field(
         default=_D.noise.axial_a_m, ge=0.0, le=1.0, description="axial sigma = a + b z^2: a, m"
     )
@@ -161,5 +164,6 @@ class LocalizerConfig(BaseModel):
             min_valid_pixels=self.min_valid_pixels,
             depth_unit_m=self.depth_unit_m,
             occluder_gap_m=self.occluder_gap_m,
+            occluder_max_gap_m=self.occluder_max_gap_m,
             noise=DepthNoiseModel(self.depth_noise_a_m, self.depth_noise_b_per_m, self.pixel_sigma_px),
         )

@@ -233,6 +233,11 @@ def test_a_person_half_hidden_behind_another_is_placed_at_their_own_depth() -> N
     # a farther depth by no more than occluder_gap_m is not an occluder's doing: the box's depth stays
     near = localize(depth, cam, boxes, PARAMS, depths=np.array([np.nan, 2.0 + 0.9 * PARAMS.occluder_gap_m]))
     assert not near.measured.any() and near.depth_m[1] == pytest.approx(2.0)
+    # far behind the near person (the room seen past them, more often than a person): the box's depth stays
+    far = localize(depth, cam, boxes, PARAMS, depths=np.array([np.nan, 2.0 + 1.1 * PARAMS.occluder_max_gap_m]))
+    assert not far.measured.any() and far.depth_m[1] == pytest.approx(2.0)
+    with pytest.raises(ValueError, match="occluder_gap_m"):
+        LocalizerParams(occluder_gap_m=3.0, occluder_max_gap_m=2.0)
 
 
 def test_a_box_wholly_inside_a_nearer_persons_box_keeps_its_depth() -> None:

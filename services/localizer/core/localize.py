@@ -59,6 +59,10 @@ class LocalizerParams:
     #: more than this (m): something nearer in the box, another person, filled the low
     #: percentiles (a body is about this deep, so the box's own person cannot do it).
     occluder_gap_m: float = 0.3
+    #: ... and by at most this (m). Farther behind a near person, what a box shows past them is
+    #: most often the room (the depth detector's pieces of wall beside a person a robot follows
+    #: at arm's length), and the box's depth stays.
+    occluder_max_gap_m: float = 2.5
     noise: DepthNoiseModel = field(default_factory=DepthNoiseModel)
 
     def __post_init__(self) -> None:
@@ -70,8 +74,9 @@ class LocalizerParams:
             raise ValueError(f"min_valid_pixels must be >= 1, got {self.min_valid_pixels}")
         if not self.depth_unit_m > 0:
             raise ValueError(f"depth_unit_m must be > 0, got {self.depth_unit_m}")
-        if not self.occluder_gap_m >= 0:
-            raise ValueError(f"occluder_gap_m must be >= 0, got {self.occluder_gap_m}")
+        if not 0 <= self.occluder_gap_m <= self.occluder_max_gap_m:
+            raise ValueError(f"need 0 <= occluder_gap_m <= occluder_max_gap_m, got {self.occluder_gap_m}, "
+                             f"{self.occluder_max_gap_m}")
 
 
 @dataclass(frozen=True)
@@ -185,12 +190,15 @@ def box_depths(
 def _occluded(boxes: np.ndarray, box_depth: np.ndarray, own: np.ndarray, params: LocalizerParams) -> np.ndarray:
     """(N,) bool: the boxes whose person's own depth (``own``, NaN: not measured) is to replace
     the box's (``box_depth``): it is farther by more than ``occluder_gap_m``, i.e. something
-    nearer fills the box's low percentiles, and the box does not lie wholly inside the box of a
-    detection nearer by that much. What such a box shows is seen past that person and cannot
-    be told from the background around them; the box's depth keeps it on that person, where
-    the tracker takes it for a second report of them."""
+    nearer fills the box's low percentiles, yet by no more than ``occluder_max_gap_m``, and the
+    box does not lie wholly inside the box of a detection nearer by ``occluder_gap_m``. What a
+    box shows far behind a near person, or wholly inside their box, is seen past that person
+    and most often is the room behind them; the box's depth keeps it on that person, where the
+    tracker takes it for a second report of them."""
     with np.errstate(invalid="ignore"):  # NaN compares False
-        out = (own >= params.min_depth_m) & (own <= params.max_depth_m) & (own > box_depth + params.occluder_gap_m)
+        gap = own - box_depth
+        out = (own >= params.min_depth_m) & (own <= params.max_depth_m) & (gap > params.occluder_gap_m) & \
+            (gap <= params.occluder_max_gap_m)
     if not out.any():
         return out
     depth = np.where(np.isnan(own), box_depth, own)

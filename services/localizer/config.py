@@ -135,6 +135,9 @@ class LocalizerConfig(BaseModel):
     def _range(self) -> LocalizerConfig:
         if not self.min_depth_m < self.max_depth_m:
             raise ValueError(f"min_depth_m ({self.min_depth_m}) must be below max_depth_m ({self.max_depth_m})")
+        if not self.occluder_gap_m <= self.occluder_max_gap_m:
+            raise ValueError(f"occluder_gap_m ({self.occluder_gap_m}) must not exceed occluder_max_gap_m "
+                             f"({self.occluder_max_gap_m})")
         return self
 
     @property

@@ -13,6 +13,8 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from services.detector.config import DetectorConfig
 from services.detector.core.darknet import DarknetParams
 from services.detector.core.depth import DepthParams
@@ -104,3 +106,10 @@ def test_embedder_defaults(tmp_path: Path) -> None:
     onnx = config.onnx.model_copy(update={"path": str(tmp_path / "model.onnx")})
     assert differences(with_sidecar(onnx).params(), {"path": onnx.path}) == {}
     assert isinstance(config.onnx.params(), OnnxParams)
+
+
+def test_localizer_config_names_an_inverted_occluder_range() -> None:
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError, match="occluder_gap_m .* must not exceed occluder_max_gap_m"):
+        LocalizerConfig(occluder_gap_m=3.0, occluder_max_gap_m=2.0)

@@ -238,6 +238,7 @@ def test_a_person_half_hidden_behind_another_is_placed_at_their_own_depth() -> N
     assert not far.measured.any() and far.depth_m[1] == pytest.approx(2.0)
     with pytest.raises(ValueError, match="occluder_gap_m"):
         LocalizerParams(occluder_gap_m=3.0, occluder_max_gap_m=2.0)
+    assert list(localize(depth, cam, boxes, PARAMS).measured) == [False, False]  # one flag per box, without depths
 
 
 def test_a_box_wholly_inside_a_nearer_persons_box_keeps_its_depth() -> None:

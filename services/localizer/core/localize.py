@@ -87,7 +87,8 @@ class Localization:
     pixel (box centre); ``depth_m`` (M,) the chosen depth along the optical axis;
     ``valid_pixels`` (M,) int; ``positions`` (M, 3) m; ``covs`` (M, 3, 3) m^2;
     ``rejected`` maps the index of each rejected box to its reason; ``measured`` (M,) bool:
-    the depth is the detector's own measurement of the person, not the box's percentile.
+    the depth is the detector's own measurement of the person, not the box's percentile (all
+    False when not given, e.g. for positions on the floor).
     """
 
     frame: str
@@ -98,7 +99,13 @@ class Localization:
     positions: np.ndarray
     covs: np.ndarray
     rejected: dict[int, str] = field(default_factory=dict)
-    measured: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    measured: np.ndarray = None  # type: ignore[assignment]  # None: all False
+
+    def __post_init__(self) -> None:
+        if self.measured is None:
+            object.__setattr__(self, "measured", np.zeros(len(self.indices), bool))
+        elif len(self.measured) != len(self.indices):
+            raise ValueError(f"{len(self.measured)} measured flags for {len(self.indices)} boxes")
 
     def __len__(self) -> int:
         return len(self.indices)

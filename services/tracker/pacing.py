@@ -2,8 +2,10 @@
 with the latest update's tracks predicted to the publish time.
 
 * Once per frame (``output_rate_hz`` 0): after each push of the reorder buffer, the newest
-  frame's result, once: a late frame applied behind the newest one changes the state the
-  next frame's output will show, not a second output.
+  result, once per input frame: a late frame applied behind a newer one changes the state
+  the next frame's output will show, not a second output. A frame of the newest instant
+  applied behind another stream's frame of that instant (two detectors on one camera image,
+  the slow one's result first) is published as its own frame, with both applied.
 * At a fixed rate: every period, whatever arrived, the latest result predicted to now in
   the sensor's clock (the newest frame's stamp plus the time since it was applied). A long
   frame makes no burst: the next output comes a period on.
@@ -28,7 +30,7 @@ class Pacing(Generic[F]):
         self.period = 1.0 / rate_hz if rate_hz > 0 else None
         self._next: float | None = None
         self._latest: tuple[F, FrameResult] | None = None
-        self._published_key: InputKey | None = None  # once per frame: the newest frame published
+        self._published: set[InputKey] = set()  # once per frame: the frames published of the newest instant
         self._offset_ns: int | None = None  # sensor clock - this clock, at the newest frame
 
     def pushed(self, key: InputKey, frame: F, stamp_ns: int, result: FrameResult,
@@ -36,9 +38,12 @@ class Pacing(Generic[F]):
         """After a push whose newest frame is ``frame`` (``key``, stamped ``stamp_ns``) with
         ``result``: what to publish now (once per frame), else None (kept for the fixed rate)."""
         if self.period is None:
-            if key == self._published_key:
+            newest = max(self._published, default=None)
+            if key in self._published or (newest is not None and key[0] < newest[0]):
                 return None
-            self._published_key = key
+            if newest is not None and key[0] > newest[0]:
+                self._published.clear()
+            self._published.add(key)
             return frame, result
         self._latest = (frame, result)  # published at the fixed rate, predicted to the publish time
         self._offset_ns = stamp_ns - int(now * 1e9)
@@ -67,4 +72,4 @@ class Pacing(Generic[F]):
 
     def restart(self) -> None:
         """A new clock: the next frame is published whatever its key."""
-        self._published_key = None
+        self._published.clear()

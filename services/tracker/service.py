@@ -161,7 +161,8 @@ class TrackerService(Node):
         if logged is None or logged.with_embeddings:
             return None
         try:
-            results = self.buffer.push(key, self.intake.convert(logged.arrival, emb, logged.input.view), replace=True)
+            frame = self.intake.convert(logged.arrival, emb, logged.input.view)
+            results = self.buffer.push(key, frame, replace=True)
         except (ValueError, np.linalg.LinAlgError) as exc:
             self.counters.count("update_errors")
             self._log.error("update_error", "frame %s could not be tracked again: %s", key, exc)
@@ -170,7 +171,7 @@ class TrackerService(Node):
             return None
         self.counters.count("late_embeddings_applied")
         self.counters.count("rewinds")
-        return self._after_push(results, now)
+        return self._after_push(key, frame, results, now)
 
     def _restart_clock(self, source: str, back_ns: int, now: float) -> list[Tracks]:
         """Stamps went back by more than ``clock_jump_s``: apply what waits from the old clock,
@@ -274,14 +275,18 @@ class TrackerService(Node):
                 continue
             if len(results) > 1:
                 self.counters.count("rewinds")
-            published += self._after_push(results, now)
+            published += self._after_push(key, frame, results, now)
         return published
 
-    def _after_push(self, results: list[FrameResult], now: float) -> list[Tracks]:
-        """Publish (or keep for the fixed rate) the newest frame's result after a push."""
+    def _after_push(self, key: InputKey, frame: Frame, results: list[FrameResult], now: float) -> list[Tracks]:
+        """Publish (or keep for the fixed rate) the newest result after the push of ``frame``:
+        as that frame's output when it is of the newest instant (another stream's frame of
+        the same stamp may have been applied first: a slow detector's result that came before
+        the fast one's embeddings), else as the newest frame's (:class:`Pacing`)."""
         newest = self.buffer.latest()
         assert newest is not None
-        key, frame = newest
+        if key[0] < newest[0][0]:
+            key, frame = newest
         due = self.pacing.pushed(key, frame, frame.loc.header.stamp_ns, results[-1], now)
         return [] if due is None else [self._publish(*due)]
 

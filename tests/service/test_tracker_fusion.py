@@ -119,6 +119,30 @@ def test_a_slow_detectors_stream_is_tracked_without_waiting_for_embeddings(tmp_p
     assert rig.service.buffer.rewinds >= 1  # they came late: applied in stamp order by rewinding
 
 
+def test_a_frame_applied_behind_a_slow_streams_frame_of_the_same_instant_gets_its_output(
+        tmp_path: Path, memory_bus: MemoryBus) -> None:
+    """The slow detector's result for a camera frame comes before the fast one's embeddings
+    (head-hog needs none): head's frame of that instant is applied behind it by a rewind, and
+    is still published as its own frame, once, with both streams' detections applied."""
+    rig = Rig(memory_bus, _config(tmp_path, no_embeddings=["head-hog"]))
+    published = []
+    for seq in range(8):
+        if seq % 2 == 0:  # the slow detector on every other frame, its result first
+            rig.send("head-hog", seq, [(3.0, 0.05 * seq)], detector="hog", camera_frame="head_optical")
+            rig.now += 0.005
+            published += rig.poll()
+        rig.send("head", seq, [(3.0, 0.05 * seq)], embed=True)
+        rig.now += 0.005
+        published += rig.poll()
+    heads = [m for m in published if m.header.source == "head"]
+    assert [m.header.seq for m in heads] == list(range(8))  # every head frame, once
+    assert [m.header.seq for m in published if m.header.source == "head-hog"] == [0, 2, 4, 6]
+    assert rig.service.buffer.rewinds >= 3  # head's frames 2, 4, 6 were applied behind head-hog's
+    assert {t.id for m in heads[2:] for t in m.tracks} == {1}
+    stamps = [m.header.stamp_ns for m in published]
+    assert stamps == sorted(stamps)  # never an output older than one before it
+
+
 def test_two_cameras_keep_one_id_and_report_a_person_only_one_camera_sees(tmp_path: Path,
                                                                           memory_bus: MemoryBus) -> None:
     """A person in front (head camera) and one behind (back camera): both reported on every

@@ -98,6 +98,7 @@ class Capture:
     covs: np.ndarray
     scores: np.ndarray
     descriptors: np.ndarray
+    statures: np.ndarray
     gt_seq: np.ndarray
     gt_id: np.ndarray
     gt_pos: np.ndarray
@@ -107,7 +108,7 @@ class Capture:
     view_range: np.ndarray
     meta: dict[str, Any]
 
-    ARRAYS = ("seq", "stamp_ns", "has_embeddings", "det_frame", "positions", "covs", "scores", "descriptors",
+    ARRAYS = ("seq", "stamp_ns", "has_embeddings", "det_frame", "positions", "covs", "scores", "descriptors", "statures",
               "gt_seq", "gt_id", "gt_pos", "view_pose", "view_k", "view_size", "view_range")
 
     def view(self, k: int) -> FieldOfView | None:
@@ -154,7 +155,7 @@ class _Recorder:
 def _to_capture(rec: _Recorder, meta: dict[str, Any]) -> Capture:
     cards = [e.model for e in rec.embeddings.values()]
     dim = cards[0].dim if cards else 0
-    seq, stamp, has_emb, det_frame, pos, covs, scores, descs = [], [], [], [], [], [], [], []
+    seq, stamp, has_emb, det_frame, pos, covs, scores, descs, statures = [], [], [], [], [], [], [], [], []
     n = len(rec.localized)
     view_pose, view_k = np.full((n, 4, 4), np.nan), np.full((n, 3, 3), np.nan)
     view_size, view_range = np.zeros((n, 2), np.int64), np.full(n, np.nan)
@@ -171,6 +172,7 @@ def _to_capture(rec: _Recorder, meta: dict[str, Any]) -> Capture:
         pos.append(p)
         covs.append(c)
         scores += [d.score for d in loc.detections]
+        statures += [np.nan if d.stature_m is None else d.stature_m for d in loc.detections]
         descs.append(descriptors_for(loc, emb) if emb is not None else np.full((len(p), dim), np.nan, np.float32))
     gt = [(g.header.seq, p.id, p.position) for g in rec.groundtruth for p in g.counted()]
     meta = {**meta, "simulated_frames": len(rec.groundtruth),
@@ -182,6 +184,7 @@ def _to_capture(rec: _Recorder, meta: dict[str, Any]) -> Capture:
         positions=np.concatenate(pos) if pos else np.zeros((0, 3)),
         covs=np.concatenate(covs) if covs else np.zeros((0, 3, 3)), scores=np.asarray(scores, np.float64),
         descriptors=np.concatenate(descs) if descs else np.zeros((0, dim), np.float32),
+        statures=np.asarray(statures, np.float64),
         gt_seq=np.asarray([g[0] for g in gt], np.int64), gt_id=np.asarray([g[1] for g in gt], np.int64),
         gt_pos=np.asarray([g[2] for g in gt], np.float64).reshape(-1, 3),
         view_pose=view_pose, view_k=view_k, view_size=view_size, view_range=view_range, meta=meta)
@@ -303,7 +306,8 @@ def replay(cap: Capture, config: TrackerConfig,
         stamp = (int(cap.stamp_ns[k]) - epoch) / 1e9
         covs = cap.covs[a:b] + R_EPS if use_cov else None  # as the service converts them
         try:
-            result = tracker.update(stamp, cap.positions[a:b], desc, covs, cap.scores[a:b], view=cap.view(k))
+            result = tracker.update(stamp, cap.positions[a:b], desc, covs, cap.scores[a:b], view=cap.view(k),
+                                    statures=cap.statures[a:b])
         except (ValueError, np.linalg.LinAlgError) as exc:  # the service counts and skips such a frame
             log.error("frame %d could not be tracked: %s", seq, exc)
             continue

@@ -358,6 +358,10 @@ class Detection(_Model):
                                   description="the person's own depth (m) when the detector measured it from their "
                                   "points (the depth detector): the localizer takes it instead of the box's depth, "
                                   "which a nearer person overlapping the box can pull to theirs; None: not measured")
+    stature_m: float | None = Field(default=None, gt=0.0, le=3.0, allow_inf_nan=False,
+                                    description="a standing person's stature (m): the top of their points above the "
+                                    "floor (the depth detector, when the image shows their head); the tracker "
+                                    "weighs it as a soft biometric; None: not measured")
 
     @field_validator("bbox_xyxy")
     @classmethod
@@ -388,6 +392,8 @@ class LocalizedDetection(_Model):
     depth_m: float = Field(gt=0.0, description="depth used along the optical axis")
     valid_pixels: int = Field(default=0, ge=0)
     posture: Posture | None = Field(default=None, description="the detector's posture, passed on")
+    stature_m: float | None = Field(default=None, gt=0.0, le=3.0, allow_inf_nan=False,
+                                    description="the detector's stature of a standing person (m), passed on")
 
     @model_validator(mode="after")
     def _check(self) -> LocalizedDetection:

@@ -98,6 +98,11 @@ class DetectorService(Node):
         depths = [float(d) for d in self.detector.depths]
         return [d if np.isfinite(d) and d > 0 else None for d in depths] if len(depths) == n else [None] * n
 
+    def _statures(self, n: int) -> list[float | None]:
+        """Each of the ``n`` last detections' stature (m), None where the backend did not measure it."""
+        statures = [float(h) for h in self.detector.statures]
+        return [h if np.isfinite(h) and h > 0 else None for h in statures] if len(statures) == n else [None] * n
+
     def _floor_agreement(self, floor: Plane | None) -> None:
         """Count frames whose depth shows no floor where the transforms put it, with the camera's
         height and tilt above each floor (for perception doctor: a wrong camera mount)."""
@@ -168,9 +173,10 @@ class DetectorService(Node):
         msg = Detections(
             header=frame.header.model_copy(),
             detections=[Detection(index=i, bbox_xyxy=tuple(float(v) for v in b), score=float(s), posture=posture,
-                                  depth_m=z)
-                        for i, (b, s, posture, z) in enumerate(zip(boxes, scores, self._postures(len(boxes)),
-                                                                   self._depths(len(boxes))))],
+                                  depth_m=z, stature_m=h)
+                        for i, (b, s, posture, z, h) in enumerate(zip(boxes, scores, self._postures(len(boxes)),
+                                                                      self._depths(len(boxes)),
+                                                                      self._statures(len(boxes))))],
             image_width=int(rgb.shape[1]),
             image_height=int(rgb.shape[0]),
             detector=self.detector.name,

@@ -273,6 +273,7 @@ class LocalizerService(Node):
                     depth_m=float(out.depth_m[k]),
                     valid_pixels=int(out.valid_pixels[k]),
                     posture=d.posture,
+                    stature_m=d.stature_m,
                 )
             )
         rejected = out.rejected_counts()

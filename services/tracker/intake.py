@@ -47,7 +47,8 @@ class Arrival:
     """A localized detections message, converted on arrival: ``positions`` (N, 3),
     ``covs`` (N, 3, 3) (plus :data:`R_EPS`), ``usable`` (N,) the covariance check's
     verdicts, ``scores`` (N,), ``aspects`` (N,) the boxes' height / width, ``postures`` (N,)
-    the detector's posture reports as codes (None: none)."""
+    the detector's posture reports as codes (None: none), ``statures`` (N,) the detector's
+    statures (NaN: not measured; None: none measured)."""
 
     loc: LocalizedDetections
     positions: np.ndarray
@@ -56,6 +57,7 @@ class Arrival:
     scores: np.ndarray
     aspects: np.ndarray
     postures: np.ndarray | None
+    statures: np.ndarray | None
 
     @classmethod
     def of(cls, loc: LocalizedDetections) -> Arrival:
@@ -64,8 +66,9 @@ class Arrival:
         scores = np.array([d.score for d in loc.detections], np.float64)
         boxes = np.array([d.bbox_xyxy for d in loc.detections], np.float64).reshape(-1, 4)
         aspects = (boxes[:, 3] - boxes[:, 1]) / np.maximum(boxes[:, 2] - boxes[:, 0], 1e-6)  # for posture
+        statures = np.array([np.nan if d.stature_m is None else d.stature_m for d in loc.detections], np.float64)
         return cls(loc, positions, covs, usable_covariances(covs), scores, aspects,
-                   posture_codes([d.posture for d in loc.detections]))
+                   posture_codes([d.posture for d in loc.detections]), statures if np.isfinite(statures).any() else None)
 
 
 @dataclass(frozen=True)
@@ -210,7 +213,7 @@ class Intake:
         frame = FrameInput(arrival.positions, descriptors, arrival.covs if use_cov else None,
                            arrival.usable if use_cov else None, arrival.scores,
                            self.view(loc) if view is None else view, arrival.aspects, orientations_for(loc, emb),
-                           self._score_models.get(loc.detector), loc.camera_frame, arrival.postures)
+                           self._score_models.get(loc.detector), loc.camera_frame, arrival.postures, arrival.statures)
         return Frame(arrival, emb is not None, frame)
 
     def view(self, loc: LocalizedDetections) -> View | None:

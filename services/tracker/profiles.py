@@ -24,8 +24,9 @@ from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.posture import PostureParams
 from services.tracker.core.recovery import RecoveryParams
+from services.tracker.core.stature import StatureParams
 
-__all__ = ["ClassifierConfig", "PostureConfig", "RobustConfig", "ScoreConfig", "ThesisConfig"]
+__all__ = ["ClassifierConfig", "PostureConfig", "RobustConfig", "ScoreConfig", "StatureConfig", "ThesisConfig"]
 
 _D = TrackerParams()
 _R = RobustParams()
@@ -63,6 +64,44 @@ class ClassifierConfig(BaseModel):
 
     def params(self) -> ClassifierParams | None:
         return ClassifierParams(self.rate, self.l2, self.clip, self.weight) if self.enabled else None
+
+
+_ST = StatureParams()
+
+
+class StatureConfig(BaseModel):
+    """The person's stature as a cue, a soft biometric (services/tracker/core/stature.py)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    enabled: bool = Field(default=True, description="learn each track's stature and weigh the detections' against it")
+    noise_m: float = Field(default=_ST.noise_m, gt=0.0, le=0.5, description="one measurement's std (m)")
+    population_mean_m: float = Field(default=_ST.population_mean_m, gt=0.5, lt=2.5,
+                                     description="adults' mean stature (m): a stranger's")
+    population_sd_m: float = Field(default=_ST.population_sd_m, gt=0.0, le=0.5, description="its std (m)")
+    outlier_low: float = Field(default=_ST.outlier_low, gt=0.0, lt=1.0,
+                               description="share of measurements lower than the stature (sitting high, a bent or "
+                               "hidden head)")
+    low_range_m: float = Field(default=_ST.low_range_m, gt=0.0, le=2.0, description="how much lower they reach (m)")
+    outlier_high: float = Field(default=_ST.outlier_high, gt=0.0, lt=1.0,
+                                description="share of measurements higher than the stature (a raised arm, a hat)")
+    high_range_m: float = Field(default=_ST.high_range_m, gt=0.0, le=2.0, description="how much higher they reach (m)")
+    gate_m: float = Field(default=_ST.gate_m, gt=0.0, description="a learnt stature ignores measurements this far off (m)")
+    min_samples: int = Field(default=_ST.min_samples, ge=1, description="measurements before a track's stature counts")
+    window: int = Field(default=_ST.window, ge=1, description="the running mean's memory (measurements)")
+    clip: float = Field(default=_ST.clip, gt=0.0, description="bound on its log-odds")
+    weight: float = Field(default=_ST.weight, ge=0.0, description="weight of its log-odds in the association")
+
+    @model_validator(mode="after")
+    def _window(self) -> StatureConfig:
+        if self.window < self.min_samples:
+            raise ValueError(f"window ({self.window}) must be at least min_samples ({self.min_samples})")
+        if self.outlier_low + self.outlier_high >= 1:
+            raise ValueError("outlier_low + outlier_high must be below 1")
+        return self
+
+    def params(self) -> StatureParams | None:
+        return StatureParams(**self.model_dump(exclude={"enabled"})) if self.enabled else None
 
 
 _PO = PostureParams()
@@ -194,14 +233,15 @@ class RobustConfig(BaseModel):
     gallery_size: int = Field(default=_R.gallery_size, ge=1, le=100_000, description="max descriptors per track")
     classifier: ClassifierConfig = Field(default_factory=ClassifierConfig)
     posture: PostureConfig = Field(default_factory=PostureConfig)
+    stature: StatureConfig = Field(default_factory=StatureConfig)
     recovery: RecoveryConfig = Field(default_factory=RecoveryConfig)
 
     def params(self, appearance: AppearanceModel | None, memory_size: int) -> RobustParams:
         fields = self.model_dump(exclude={"scores", "detector_scores", "use_detection_covariance", "classifier",
-                                          "posture", "recovery"})
+                                          "posture", "stature", "recovery"})
         return RobustParams(**fields, appearance=appearance, scores=self.scores.model(), memory_size=memory_size,
                             classifier=self.classifier.params(), posture=self.posture.params(),
-                            recovery=self.recovery.params())
+                            stature=self.stature.params(), recovery=self.recovery.params())
 
     def build(self, appearance: AppearanceModel | None, memory: IdentityMemory | None, memory_size: int) -> TrackerCore:
         return RobustTracker(self.params(appearance, memory_size), memory)

@@ -16,6 +16,7 @@ class FixedDetector:
     needs_depth = False
     postures = ("standing", "sitting")  # the posture of each of the two boxes
     depths = (2.5, 4.0)  # each box's person's own depth (m), as the depth detector measures it
+    statures = (1.78, float("nan"))  # the standing one's stature (m); the seated one has none
 
     def __init__(self, block_first: bool = False) -> None:
         self.entered = threading.Event()

@@ -58,6 +58,7 @@ def test_detections_carry_the_frame_header(memory_bus: MemoryBus) -> None:
     assert msg.detections[0].bbox_xyxy == (10.0, 20.0, 50.0, 120.0) and msg.detections[0].score == pytest.approx(0.9)
     assert [d.posture for d in msg.detections] == ["standing", "sitting"]  # the backend's postures go along
     assert [d.depth_m for d in msg.detections] == [2.5, 4.0]  # and each person's own depth
+    assert [d.stature_m for d in msg.detections] == [1.78, None]  # and the standing one's stature (NaN: None)
     assert counters.extra["frames_processed"] == 1 and "inference_ms" in counters.extra
 
 
@@ -132,6 +133,7 @@ def test_depth_backend_end_to_end(memory_bus: MemoryBus) -> None:
     assert got.msg.detections[0].posture == "standing"  # 1.8 m tall on the floor: Basso/Munaro's standing rule
     # its own depth, from its points: the front face, 2.85 m along the optical axis (the block is 0.3 m deep)
     assert got.msg.detections[0].depth_m == pytest.approx(2.85, abs=0.08)
+    assert got.msg.detections[0].stature_m == pytest.approx(1.8, abs=0.04)  # its top above the floor
 
 
 def test_undecodable_image_is_counted_and_skipped(memory_bus: MemoryBus) -> None:

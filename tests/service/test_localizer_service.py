@@ -34,11 +34,13 @@ def test_localizes_in_the_map_frame(memory_bus: MemoryBus) -> None:
     rig.frames.put(f)
     dets = scene.detections(f, PEOPLE, extra_boxes=((700.0, 10.0, 800.0, 100.0), (50.0, 60.0, 40.0, 70.0)))
     dets.detections[1] = dets.detections[1].model_copy(update={"posture": "sitting"})  # as the depth detector says
+    dets.detections[0] = dets.detections[0].model_copy(update={"stature_m": 1.74})
     rig.dets.put(dets)
     [out] = rig.service.poll(time.monotonic())
     got = rig.out.recv(timeout=1.0)
     assert got is not None and got.msg == out
     assert [d.posture for d in out.detections] == [None, "sitting"]  # the detector's posture, passed on
+    assert [d.stature_m for d in out.detections] == [1.74, None]  # and its stature
     assert out.header == Header(stamp_ns=f.header.stamp_ns, frame_id="map", seq=3, source="head")
     assert out.camera_frame == "camera"
     assert [d.index for d in out.detections] == [0, 1]

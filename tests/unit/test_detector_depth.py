@@ -69,6 +69,26 @@ def test_each_person_has_their_own_depth_even_partly_hidden_behind_another() -> 
     np.testing.assert_allclose([z for _, z in by_x], [front.z - 0.15, behind.z - 0.15], atol=0.08)
 
 
+def test_each_standing_persons_stature_is_their_top_and_unknown_when_the_image_cuts_it() -> None:
+    """``statures``: a standing person's top above the floor (the tracker's soft biometric); NaN
+    where the image's upper edge cuts the head (a person close to the camera)."""
+    short, tall = Block(-0.8, 3.0, 0.5, 1.62, 0.3), Block(0.6, 3.5, 0.5, 1.88, 0.3)
+    rgb, depth, K = scene([short, tall], 0.0)
+    det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT))
+    for _ in range(2):
+        boxes, _ = det.detect(rgb, depth, K)
+    assert len(boxes) == len(det.statures) == 2
+    by_x = sorted(zip(boxes[:, 0].tolist(), det.statures.tolist()))
+    np.testing.assert_allclose([h for _, h in by_x], [short.height, tall.height], atol=0.04)
+    near = Block(0.5, 1.8, 0.5, 1.95, 0.3)  # 1.8 m away, the camera tilted down 10 degrees: the image
+    tilted = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=10.0))
+    rgb, depth, K = scene([near], 10.0)
+    for _ in range(2):
+        boxes, _ = tilted.detect(rgb, depth, K)
+    assert len(boxes) == 1 and boxes[0, 1] <= 1.0  # ends at 1.68 m on them
+    assert tilted.heights[0] < near.height - 0.2 and np.isnan(tilted.statures[0])
+
+
 def test_a_wall_end_seen_edge_on_is_flat_and_not_a_person() -> None:
     # a 2 m tall, 5 cm thick partition running away from the camera: person-tall and narrower
     # than max_width_m, but all its points lie on one vertical plane

@@ -25,12 +25,15 @@ class Detector(Protocol):
     detections showed ("standing", "sitting"), empty for a backend that cannot tell.
     ``depths``: each of the last detections' own depth (m) measured from the person's points,
     empty for a backend that has none (the localizer then reads the depth in the box).
+    ``statures``: each of the last detections' stature (m, the top of a standing person above
+    the floor; NaN where not seen), empty for a backend that cannot measure it.
     """
 
     name: str
     needs_depth: bool
     postures: Sequence[str]
     depths: Sequence[float]
+    statures: Sequence[float]
 
     def detect(self, rgb: np.ndarray, depth: np.ndarray | None = None,
                camera: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]: ...

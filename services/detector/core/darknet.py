@@ -106,6 +106,7 @@ class DarknetDetector:
     needs_depth = False
     postures: tuple[str, ...] = ()  # boxes say nothing of the posture
     depths: tuple[float, ...] = ()  # nor of a person's own depth: the localizer reads it in the box
+    statures: tuple[float, ...] = ()  # nor of their stature (no floor, no depth)
 
     def __init__(self, params: DarknetParams) -> None:
         self.params = params

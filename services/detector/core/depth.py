@@ -31,6 +31,8 @@ log = logging.getLogger(__name__)
 #: The percentile of a person's point depths reported as their depth: the localizer's default
 #: for a box (services/localizer: the person's front, not the wall behind them).
 DEPTH_PERCENTILE = 25.0
+#: Half a head's width (m): where :meth:`DepthClusterDetector._top_seen` looks beside the top.
+HEAD_HALF_WIDTH_M = 0.12
 
 
 def _extent(points: np.ndarray) -> float:
@@ -61,6 +63,8 @@ class DepthClusterDetector:
     detections. ``depths`` (m) is each person's own depth, the :data:`DEPTH_PERCENTILE` of
     their points' distance along the optical axis: what the localizer reads in the box, but
     from the person's points alone, so a nearer person overlapping the box cannot pull it.
+    ``statures`` (m) is a standing person's top above the floor, their stature (NaN for a
+    seated person and where the image's upper edge cuts the head): the tracker's stature cue.
     """
 
     name = "depth"
@@ -77,6 +81,7 @@ class DepthClusterDetector:
         self.heights = np.zeros(0)
         self.postures: list[str] = []
         self.depths = np.zeros(0)
+        self.statures = np.zeros(0)
         self._hog = hog if hog is not None else (HogDetector() if self.params.hog_confirm else None)
         self._rng = np.random.default_rng(seed)
 
@@ -123,7 +128,7 @@ class DepthClusterDetector:
         cut_low = self._at_lower_edge(points, K, depth.shape[0])
         hidden = self._hidden_below(points, K, depth)
         count, labels = cluster_points(points, p.cluster_tolerance_m)
-        boxes, scores, heights, postures, depths = [], [], [], [], []
+        boxes, scores, heights, postures, depths, statures = [], [], [], [], [], []
         for member, posture, to_floor in self._postured(points, height, cut_low, hidden, count, labels, K, depth):
             top = float(height[member].max())
             cluster = points[member]
@@ -137,24 +142,28 @@ class DepthClusterDetector:
             heights.append(top)
             postures.append(posture)
             depths.append(own_depth)
+            # a standing person's top is their stature where it is the top of their head
+            statures.append(top if posture == "standing" and self._top_seen(points[member], height[member], top, K, depth)
+                            else np.nan)
             low, high = (p.min_height_m, p.max_height_m) if posture == "standing" else \
                 (p.seated.min_height_m, p.seated.max_height_m)
             scores.append(1.0 - 0.5 * min(abs(top - (low + high) / 2) / ((high - low) / 2), 1.0))
         if not boxes:
-            self.heights, self.postures, self.depths = np.zeros(0), [], np.zeros(0)
+            self.heights, self.postures, self.depths, self.statures = np.zeros(0), [], np.zeros(0), np.zeros(0)
             return empty_result()
         h, w = image.shape[:2]
         out_boxes = clip_boxes(np.array(boxes), w, h)
         out_scores = np.array(scores)
         heights_arr, postures_arr, depths_arr = np.array(heights), np.array(postures), np.array(depths)
+        statures_arr = np.array(statures)
         if self._hog is not None and p.hog_confirm:
             hog_scores = np.array([self._hog.score_window(image, b) for b in out_boxes])
             keep = hog_scores >= p.hog_min_score
             out_boxes, out_scores, heights_arr = out_boxes[keep], hog_scores[keep], heights_arr[keep]
-            postures_arr, depths_arr = postures_arr[keep], depths_arr[keep]
+            postures_arr, depths_arr, statures_arr = postures_arr[keep], depths_arr[keep], statures_arr[keep]
         order = np.argsort(-out_scores, kind="stable")
         self.heights, self.postures = heights_arr[order], [str(x) for x in postures_arr[order]]
-        self.depths = depths_arr[order]
+        self.depths, self.statures = depths_arr[order], statures_arr[order]
         return out_boxes[order], out_scores[order].astype(np.float32)
 
     def _at_lower_edge(self, points: np.ndarray, K: np.ndarray, rows: int) -> np.ndarray:
@@ -180,6 +189,29 @@ class DepthClusterDetector:
         with np.errstate(invalid="ignore"):
             hidden = below < z - p.occluder_gap_m  # NaN (no depth, outside) compares False
         return hidden
+
+    def _top_seen(self, points: np.ndarray, height: np.ndarray, top: float, K: np.ndarray, depth: np.ndarray) -> bool:
+        """Whether the top of a person's ``points`` (their ``height`` above the floor, highest
+        ``top``) is seen as the top of their head: above it (a voxel and two sampling steps up
+        in the image, and a voxel more; a head's half-width to either side) the image goes on
+        and nothing is nearer by ``occluder_gap_m``. The image's edges, a shelf or a person in
+        front would hide the head (a person cut by the image's side shows a shoulder), and the
+        top would be lower."""
+        p = self.params
+        crown = points[height >= top - p.voxel_m]
+        if len(crown) == 0:
+            return False
+        z = np.maximum(crown[:, 2], 1e-3)
+        u0 = K[0, 0] * crown[:, 0] / z + K[0, 2]
+        v0 = K[1, 1] * crown[:, 1] / z + K[1, 2] - K[1, 1] * p.voxel_m / z - 2 * p.pixel_step
+        side, up = K[0, 0] * HEAD_HALF_WIDTH_M / z, K[1, 1] * p.voxel_m / z
+        u = np.rint(np.concatenate([u0, u0 - side, u0 + side, u0])).astype(np.int64)
+        v = np.rint(np.concatenate([v0, v0, v0, v0 - up])).astype(np.int64)
+        rows, cols = depth.shape
+        if v.min() < 0 or u.min() < 0 or u.max() >= cols or v.max() >= rows:
+            return False  # the image ends beside or above the head: it may lie beyond
+        with np.errstate(invalid="ignore"):  # NaN (no depth) is no occluder
+            return not bool(np.any(depth[v, u] < np.tile(z, 4) - p.occluder_gap_m))
 
     def _is_person(self, member: np.ndarray, points: np.ndarray, height: np.ndarray, cut_low: np.ndarray | None,
                    hidden: np.ndarray) -> bool:

@@ -77,6 +77,7 @@ class HogDetector:
     needs_depth = False
     postures: tuple[str, ...] = ()  # boxes say nothing of the posture
     depths: tuple[float, ...] = ()  # nor of a person's own depth: the localizer reads it in the box
+    statures: tuple[float, ...] = ()  # nor of their stature (no floor, no depth)
 
     def __init__(self, params: HogParams | None = None) -> None:
         self.params = params if params is not None else HogParams()

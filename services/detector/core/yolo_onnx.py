@@ -162,6 +162,7 @@ class YoloOnnxDetector:
     needs_depth = False
     postures: tuple[str, ...] = ()  # boxes say nothing of the posture
     depths: tuple[float, ...] = ()  # nor of a person's own depth: the localizer reads it in the box
+    statures: tuple[float, ...] = ()  # nor of their stature (no floor, no depth)
 
     def __init__(self, params: YoloParams) -> None:
         import onnxruntime as ort

@@ -32,10 +32,12 @@ import numpy as np
 
 from services.tracker.core import classifier as clf
 from services.tracker.core import recovery as rec
+from services.tracker.core import posture as pose
+from services.tracker.core import stature
 from services.tracker.core.id_decisions import explain
 from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.tracks import RobustTrackerState, TrackTable
-from services.tracker.core.types import FrameResult, HandOver, IdDecision, IdOutcome, TrackStatus
+from services.tracker.core.types import FrameInput, FrameResult, HandOver, IdDecision, IdOutcome, TrackStatus
 from services.tracker.core.view import View
 
 _TENTATIVE, _CONFIRMED, _COASTING = TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.COASTING
@@ -324,6 +326,30 @@ def train_classifiers(state: RobustTrackerState, p: RobustParams, matches: list[
     steps = t.clf_steps
     for j in rows:
         steps[j] += 1
+
+
+def observe_body(state: RobustTrackerState, p: RobustParams, rows: np.ndarray, frame: FrameInput, moved: bool,
+                 confident: np.ndarray) -> None:
+    """The tracks matched in ``frame`` (``rows``: detections, tracks): TU Ilmenau's posture from
+    the body height and box shape, orientation from walking or, standing still, from the crop
+    classifier (:func:`posture.observe`; ``moved``: the arrays are this frame's own); and the
+    stature of each confident detection that has one (core/stature.py), none for a forgotten
+    person's track."""
+    t, pp = state.tracks, p.posture
+    if not rows.shape[1]:
+        return
+    d_idx, t_idx = rows
+    if pp is not None:
+        t.posture, t.orientation = pose.observe(
+            t.posture, t.orientation, t_idx, frame.positions[d_idx, 2],
+            None if frame.aspects is None else frame.aspects[d_idx], t.mean[t_idx, 3:5],
+            np.array([t.status[j] is TrackStatus.TENTATIVE for j in t_idx.tolist()]),
+            None if frame.orientations is None else frame.orientations[d_idx], pp, fresh=moved,
+            reported=None if frame.postures is None else frame.postures[d_idx])
+    if p.stature is not None and frame.statures is not None:
+        ok = confident[d_idx] & ~np.array([t.forgotten[j] for j in t_idx.tolist()], bool)
+        t.stature, t.stature_n = stature.observe(t.stature, t.stature_n, t_idx[ok], frame.statures[d_idx][ok],
+                                                 p.stature)
 
 
 def kept_recovery(state: RobustTrackerState) -> dict[str, np.ndarray]:

@@ -38,10 +38,11 @@ class TrackerCore(Protocol):
                measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
                view: View | None = None, aspects: np.ndarray | None = None,
                orientations: np.ndarray | None = None, score_model: ScoreModel | None = None,
-               camera: str = "", postures: np.ndarray | None = None) -> FrameResult:
+               camera: str = "", postures: np.ndarray | None = None,
+               statures: np.ndarray | None = None) -> FrameResult:
         """:meth:`step` on loose arrays (see :class:`FrameInput` for each)."""
         return self.step(stamp, FrameInput.of(positions, descriptors, measurement_cov, scores, view, aspects,
-                                              orientations, score_model, camera, postures))
+                                              orientations, score_model, camera, postures, statures))
 
     def reported(self, result: FrameResult) -> list[TrackView]:
         """What to output of ``result``: the profile's reported tracks."""

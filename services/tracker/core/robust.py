@@ -20,7 +20,9 @@ the TU Ilmenau framework, Basso/Munaro's RGB-D tracker and Ban et al.'s robotic 
      function placed by the embedding model's calibrated thresholds (0.9 at ``t_lower``,
      0.1 at ``t_upper``). No descriptor, or a track without one yet, gives 0.5, so a
      track born while the embedder was down gains appearance later without an ID switch;
-   * *confidence*: the detector's score as P(true person).
+   * *confidence*: the detector's score as P(true person);
+   * *stature* (:mod:`~services.tracker.core.stature`): the measured height of a standing
+     person against the track's, a soft biometric that clothes do not change.
 
    A detection may also be explained as **clutter or a new person** (Ban et al.'s clutter
    class), at log-odds 0: a pair is only accepted when its combined log-odds are positive.
@@ -50,7 +52,7 @@ from dataclasses import replace
 import numpy as np
 
 from services.tracker.core import classifier as clf
-from services.tracker.core import cues, kalman, lifecycle, ukf
+from services.tracker.core import cues, kalman, lifecycle, stature, ukf
 from services.tracker.core import posture as pose
 from services.tracker.core.association import match_log_odds
 from services.tracker.core.identity import IdentityMemory
@@ -152,13 +154,14 @@ class RobustTracker(TrackerCore):
         p_det = score_model.probability(scores)
         confident = score_model.confident(scores)
         u = clf.normalise(descriptors[has_desc]) if any_desc else None  # type: ignore[index]
-        log_odds, pairs = self._pair_log_odds(positions, r, descriptors if appearance else None, has_desc, u, p_det)
+        log_odds, pairs = self._pair_log_odds(positions, r, descriptors if appearance else None, has_desc, u, p_det,
+                                              frame.statures)
         result = FrameResult(stamp=stamp, appearance_available=appearance)
         matches = self._associate(log_odds, confident)
         rows = np.array(matches, np.int64).T if matches else np.zeros((2, 0), np.int64)  # (detections, tracks)
         self._update_matched(matches, rows, positions, r, descriptors, has_desc, p_det, confident, stamp,
                              frame.camera, pairs, moved)
-        self._update_pose(rows, positions, frame.aspects, frame.orientations, frame.postures, moved)
+        lifecycle.observe_body(state, p, rows, frame, moved, confident)  # posture, orientation, stature
         lifecycle.train_classifiers(state, p, matches, u, has_desc, confident)
         lifecycle.observed(state, [j for _, j in matches], p)  # fixes, who was seen with whom (recovery)
         matched_d = {d for d, _ in matches}
@@ -197,8 +200,8 @@ class RobustTracker(TrackerCore):
         return True
 
     def _pair_log_odds(self, positions: np.ndarray, r: np.ndarray, descriptors: np.ndarray | None,
-                       has_desc: np.ndarray, u: np.ndarray | None,
-                       p_det: np.ndarray) -> tuple[np.ndarray, cues.PairDistances | None]:
+                       has_desc: np.ndarray, u: np.ndarray | None, p_det: np.ndarray,
+                       statures: np.ndarray | None) -> tuple[np.ndarray, cues.PairDistances | None]:
         """(N, T) combined log-odds that detection d is track t (``-inf`` outside the gate), and
         the squared distances of the pairs compared by appearance."""
         p, t = self.params, self.state.tracks
@@ -216,6 +219,10 @@ class RobustTracker(TrackerCore):
                 total = total + p.classifier.weight * cues.classifier_log_odds(t.clf, t.clf_steps, u, has_desc,
                                                                                p.classifier.clip)
         total = total + cues.logit(p_det)[:, None]
+        body = None if p.stature is None or statures is None else stature.log_odds(statures, t.stature, t.stature_n,
+                                                                                     p.stature)
+        if body is not None:
+            total = total + body
         if descriptors is not None and p.recovery.compete and len(self.state.memory):  # returning people compete
             total = total - cues.memory_alternatives(self.state, p, positions, r, descriptors, has_desc, gated)
         return np.where(gated, total, -np.inf), pairs
@@ -273,20 +280,6 @@ class RobustTracker(TrackerCore):
             d2 = pairs.get(d_new, t_new) if pairs is not None else None
             bank.add_many(np.array([t.slot[j] for _, j in learn]), descriptors[d_new], d2)  # type: ignore[index]
 
-    def _update_pose(self, rows: np.ndarray, positions: np.ndarray, aspects: np.ndarray | None,
-                     orientations: np.ndarray | None, reported: np.ndarray | None, moved: bool) -> None:
-        """TU Ilmenau: posture from the body height and box shape, orientation from walking or,
-        standing still, from the crop classifier (:func:`posture.observe`)."""
-        pp, t = self.params.posture, self.state.tracks
-        if pp is None or not rows.shape[1]:
-            return
-        d_idx, t_idx = rows
-        t.posture, t.orientation = pose.observe(
-            t.posture, t.orientation, t_idx, positions[d_idx, 2], None if aspects is None else aspects[d_idx],
-            t.mean[t_idx, 3:5], np.array([t.status[j] is TrackStatus.TENTATIVE for j in t_idx.tolist()]),
-            None if orientations is None else orientations[d_idx], pp, fresh=moved,
-            reported=None if reported is None else reported[d_idx])
-
     def _age(self, stamp: float, result: FrameResult, view: View | None, previous: float | None) -> None:
         """Coasting and deletion (:func:`lifecycle.age`); a deleted track's appearance is archived."""
         ended, keep = lifecycle.age(self.state, self.params, stamp, previous, view)
@@ -328,6 +321,7 @@ class RobustTracker(TrackerCore):
             if t.clf is not None:
                 t.clf[j] = 0.0
             t.slot[j], t.clf_steps[j], t.forgotten[j] = -1, 0, True
+            t.stature_n[j] = 0
         return {"descriptors": removed, "classifier": had_classifier, "live_track": bool(rows)}
 
     def forget_all(self) -> list[int]:

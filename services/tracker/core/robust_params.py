@@ -8,6 +8,7 @@ from typing import Literal
 from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.posture import PostureParams
 from services.tracker.core.recovery import RecoveryParams
+from services.tracker.core.stature import StatureParams
 from services.tracker.core.types import AppearanceModel, ScoreModel
 
 __all__ = ["RobustParams"]
@@ -61,6 +62,8 @@ class RobustParams:
     classifier: ClassifierParams | None = field(default_factory=ClassifierParams)
     #: TU Ilmenau's posture and orientation filters; None: off
     posture: PostureParams | None = field(default_factory=PostureParams)
+    #: the person's stature as a cue (core/stature.py, a soft biometric); None: off
+    stature: StatureParams | None = field(default_factory=StatureParams)
     #: the ID memory's open-set decision (core/recovery.py)
     recovery: RecoveryParams = field(default_factory=RecoveryParams)
 

@@ -27,7 +27,8 @@ class TrackTable:
     """The tracks, one row each, in the order they were born. The filters' state is in arrays
     (one product moves every track): ``mean`` (T, S) and ``cov`` (T, S, S), ``posture`` (T, 3)
     and ``orientation`` (T, 8) (the TU Ilmenau framework's filters), ``clf`` (T, D + 1) the online classifiers (rows of zeros while untrained; None until the
-    first is trained). The bookkeeping a frame reads a few entries of is in lists: ``id`` (0
+    first is trained), ``stature`` (T,) and ``stature_n`` (T,) the person's stature and how many
+    measurements it holds (core/stature.py). The bookkeeping a frame reads a few entries of is in lists: ``id`` (0
     while tentative), ``is_person`` (IsPerson, a probability), ``status``, the stamps, the hit counts, ``in_view`` (None: not known),
     ``camera``, ``slot`` the gallery's in the :class:`GalleryBank` (-1: none yet), and for the ID
     memory's recovery (core/recovery.py) ``fix`` (x, y, variance per axis) at the last detection,
@@ -38,6 +39,8 @@ class TrackTable:
     posture: np.ndarray
     orientation: np.ndarray
     clf: np.ndarray | None
+    stature: np.ndarray
+    stature_n: np.ndarray
     id: list[int]
     is_person: list[float]
     status: list[TrackStatus]
@@ -58,7 +61,8 @@ class TrackTable:
     @classmethod
     def empty(cls, state_dim: int) -> TrackTable:
         return cls(np.zeros((0, state_dim)), np.zeros((0, state_dim, state_dim)), np.zeros((0, 3)),
-                   np.zeros((0, pose.ORIENTATION_BINS)), None, *([] for _ in range(_LISTS)))
+                   np.zeros((0, pose.ORIENTATION_BINS)), None, np.zeros(0), np.zeros(0, np.int64),
+                   *([] for _ in range(_LISTS)))
 
     def __len__(self) -> int:
         return len(self.id)
@@ -89,6 +93,8 @@ class TrackTable:
         self.orientation = np.concatenate([self.orientation, _uniform_rows(k, pose.ORIENTATION_BINS)])
         if self.clf is not None:
             self.clf = np.concatenate([self.clf, np.zeros((k, self.clf.shape[1]))])
+        self.stature = np.concatenate([self.stature, np.zeros(k)])
+        self.stature_n = np.concatenate([self.stature_n, np.zeros(k, np.int64)])
         self.id += [0] * k
         self.is_person += is_person
         self.status += [TrackStatus.TENTATIVE] * k
@@ -108,7 +114,7 @@ class TrackTable:
 
 
 _FIELDS = tuple(f.name for f in fields(TrackTable))
-_ARRAYS = _FIELDS[:5]  # mean, cov, posture, orientation, clf; then the lists
+_ARRAYS = _FIELDS[:7]  # mean, cov, posture, orientation, clf, stature, stature_n; then the lists
 _LISTS = len(_FIELDS) - len(_ARRAYS)
 
 
@@ -166,6 +172,8 @@ class TrackRow:
     camera: str
     posture: np.ndarray
     orientation: np.ndarray
+    stature: float
+    stature_n: int
     gallery: _GalleryRow | None
 
 

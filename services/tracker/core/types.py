@@ -297,7 +297,8 @@ class FrameInput(NamedTuple):
     bins (NaN rows: none). ``score_model``: how this frame's detector's scores read (None:
     the profile's). ``camera``: the camera the frame comes from. ``postures`` (N,) int8 the
     detector's posture report per detection, the index in ``posture.POSTURES`` (-1: none;
-    None: no report at all).
+    None: no report at all). ``statures`` (N,) each standing person's measured stature (m; NaN:
+    not measured, None: no measurement at all; core/stature.py).
     """
 
     positions: np.ndarray
@@ -311,13 +312,15 @@ class FrameInput(NamedTuple):
     score_model: ScoreModel | None = None
     camera: str = ""
     postures: np.ndarray | None = None
+    statures: np.ndarray | None = None
 
     @classmethod
     def of(cls, positions: np.ndarray, descriptors: np.ndarray | None = None,
            measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
            view: View | None = None, aspects: np.ndarray | None = None,
            orientations: np.ndarray | None = None, score_model: ScoreModel | None = None,
-           camera: str = "", postures: np.ndarray | None = None) -> FrameInput:
+           camera: str = "", postures: np.ndarray | None = None,
+           statures: np.ndarray | None = None) -> FrameInput:
         """Convert one frame's arrays (ValueError for descriptors of the wrong shape)."""
         positions = np.asarray(positions, dtype=np.float64)
         if positions.ndim != 2 or positions.shape[1:] != (3,):
@@ -337,8 +340,10 @@ class FrameInput(NamedTuple):
                 scores = scores.reshape(n)
         if postures is not None:
             postures = np.asarray(postures, np.int8).reshape(n)
+        if statures is not None:
+            statures = np.asarray(statures, np.float64).reshape(n)
         return cls(positions, descriptors, measurement_cov, None, scores, view, aspects, orientations, score_model,
-                   camera, postures)
+                   camera, postures, statures)
 
     @property
     def has_descriptors(self) -> bool:

@@ -8,8 +8,9 @@ classifiers, :mod:`services.tracker.core.classifier`): ``classifier_ids`` (C,) a
 ``classifiers`` (C, D + 1) float64; a file without them reads as no classifiers. And
 ``seen_ids`` (S,), ``seen_at`` (S,) float64: when each ID was last seen (Unix time, for
 the retention). And the robust profile's open-set recovery (core/recovery.py), the arrays
-named ``recovery_*``: where and when each person was last detected (the sensors' clock, s),
-who was seen with whom, the online P(new) counts; a file without them reads as none.
+named ``recovery_*``: where and when each person was last detected (the sensors' clock, s)
+and their stature, who was seen with whom, the online P(new) counts; a file without them
+reads as none (one written before the statures: none known).
 
 Saving writes a temporary file next to the target, syncs it and renames it over the
 target, so a crash never leaves a half-written memory behind.

@@ -64,12 +64,16 @@ def test_the_departure_says_whether_they_walked_out() -> None:
 
 
 def test_the_departure_kind_is_kept_in_the_memory_file_and_old_files_still_read() -> None:
-    state = RecoveryState({3: Departure(1.0, 2.0, 3.0, 0.1, left=True), 4: Departure(2.0, 0.0, 0.0, 0.2)})
+    state = RecoveryState({3: Departure(1.0, 2.0, 3.0, 0.1, left=True, stature=1.74, stature_n=20),
+                           4: Departure(2.0, 0.0, 0.0, 0.2)})
     arrays = state.to_arrays()
-    assert arrays["recovery_departures"].shape == (2, 5)
-    assert RecoveryState.from_arrays(arrays).departures == state.departures
-    old = {**arrays, "recovery_departures": arrays["recovery_departures"][:, :4]}  # written before the column
+    assert arrays["recovery_departures"].shape == (2, 7)
+    assert RecoveryState.from_arrays(arrays).departures == state.departures  # the stature too
+    old = {**arrays, "recovery_departures": arrays["recovery_departures"][:, :4]}  # written before the columns
     assert [d.left for d in RecoveryState.from_arrays(old).departures.values()] == [False, False]
+    before_stature = {**arrays, "recovery_departures": arrays["recovery_departures"][:, :5]}
+    assert [(d.left, d.stature_n) for d in RecoveryState.from_arrays(before_stature).departures.values()] == \
+        [(True, 0), (False, 0)]
 
 
 def run(trk: RobustTracker, t0: float, t1: float, look: np.ndarray | None, x0: float = 0.0, vx: float = 0.0,

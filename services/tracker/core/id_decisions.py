@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from services.tracker.core import recovery as rec
+from services.tracker.core import recovery_evidence as rev
 from services.tracker.core.association import AppearanceGate
 from services.tracker.core.types import AppearanceModel, IdCandidate, IdDecision, IdOutcome
 
@@ -32,7 +33,7 @@ __all__ = ["TOP", "explain", "nearest"]
 TOP = 3
 
 
-def explain(ev: rec.Evidence, p_new: float, stamp: float, x: float, y: float, track_id: int, outcome: IdOutcome,
+def explain(ev: rev.Evidence, p_new: float, stamp: float, x: float, y: float, track_id: int, outcome: IdOutcome,
             threshold: float, departures: dict[int, rec.Departure], previous_id: int | None = None) -> IdDecision:
     """The :class:`IdDecision` for evidence ``ev`` (:func:`~services.tracker.core.recovery.evidence`)
     weighed with the prior ``p_new``: the posterior and each candidate's support, as

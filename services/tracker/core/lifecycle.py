@@ -32,6 +32,7 @@ import numpy as np
 
 from services.tracker.core import classifier as clf
 from services.tracker.core import recovery as rec
+from services.tracker.core import recovery_evidence as rev
 from services.tracker.core import posture as pose
 from services.tracker.core import stature
 from services.tracker.core.id_decisions import explain
@@ -106,9 +107,16 @@ def archive(state: RobustTrackerState, j: int, view: View | None = None, horizon
         state.classifiers = {i: w for i, w in state.classifiers.items() if i in state.memory}
     fix, r = t.fix[j], state.recovery
     if fix is not None and t.id[j] in state.memory:  # where and when they left, for reachability
-        r.departures[t.id[j]] = rec.Departure(t.last_update[j], *fix, left=walked_out(t, j, view, horizon_s))
+        r.departures[t.id[j]] = rec.Departure(t.last_update[j], *fix, walked_out(t, j, view, horizon_s),
+                                              *_stature(t, j))
     if len(r.departures) > len(state.memory) or len(r.together) > 2 * len(state.memory) + 64:
         r.forget(keep=set(state.memory.entries) | state.live_ids())
+
+
+def _stature(t: TrackTable, j: int) -> tuple[float, int]:
+    """Track ``j``'s stature and its count of measurements (0, 0: none), as a departure keeps them."""
+    n = int(t.stature_n[j])
+    return (float(t.stature[j]) if n else 0.0), n
 
 
 def walked_out(t: TrackTable, j: int, view: View | None, horizon_s: float) -> bool:
@@ -139,8 +147,10 @@ def births(free: list[int], matched: set[int], positions: np.ndarray, p_det: np.
 
 
 def birth(state: RobustTrackerState, dets: list[int], positions: np.ndarray, descriptors: np.ndarray | None,
-          has_desc: np.ndarray, p_det: np.ndarray, stamp: float, camera: str, p0: np.ndarray) -> None:
-    """A tentative track at rest (not turning) per detection of ``dets``, with its descriptor."""
+          has_desc: np.ndarray, p_det: np.ndarray, stamp: float, camera: str, p0: np.ndarray,
+          statures: np.ndarray | None = None) -> None:
+    """A tentative track at rest (not turning) per detection of ``dets``, with its descriptor and
+    its stature (``statures``: the frame's, NaN where not measured)."""
     if not dets:
         return
     t = state.tracks
@@ -148,6 +158,10 @@ def birth(state: RobustTrackerState, dets: list[int], positions: np.ndarray, des
     mean = np.concatenate([positions[d], np.zeros((len(d), t.mean.shape[1] - 3))], axis=1)
     first = len(t)
     t.append(mean, p0, stamp, [bayes(0.5, q) for q in p_det[d].tolist()], camera)
+    if statures is not None:  # the new rows' arrays are this frame's own (append made them)
+        h = statures[d]
+        known = np.flatnonzero(np.isfinite(h))
+        t.stature[first + known], t.stature_n[first + known] = h[known], 1
     if descriptors is None:
         return
     rows = [first + k for k, det in enumerate(dets) if has_desc[det]]
@@ -246,24 +260,24 @@ def identity(state: RobustTrackerState, j: int, removed: set[int], p: RobustPara
     return k, True
 
 
-def _explain(state: RobustTrackerState, j: int, ev: rec.Evidence, p_new: float, track_id: int, outcome: IdOutcome,
+def _explain(state: RobustTrackerState, j: int, ev: rev.Evidence, p_new: float, track_id: int, outcome: IdOutcome,
              threshold: float, previous_id: int | None = None) -> IdDecision:
     t = state.tracks
     return explain(ev, p_new, t.last_update[j], float(t.mean[j, 0]), float(t.mean[j, 1]), track_id, outcome, threshold,
                    state.recovery.departures, previous_id)
 
 
-def evidence(state: RobustTrackerState, j: int, exclude: set[int], p: RobustParams) -> rec.Evidence:
-    """core/recovery.py's evidence for track ``j``: the model's weighted log-odds, the remembered
-    classifiers, the other confirmed people in view now as the stranger's measure."""
+def evidence(state: RobustTrackerState, j: int, exclude: set[int], p: RobustParams) -> rev.Evidence:
+    """core/recovery_evidence.py's evidence for track ``j``: the model's weighted log-odds, the
+    remembered classifiers, the statures, the other confirmed people in view now as the stranger's measure."""
     model, t, bank = p.appearance, state.tracks, state.bank
     assert model is not None
-    here = rec.Candidate(bank.descriptors(t.slot[j]), t.last_update[j], float(t.mean[j, 0]), float(t.mean[j, 1]),
-                         0.5 * float(t.cov[j, 0, 0] + t.cov[j, 1, 1]))
+    here = rev.Candidate(bank.descriptors(t.slot[j]), t.last_update[j], float(t.mean[j, 0]), float(t.mean[j, 1]),
+                         0.5 * float(t.cov[j, 0, 0] + t.cov[j, 1, 1]), float(t.stature[j]), int(t.stature_n[j]))
     others = [bank.descriptors(t.slot[c]) for c in range(len(t)) if c != j and t.id[c] and bank.size(t.slot[c])]
-    return rec.evidence(here, state.memory, exclude,
+    return rev.evidence(here, state.memory, exclude,
                         lambda d: p.appearance_weight * model.log_odds(model.from_euclidean(d)),
-                        others, state.classifiers, p.classifier, state.recovery, p.recovery)
+                        others, state.classifiers, p.classifier, state.recovery, p.recovery, p.stature)
 
 
 def observed(state: RobustTrackerState, rows: list[int], p: RobustParams) -> None:
@@ -293,7 +307,7 @@ def probation(state: RobustTrackerState, p: RobustParams, stamp: float, result: 
             t.probation[j] = (k, until, stamp + rp.check_period_s, share) if stamp < until else None
             ev = evidence(state, j, state.live_ids() - {k}, p)
             p_new = state.recovery.p_new(rp)
-            if not rec.keeps(ev, k, p_new, rp):
+            if not rev.keeps(ev, k, p_new, rp):
                 t.id[j], t.probation[j] = state.memory.new_id(), None
                 state.recovery.undone += 1
                 state.recovery.revise(share)
@@ -356,7 +370,7 @@ def kept_recovery(state: RobustTrackerState) -> dict[str, np.ndarray]:
     """The recovery's state as arrays for the ID memory's file; a live track counts as having
     left where and when it was last detected (after a restart that is where the person is)."""
     t = state.tracks
-    live = {t.id[j]: rec.Departure(t.last_update[j], *t.fix[j]) for j in range(len(t))
+    live = {t.id[j]: rec.Departure(t.last_update[j], *t.fix[j], False, *_stature(t, j)) for j in range(len(t))
             if t.id[j] and t.fix[j] is not None and not t.forgotten[j]}
     return state.recovery.to_arrays(live)
 

@@ -39,9 +39,9 @@ only when k is more probable than all the others together.
   recovery is taken back (the track gets a fresh ID, the remembered person stays
   remembered).
 
-Pure numpy (the tracker's core types: the ID memory, galleries, classifiers); no tracker state
-beyond the small :class:`RecoveryState`. The tracker calls :func:`evidence` then :func:`decide` when
-a track is confirmed, and :func:`keeps` during probation.
+Pure numpy; no tracker state beyond the small :class:`RecoveryState`. The tracker gathers the
+evidence (:mod:`~services.tracker.core.recovery_evidence`), calls :func:`decide` when a track is
+confirmed, and ``recovery_evidence.keeps`` during probation.
 """
 
 from __future__ import annotations
@@ -52,12 +52,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from services.tracker.core import classifier as clf
-from services.tracker.core.classifier import ClassifierParams
-from services.tracker.core.identity import IdentityMemory
 
-__all__ = ["ARRAY_KEYS", "Candidate", "Decision", "Departure", "Evidence", "RecoveryParams", "RecoveryState", "decide",
-           "evidence", "keeps", "min_distance", "posterior", "reachable", "stranger_llr", "support"]
+__all__ = ["ARRAY_KEYS", "Decision", "Departure", "RecoveryParams", "RecoveryState", "decide", "posterior", "reachable",
+           "stranger_llr", "support"]
 
 
 @dataclass(frozen=True)
@@ -121,13 +118,16 @@ class RecoveryParams:
 class Departure:
     """Where and when a remembered person was last detected: ``stamp`` (s), ``x``, ``y`` (m) and
     the variance ``var`` (m^2, per axis) of that position; ``left``: they walked out of the
-    cameras' view there (else they were lost inside it, or the view was not known)."""
+    cameras' view there (else they were lost inside it, or the view was not known); their
+    ``stature`` (m) from ``stature_n`` measurements (0: not known; core/stature.py)."""
 
     stamp: float
     x: float
     y: float
     var: float
     left: bool = False
+    stature: float = 0.0
+    stature_n: int = 0
 
 
 #: the arrays of :meth:`RecoveryState.to_arrays`, as the ID memory's file stores them
@@ -162,8 +162,8 @@ class RecoveryState:
         ids = sorted(deps)
         groups = sorted(self.together)
         return {"recovery_departure_ids": np.array(ids, np.int64),
-                "recovery_departures": np.array([[deps[i].stamp, deps[i].x, deps[i].y, deps[i].var, float(deps[i].left)]
-                                                 for i in ids], np.float64).reshape(-1, 5),
+                "recovery_departures": np.array([[d.stamp, d.x, d.y, d.var, float(d.left), d.stature, float(d.stature_n)]
+                                                 for d in (deps[i] for i in ids)], np.float64).reshape(-1, 7),
                 "recovery_together_ids": np.array(groups, np.int64),
                 "recovery_together_counts": np.array([len(self.together[i]) for i in groups], np.int64),
                 "recovery_together_with": np.array([o for i in groups for o in sorted(self.together[i])], np.int64),
@@ -176,10 +176,11 @@ class RecoveryState:
         def get(key: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
             return np.asarray(arrays.get(key, np.zeros(shape, dtype)))
 
-        ids, deps = get("recovery_departure_ids", (0,), np.int64), get("recovery_departures", (0, 5), np.float64)
-        if deps.ndim != 2 or deps.shape[1] not in (4, 5) or len(deps) != len(ids) or not np.all(np.isfinite(deps)):
+        ids, deps = get("recovery_departure_ids", (0,), np.int64), get("recovery_departures", (0, 7), np.float64)
+        if (deps.ndim != 2 or deps.shape[1] not in (4, 5, 7) or len(deps) != len(ids) or not np.all(np.isfinite(deps))
+                or (deps.shape[1] == 7 and np.any(deps[:, 6] < 0))):
             raise ValueError(f"recovery departures: {len(ids)} ids, values of shape {deps.shape} "
-                             "(need finite (K, 5), or (K, 4) from an older file)")
+                             "(need finite (K, 7), or (K, 4) or (K, 5) from an older file)")
         groups, counts = get("recovery_together_ids", (0,), np.int64), get("recovery_together_counts", (0,), np.int64)
         others = get("recovery_together_with", (0,), np.int64)
         if len(groups) != len(counts) or np.any(counts < 0) or int(counts.sum()) != len(others):
@@ -189,7 +190,8 @@ class RecoveryState:
             raise ValueError(f"recovery counts: {rates.tolist()} (need two non-negative numbers)")
         bounds = np.concatenate([[0], np.cumsum(counts)]).tolist()
         members = others.tolist()
-        return cls({int(i): Departure(*row[:4], bool(row[4]) if len(row) > 4 else False)
+        return cls({int(i): Departure(*row[:4], bool(row[4]) if len(row) > 4 else False,
+                                      *((row[5], int(row[6])) if len(row) > 6 else ()))
                     for i, row in zip(ids.tolist(), deps.tolist())},
                    {int(i): frozenset(members[a:b]) for i, a, b in zip(groups.tolist(), bounds, bounds[1:])},
                    float(rates[0]), float(rates[1]))
@@ -324,77 +326,3 @@ def decide(llr: np.ndarray, reach: np.ndarray, p_new: float, params: RecoveryPar
     best = int(np.argmax(post))
     p = support(post_new, post, best, None if rivals is None else rivals(best))
     return Decision(best if p >= params.p_recover else None, p, post_new, True)
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """The newly confirmed track as recovery sees it: its views (M, D) (its gallery), and where it
-    is: ``stamp``, ``x``, ``y`` and the variance ``var`` per axis of that position."""
-
-    views: np.ndarray
-    stamp: float
-    x: float
-    y: float
-    var: float
-
-
-@dataclass(frozen=True)
-class Evidence:
-    """What :func:`evidence` found: the remembered ``ids`` (K) the track could be, each one's
-    log-likelihood ratio ``llr`` (K,), whether each could have walked there (``reach`` (K,)), the
-    stranger's ``new_llr``, and ``rivals(k)``: the (K,) candidates known to be someone else than ``k``."""
-
-    ids: list[int]
-    llr: np.ndarray
-    reach: np.ndarray
-    new_llr: float
-    together: dict[int, frozenset[int]]
-
-    def rivals(self, k: int) -> np.ndarray:
-        known = self.together.get(k, frozenset())
-        return np.array([i in known for i in self.ids], bool)
-
-
-def min_distance(x: np.ndarray, gallery: np.ndarray) -> float:
-    """Smallest Euclidean distance from ``x`` (D,) to the rows of ``gallery`` (M, D) (``inf`` if none)."""
-    if not len(gallery):
-        return math.inf
-    g = np.asarray(gallery, np.float32)
-    d2 = float((np.einsum("ij,ij->i", g, g) - 2.0 * (g @ x)).min()) + float(x @ x)
-    return math.sqrt(max(d2, 0.0))
-
-
-def evidence(track: Candidate, memory: IdentityMemory, exclude: set[int], pair_llr: Callable[[np.ndarray], np.ndarray],
-             others: list[np.ndarray], classifiers: dict[int, np.ndarray], classifier: ClassifierParams | None,
-             state: RecoveryState, params: RecoveryParams) -> Evidence:
-    """The evidence for each remembered person (not in ``exclude``, e.g. the live IDs) that
-    ``track`` could be, from the association's cues: ``pair_llr`` turns Euclidean descriptor
-    distances into the model's weighted log-odds, here the distance of the track's mean view to
-    the remembered gallery (Algorithm 2's); the remembered person's classifier (``classifiers``,
-    weighted by ``classifier.weight``) adds its mean log-odds over the track's views. The same
-    appearance measure against ``others`` ((M, D) arrays), the galleries of the people in view now, gives the
-    stranger's log-odds (:func:`stranger_llr`)."""
-    mean = np.asarray(track.views, np.float32).mean(axis=0)
-    ids_a, dist = memory.distances(mean, exclude=exclude)
-    ids = ids_a.tolist()
-    llr = np.asarray(pair_llr(dist), float).copy()
-    cohort = np.array([min_distance(mean, g) for g in others if len(g)])
-    new_llr = stranger_llr(pair_llr(cohort)) if len(cohort) else 0.0
-    if classifier is not None and classifier.weight > 0 and ids:
-        u = clf.normalise(np.asarray(track.views, np.float32))
-        cols = [i for i, k in enumerate(ids) if len(classifiers.get(k, ())) == u.shape[1] + 1]
-        if cols:
-            w = np.stack([classifiers[ids[i]] for i in cols])
-            llr[cols] += classifier.weight * clf.scores(w, u, classifier.clip).mean(axis=0)
-    departures = [state.departures.get(k) for k in ids]
-    if params.left_weight < 1 and ids:  # who walked out seldom comes straight back
-        llr += math.log(params.left_weight) * np.array([d is not None and d.left for d in departures])
-    reach = reachable(track.stamp, track.x, track.y, track.var, departures, params)
-    return Evidence(ids, llr, reach, new_llr, state.together)
-
-
-def keeps(ev: Evidence, k: int, p_new: float, params: RecoveryParams) -> bool:
-    """During probation: whether the recovery of ``k`` still stands, its support (against "new"
-    and its rivals) at least ``params.p_undo``."""
-    post_new, post = posterior(np.where(ev.reach, ev.llr, -np.inf), p_new, ev.new_llr)
-    return support(post_new, post, ev.ids.index(k), ev.rivals(k)) >= params.p_undo

@@ -1,4 +1,4 @@
-"""A person's stature as a cue (a soft biometric of RGB-D Re-ID, after Munaro et al.): the robust
+"""A person's stature as a cue (a soft biometric of RGB-D Re-ID, Barbosa et al. 2012): the robust
 profile's tracks learn how tall their person stands, and a detection of someone taller or
 shorter weighs against the track.
 

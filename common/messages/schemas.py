@@ -529,6 +529,9 @@ class TrackState(_Model):
     orientation: list[float] = Field(default_factory=lambda: [1 / 8] * 8, min_length=8, max_length=8,
                                      description="P(upper body faces bin k), bin k centred on k * 45 degrees in the "
                                                  "tracking frame (0 along +x); uniform: unknown")
+    stature_m: float | None = Field(default=None, gt=0.0, le=3.0, allow_inf_nan=False,
+                                    description="the person's stature (m), from the depth detector's measurements of "
+                                    "them standing; None: not measured")
 
 
 @message("perception.Tracks", 1)

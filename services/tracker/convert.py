@@ -89,6 +89,7 @@ def track_state(view: TrackView, appearance: bool, epoch_ns: int = 0) -> TrackSt
         appearance_available=appearance and view.gallery_size > 0,
         **({"posture": view.posture.tolist()} if view.posture is not None else {}),
         **({"orientation": view.orientation.tolist()} if view.orientation is not None else {}),
+        stature_m=view.stature if view.stature is not None and 0.0 < view.stature <= 3.0 else None,
     )
 
 

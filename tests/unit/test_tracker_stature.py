@@ -6,9 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from common.messages.schemas import Header
 from services.tracker.config import TrackerConfig
+from services.tracker.convert import tracks_message
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
 from services.tracker.core.stature import StatureParams, log_odds, observe
+from services.tracker.core.types import FrameResult
 
 P = StatureParams()
 COLOUR = AppearanceModel(0.35, 0.85, 0.40)
@@ -133,3 +136,20 @@ def test_the_id_memory_weighs_the_remembered_stature() -> None:
     assert _return(P, 0.25, 1.62) == [1]  # the same stature: their own ID back
     assert _return(None, 0.2, 1.86) == [1]  # appearance alone: near enough, A's ID
     assert _return(P, 0.2, 1.86) == [2]  # 24 cm taller: someone new
+
+
+def test_a_tracks_stature_is_reported_and_published() -> None:
+    """The running mean of a track's measured statures is in its view and its TrackState (None
+    where none was measured, or with the cue off)."""
+    def last(stature: StatureParams | None, heights: list[float]):  # type: ignore[no-untyped-def]
+        trk = RobustTracker(RobustParams(stature=stature))
+        for k, h in enumerate(heights):
+            r = trk.update(0.1 * k, np.array([[2.0, 0.0, 1.0]]), statures=np.array([h]))
+        return trk.reported(r)
+
+    views = last(P, [1.70, 1.72, 1.74, 1.72])
+    assert len(views) == 1 and views[0].stature == pytest.approx(1.72)
+    msg = tracks_message(FrameResult(0.3, False), views, Header(stamp_ns=1, frame_id="map", seq=0, source="head"), "", 0)
+    assert msg.tracks[0].stature_m == pytest.approx(1.72)
+    assert last(P, [np.nan] * 4)[0].stature is None
+    assert last(None, [1.70, 1.72, 1.74, 1.72])[0].stature is None

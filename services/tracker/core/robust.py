@@ -169,7 +169,7 @@ class RobustTracker(TrackerCore):
         free = [d for d, c in enumerate(confident.tolist()) if c and d not in matched_d]
         born = lifecycle.births(free, matched_d, positions, p_det, p.birth_separation_m)
         lifecycle.birth(state, born, positions, descriptors, has_desc, p_det, stamp, frame.camera, self._p0,
-                        frame.statures)
+                        None if p.stature is None else frame.statures)
         self._remove(lifecycle.confirm(state, p, result))
         lifecycle.probation(state, p, stamp, result)  # recent recoveries checked again
         result.matches = len(matches)

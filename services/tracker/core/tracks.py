@@ -206,7 +206,8 @@ def row_view(t: TrackRow, stamp: float, ukf: bool, posture: bool) -> TrackView:
     mean, cov = (t.mean[:6], t.cov[:6, :6]) if ukf else (t.mean, t.cov)
     return TrackView(t.id, t.status, mean, cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp), t.last_update,
                      len(t.gallery) if t.gallery is not None else 0, t.ever_confirmed,
-                     posture=t.posture if posture else None, orientation=t.orientation if posture else None)
+                     posture=t.posture if posture else None, orientation=t.orientation if posture else None,
+                     stature=t.stature if t.stature_n else None)
 
 
 def track_view(state: RobustTrackerState, j: int, stamp: float, status: TrackStatus, in_view: bool | None,
@@ -219,7 +220,8 @@ def track_view(state: RobustTrackerState, j: int, stamp: float, status: TrackSta
     mean, cov = (t.mean[j, :6], t.cov[j, :6, :6]) if ukf else (t.mean[j], t.cov[j])
     return TrackView(t.id[j], status, mean, cov, t.total_hits[j], 0, max(0.0, stamp - t.first_stamp[j]),
                      t.last_update[j], state.bank.size(t.slot[j]), t.ever_confirmed[j], in_view,
-                     posture=t.posture[j] if posture else None, orientation=t.orientation[j] if posture else None)
+                     posture=t.posture[j] if posture else None, orientation=t.orientation[j] if posture else None,
+                     stature=float(t.stature[j]) if t.stature_n[j] else None)
 
 
 def track_views(state: RobustTrackerState, stamp: float, view_known: bool, ukf: bool, posture: bool) -> list[TrackView]:
@@ -231,8 +233,9 @@ def track_views(state: RobustTrackerState, stamp: float, view_known: bool, ukf: 
     means, covs = (t.mean[:, :6], t.cov[:, :6, :6]) if ukf else (t.mean, t.cov)
     poses = zip(t.posture, t.orientation) if posture else ((None, None) for _ in t.id)
     coasting, make, sizes = TrackStatus.COASTING, TrackView.of_fields, state.bank.n.tolist()
+    statures = [h if k else None for h, k in zip(t.stature.tolist(), t.stature_n.tolist())]
     return [make(i, s, m, c, h, 0, max(0.0, stamp - first), last, sizes[slot] if slot >= 0 else 0, ever,
-                 flag if view_known and s is coasting else None, pp, o)
-            for i, s, m, c, h, first, last, slot, ever, flag, (pp, o)
+                 flag if view_known and s is coasting else None, pp, o, body)
+            for i, s, m, c, h, first, last, slot, ever, flag, (pp, o), body
             in zip(t.id, t.status, means, covs, t.total_hits, t.first_stamp, t.last_update, t.slot, t.ever_confirmed,
-                   t.in_view, poses)]
+                   t.in_view, poses, statures)]

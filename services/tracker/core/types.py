@@ -48,6 +48,8 @@ class TrackView:
     #: P(standing, sitting, lying) (3,) and P(orientation bin) (8,); None: not estimated
     posture: np.ndarray | None = None
     orientation: np.ndarray | None = None
+    #: the person's stature (m), the running mean of their measured ones; None: not measured
+    stature: float | None = None
 
     @classmethod
     def of_fields(cls, *values: object) -> TrackView:

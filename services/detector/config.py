@@ -101,6 +101,9 @@ class DepthConfig(_Section):
                                                  "separate heads, one person each (0: off)")
     head_dip_m: float = Field(default=_DEPTH.head_dip_m, ge=0.0, le=1.0,
                               description="... if the cluster dips this much between them (a neck and shoulders)")
+    head_max_width_m: float = Field(default=_DEPTH.head_max_width_m, ge=0.0, le=2.0,
+                                    description="a standing cluster whose top, seen whole, is a flat slab wider than "
+                                                "this is furniture or a wall piece, not a head (0: off)")
     occluder_gap_m: float = Field(default=_DEPTH.occluder_gap_m, gt=0.0, le=2.0,
                                   description="how much nearer the depth just below a point must be to hide it")
     plane_window_m: float = Field(default=_GROUND.window_m, gt=0.0,

@@ -19,7 +19,7 @@ from services.detector.config import DetectorConfig, build_detector
 from services.detector.core.boxes import DetectorError
 from services.detector.core.ground import initial_plane
 from services.detector.service import DetectorService
-from tests.fixtures.detector_synthetic import Block, render_depth, scene_intrinsics
+from tests.fixtures.detector_synthetic import Block, render_depth, scene_intrinsics, with_head
 from tests.helpers.fixed_detector import FixedDetector
 from tools.simulator.messages import transform
 
@@ -119,7 +119,7 @@ def test_depth_backend_end_to_end(memory_bus: MemoryBus) -> None:
     config = DetectorConfig(backend="depth", depth={"camera_height_m": 1.2})  # type: ignore[arg-type]
     service, _, frames, out = make(memory_bus, config)
     K = scene_intrinsics(320, 240)
-    depth, rgb = render_depth([Block(1.0, 3.0, 0.5, 1.8, 0.3)], K, 320, 240, 1.2, 0.0)  # off-axis: its side shows (a box seen square-on is flat)
+    depth, rgb = render_depth(with_head(Block(1.0, 3.0, 0.5, 1.8, 0.3)), K, 320, 240, 1.2, 0.0)  # off-axis: its side shows (a box seen square-on is flat)
     header = Header(stamp_ns=9, seq=2, source="head", frame_id="camera")
     info = camera_info(320, 240)
     info.K[:] = K
@@ -189,7 +189,7 @@ def test_missing_model_fails_at_build(tmp_path) -> None:  # type: ignore[no-unty
 
 def _depth_frame(stamp_ns: int, seq: int, tilt_deg: float) -> RGBDFrame:
     K = scene_intrinsics(320, 240)
-    depth, rgb = render_depth([Block(1.0, 3.0, 0.5, 1.8, 0.3)], K, 320, 240, 1.2, tilt_deg)
+    depth, rgb = render_depth(with_head(Block(1.0, 3.0, 0.5, 1.8, 0.3)), K, 320, 240, 1.2, tilt_deg)
     header = Header(stamp_ns=stamp_ns, seq=seq, source="head", frame_id="camera")
     info = camera_info(320, 240)
     info.K[:] = K

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from services.detector.core.boxes import DetectorError, iou_matrix
 from services.detector.core.depth import DepthClusterDetector, DepthParams, cluster_points, voxel_grid
 from services.detector.core.ground import GroundParams, initial_plane, refine_plane
-from tests.fixtures.detector_synthetic import Block, render_depth, scene_intrinsics
+from services.detector.core.seated import SeatedParams
+from tests.fixtures.detector_synthetic import Block, render_depth, scene_intrinsics, with_head, with_heads
 
 W, H = 640, 480
 CAMERA_HEIGHT = 1.2
@@ -40,7 +43,7 @@ def scene(blocks: list[Block], tilt_deg: float) -> tuple[np.ndarray, np.ndarray,
 
 @pytest.mark.parametrize("tilt", [0.0, 15.0])
 def test_finds_two_people_not_the_table(tilt: float) -> None:
-    rgb, depth, K = scene([*PEOPLE, TABLE], tilt)
+    rgb, depth, K = scene([*with_heads(PEOPLE), TABLE], tilt)
     det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=tilt))
     for _ in range(2):  # the plane is carried from frame to frame
         boxes, scores = det.detect(rgb, depth, K)
@@ -59,7 +62,7 @@ def test_each_person_has_their_own_depth_even_partly_hidden_behind_another() -> 
     """``depths``: each person's depth from their own points (their front), what the localizer
     reads in a box, here for a person partly hidden behind a nearer one."""
     front, behind = Block(-0.8, 3.0, 0.5, 1.75, 0.3), Block(-0.7, 4.5, 0.5, 1.7, 0.3)
-    rgb, depth, K = scene([front, behind], 0.0)
+    rgb, depth, K = scene(with_heads([front, behind]), 0.0)
     det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT))
     for _ in range(2):
         boxes, _ = det.detect(rgb, depth, K)
@@ -73,7 +76,7 @@ def test_each_standing_persons_stature_is_their_top_and_unknown_when_the_image_c
     """``statures``: a standing person's top above the floor (the tracker's soft biometric); NaN
     where the image's upper edge cuts the head (a person close to the camera)."""
     short, tall = Block(-0.8, 3.0, 0.5, 1.62, 0.3), Block(0.6, 3.5, 0.5, 1.88, 0.3)
-    rgb, depth, K = scene([short, tall], 0.0)
+    rgb, depth, K = scene(with_heads([short, tall]), 0.0)
     det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT))
     for _ in range(2):
         boxes, _ = det.detect(rgb, depth, K)
@@ -82,7 +85,7 @@ def test_each_standing_persons_stature_is_their_top_and_unknown_when_the_image_c
     np.testing.assert_allclose([h for _, h in by_x], [short.height, tall.height], atol=0.04)
     near = Block(0.5, 1.8, 0.5, 1.95, 0.3)  # 1.8 m away, the camera tilted down 10 degrees: the image
     tilted = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=10.0))
-    rgb, depth, K = scene([near], 10.0)
+    rgb, depth, K = scene(with_head(near), 10.0)
     for _ in range(2):
         boxes, _ = tilted.detect(rgb, depth, K)
     assert len(boxes) == 1 and boxes[0, 1] <= 1.0  # ends at 1.68 m on them
@@ -93,10 +96,11 @@ def test_a_wall_end_seen_edge_on_is_flat_and_not_a_person() -> None:
     # a 2 m tall, 5 cm thick partition running away from the camera: person-tall and narrower
     # than max_width_m, but all its points lie on one vertical plane
     wall = Block(-1.0, 3.5, 0.05, 2.0, 1.0)
-    rgb, depth, K = scene([wall, PEOPLE[1]], 0.0)
+    rgb, depth, K = scene([wall, *with_head(PEOPLE[1])], 0.0)
     found = {}
-    for thickness in (0.0, DepthParams().min_thickness_m):
-        det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, min_thickness_m=thickness))
+    for thickness in (0.0, DepthParams().min_thickness_m):  # its top is a 1 m slab too: the head rule off
+        det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, min_thickness_m=thickness,
+                                               head_max_width_m=0.0))
         for _ in range(2):
             boxes, _ = det.detect(rgb, depth, K)
         found[thickness] = iou_matrix(boxes, np.array([expected_box(b, K, 0.0) for b in (wall, PEOPLE[1])]))
@@ -109,7 +113,7 @@ def test_a_person_close_enough_to_be_cut_by_the_lower_edge_is_still_a_person_a_w
     # 0.95-1.25 m away the image's lower edge is 0.63-0.77 m over the floor: Basso/Munaro's rule (a
     # cluster must come down to max_bottom_m, 0.6 m) alone would drop this person
     person, wall = Block(0.3, 1.1, 0.4, 1.75, 0.3), Block(-0.6, 1.6, 0.05, 2.0, 1.2)
-    rgb, depth, K = scene([person, wall], 0.0)
+    rgb, depth, K = scene([*with_head(person), wall], 0.0)
     det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT))
     for _ in range(2):
         boxes, _ = det.detect(rgb, depth, K)
@@ -125,7 +129,7 @@ def test_a_person_behind_a_sofa_is_seen_from_the_waist_up() -> None:
     # the sofa's back (0.9 m) hides the person below it: Basso/Munaro's rule (down to max_bottom_m)
     # drops them; the occlusion rule keeps them, and only because the sofa is in front
     person, sofa = Block(0.8, 3.6, 0.45, 1.75, 0.3), Block(0.8, 3.0, 1.2, 0.9, 0.5)  # off-axis: its side shows
-    rgb, depth, K = scene([person, sofa], 0.0)
+    rgb, depth, K = scene([*with_head(person), sofa], 0.0)
     found = {}
     for occluded in (0.0, OCCLUDED):
         det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, occluded_max_bottom_m=occluded))
@@ -145,7 +149,7 @@ def test_a_person_behind_a_sofa_they_touch_is_split_out_of_it() -> None:
     # the person leans on the sofa's back: one cluster 2 m wide, split by the parts above 1.05 m;
     # the part's lowest points are hidden by the sofa, so it need not reach the floor
     person, sofa = Block(1.0, 3.55, 0.45, 1.75, 0.3), Block(0.6, 3.2, 2.0, 0.9, 0.4)
-    rgb, depth, K = scene([person, sofa], 0.0)
+    rgb, depth, K = scene([*with_head(person), sofa], 0.0)
     assert len(DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT)).detect(rgb, depth, K)[0]) == 0  # off
     det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, occluded_max_bottom_m=OCCLUDED))
     for _ in range(2):
@@ -157,7 +161,7 @@ def test_a_person_behind_a_sofa_they_touch_is_split_out_of_it() -> None:
 def test_the_floor_from_the_transforms_replaces_a_lost_estimate() -> None:
     # a detector configured for a level camera while the head pitches 20 deg down, beyond what
     # it re-acquires: its own estimate fails, the floor given by the robot's transforms works
-    rgb, depth, K = scene([*PEOPLE, TABLE], 20.0)
+    rgb, depth, K = scene([*with_heads(PEOPLE), TABLE], 20.0)
     truth = initial_plane(CAMERA_HEIGHT, 20.0)
     det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=0.0,
                                            ground=GroundParams(acquire_max_deg=10.0)))
@@ -172,7 +176,7 @@ def test_the_floor_from_the_transforms_replaces_a_lost_estimate() -> None:
 
 
 def test_plane_converges_from_a_wrong_initial_guess() -> None:
-    rgb, depth, K = scene([*PEOPLE, TABLE], 20.0)
+    rgb, depth, K = scene([*with_heads(PEOPLE), TABLE], 20.0)
     det = DepthClusterDetector(DepthParams(camera_height_m=1.3, tilt_deg=14.0))
     for _ in range(4):
         boxes, _ = det.detect(rgb, depth, K)
@@ -184,7 +188,7 @@ def test_plane_converges_from_a_wrong_initial_guess() -> None:
 def test_floor_is_reacquired_when_the_head_tilts_beyond_tracking() -> None:
     """A pan-tilt head pitched 20 deg more than configured: one-frame refinement cannot
     reach the floor, re-acquisition around the configured plane does."""
-    rgb, depth, K = scene([*PEOPLE, TABLE], 20.0)
+    rgb, depth, K = scene([*with_heads(PEOPLE), TABLE], 20.0)
     det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=0.0))
     boxes, _ = det.detect(rgb, depth, K)
     assert det.plane.angle_to(initial_plane(CAMERA_HEIGHT, 20.0)) < np.deg2rad(0.5)
@@ -195,7 +199,7 @@ def test_a_person_beside_furniture_is_split_out_of_the_merged_cluster() -> None:
     """A person touching a chair-high block and a table makes one cluster over 1.5 m wide."""
     person = Block(0.0, 3.5, 0.5, 1.75, 0.3)
     bench = Block(0.85, 3.5, 1.2, 0.9, 0.5)  # touches the person's side
-    rgb, depth, K = scene([person, bench], 0.0)
+    rgb, depth, K = scene([*with_head(person), bench], 0.0)
     det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=0.0))
     boxes, _ = det.detect(rgb, depth, K)
     assert len(boxes) == 1
@@ -227,6 +231,28 @@ def test_two_people_side_by_side_in_one_cluster_are_split_by_their_heads() -> No
     assert iou_matrix(boxes, truth).max(axis=0).min() > 0.5, iou_matrix(boxes, truth)
 
 
+def test_a_flat_topped_box_of_a_persons_size_is_not_a_person() -> None:
+    """A cupboard 0.5 m wide and 1.8 m tall, seen off-axis (its side shows: not flat), passes every
+    other rule; its top is a slab wider than a head. The same box with a head on top is a person.
+    With its top cut by the image's upper edge nothing shows a slab, and it stays."""
+    cupboard = Block(1.0, 3.0, 0.5, 1.8, 0.4)
+    rgb, depth, K = scene([cupboard], 0.0)
+    found = {}
+    for width in (0.0, DepthParams().head_max_width_m):
+        det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, head_max_width_m=width))
+        for _ in range(2):
+            boxes, _ = det.detect(rgb, depth, K)
+        found[width] = len(boxes)
+    assert found == {0.0: 1, DepthParams().head_max_width_m: 0}
+    rgb, depth, K = scene(with_head(cupboard), 0.0)
+    assert len(DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT)).detect(rgb, depth, K)[0]) == 1
+    rgb, depth, K = scene([Block(0.5, 1.8, 0.5, 1.95, 0.3)], 10.0)  # the image ends at 1.68 m on it
+    tilted = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=10.0))
+    for _ in range(2):
+        boxes, _ = tilted.detect(rgb, depth, K)
+    assert len(boxes) == 1
+
+
 def test_a_flat_topped_wall_end_is_not_split_into_heads() -> None:
     """A partition's top has points far apart at the same height but no dip between them:
     one cluster, no heads, and (being flat) no person; a person beside it is still found."""
@@ -250,15 +276,17 @@ def test_a_flat_topped_wall_end_is_not_split_into_heads() -> None:
 
 
 def test_sitting_people_need_a_lower_height_range() -> None:
-    rgb, depth, K = scene([PEOPLE[0], SITTING], 10.0)
-    default = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=10.0))
-    assert len(default.detect(rgb, depth, K)[0]) == 1
-    relaxed = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=10.0, min_height_m=1.0))
+    rgb, depth, K = scene(with_heads([PEOPLE[0], SITTING]), 10.0)
+    standing_only = DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=10.0, seated=SeatedParams(enabled=False))
+    assert len(DepthClusterDetector(standing_only).detect(rgb, depth, K)[0]) == 1  # Basso/Munaro's height rule
+    relaxed = DepthClusterDetector(replace(standing_only, min_height_m=1.0))
     assert len(relaxed.detect(rgb, depth, K)[0]) == 2
+    default = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, tilt_deg=10.0))
+    assert len(default.detect(rgb, depth, K)[0]) == 2 and sorted(default.postures) == ["sitting", "standing"]
 
 
 def test_hog_confirmation_rejects_shapes_that_are_not_people() -> None:
-    rgb, depth, K = scene(PEOPLE, 0.0)  # flat grey boxes: person-sized, but HOG sees no person
+    rgb, depth, K = scene(with_heads(PEOPLE), 0.0)  # flat grey boxes: person-sized, but HOG sees no person
     det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, hog_confirm=True, hog_min_score=0.5))
     assert len(det.detect(rgb, depth, K)[0]) == 0
     lenient = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT, hog_confirm=True, hog_min_score=0.0))
@@ -267,7 +295,7 @@ def test_hog_confirmation_rejects_shapes_that_are_not_people() -> None:
 
 
 def test_invalid_depth_and_empty_scene() -> None:
-    rgb, depth, K = scene(PEOPLE, 0.0)
+    rgb, depth, K = scene(with_heads(PEOPLE), 0.0)
     det = DepthClusterDetector(DepthParams(camera_height_m=CAMERA_HEIGHT))
     nan = np.full_like(depth, np.nan)
     boxes, scores = det.detect(rgb, nan, K)
@@ -278,7 +306,7 @@ def test_invalid_depth_and_empty_scene() -> None:
 
 
 def test_depth_backend_needs_depth_and_intrinsics() -> None:
-    rgb, depth, K = scene(PEOPLE, 0.0)
+    rgb, depth, K = scene(with_heads(PEOPLE), 0.0)
     det = DepthClusterDetector()
     with pytest.raises(DetectorError, match="depth image"):
         det.detect(rgb, None, K)

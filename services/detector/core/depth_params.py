@@ -56,6 +56,11 @@ class DepthParams:
     head_separation_m: float = 0.4
     #: ... and between two heads the cluster must dip this much (m) below the lower one.
     head_dip_m: float = 0.15
+    #: A standing person's top is a head: where nothing hides it from above, the cluster's points
+    #: within ``seated.head_depth_m`` of its top (and ``head_separation_m`` of the highest
+    #: point on the floor) span at most this (m). The flat top of a cupboard, a door or a wall
+    #: piece is wider. 0: off.
+    head_max_width_m: float = 0.35
     #: A floor from the robot's transforms (``detect(floor=...)``) is refined on the depth only
     #: this far (deg, m); a refinement that strays further is dropped for the given floor.
     floor_max_deg: float = 3.0

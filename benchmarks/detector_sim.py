@@ -23,6 +23,7 @@ every frame's boxes and scores compared.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import importlib
 import subprocess
@@ -184,8 +185,9 @@ def _depth_detector(core: str = "services.detector.core") -> tuple[Any, Any]:
     ground = importlib.import_module(f"{core}.ground")
     from services.detector.config import DepthConfig
 
+    known = {f.name for f in dataclasses.fields(depth.DepthParams)}  # an older core lacks the newer settings
     params = depth.DepthParams(**{k: (ground.GroundParams(**vars(v)) if k == "ground" else v)
-                                  for k, v in vars(DepthConfig().params()).items()})
+                                  for k, v in vars(DepthConfig().params()).items() if k in known})
     return depth.DepthClusterDetector(params), ground
 
 

@@ -10,6 +10,7 @@ from services.tracker.config import TrackerConfig
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker, ScoreModel
 from services.tracker.core.tracker import Tracker, TrackStatus
 from services.tracker.core.view import FieldOfView
+from tests.helpers.views import camera_looking_along_x, turned_round
 
 DIM = 8
 RNG = np.random.default_rng(5)
@@ -219,15 +220,8 @@ def test_motion_must_be_known() -> None:
         TrackerConfig.model_validate({"robust": {"motion": "ctrv"}})
 
 
-def _camera_looking_along_x() -> FieldOfView:
-    """A 640x480 camera at the origin looking along +x (camera z = x, camera x = -y, camera y = -z)."""
-    m = np.eye(4)
-    m[:3, :3] = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-    return FieldOfView(m, np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]), 640, 480, 8.0)
-
-
 def test_field_of_view_contains_what_projects_inside_the_image_and_range() -> None:
-    fov = _camera_looking_along_x()
+    fov = camera_looking_along_x()
     pts = np.array([[3.0, 0.0, 0.0], [3.0, 2.5, 0.0], [-3.0, 0.0, 0.0], [9.0, 0.0, 0.0], [3.0, 1.5, 0.0]])
     assert fov.contains(pts).tolist() == [True, False, False, False, True]
     # 1.5 m left at 3 m projects at u = 70 px: inside the image, not inside a 15 % border
@@ -235,7 +229,7 @@ def test_field_of_view_contains_what_projects_inside_the_image_and_range() -> No
 
 
 def test_a_coasting_person_out_of_view_is_kept_but_not_reported() -> None:
-    fov = _camera_looking_along_x()
+    fov = camera_looking_along_x()
     trk = RobustTracker(RobustParams(report_coast_s=0.5))
     walk(trk, {0: (3.0, 0.0), 1: (3.0, 1.0)}, 0.0, 1.0, 10.0, descriptors=False)
     # both are missed; the robot turned so that person 1 is now out of view
@@ -255,7 +249,7 @@ def test_a_coasting_person_out_of_view_is_kept_but_not_reported() -> None:
 def _two_views() -> tuple[FieldOfView, FieldOfView]:
     """A front camera looking along +x and a back camera looking along -x, both at the origin:
     the strip |x| < ~1 m beside the robot (wider than either view near the origin) is blind."""
-    front = _camera_looking_along_x()
+    front = camera_looking_along_x()
     back = front.camera_to_frame.copy()
     back[:3, :3] = np.diag([-1.0, -1.0, 1.0]) @ back[:3, :3]  # turned 180 degrees about z
     return front, FieldOfView(back, front.K, 640, 480, 8.0)
@@ -289,9 +283,8 @@ def test_a_person_walking_from_one_camera_into_the_other_keeps_their_id_with_the
 
 
 def test_out_of_view_time_does_not_count_towards_max_coast_and_the_same_camera_does_not_hand_over() -> None:
-    fov = _camera_looking_along_x()
-    away = FieldOfView(fov.camera_to_frame @ np.array([[-1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1.0, 0], [0, 0, 0, 1]]),
-                       fov.K, 640, 480, 8.0)  # the camera turned round: the person is behind it
+    fov = camera_looking_along_x()
+    away = turned_round(fov)  # the camera turned round: the person is behind it
     params = RobustParams(max_coast_unseen_s=6.0, max_position_var_unseen=100.0, handover_gate_sq=13.8)
     trk = RobustTracker(params)
     for k in range(10):

@@ -11,7 +11,8 @@ from services.tracker.config import TrackerConfig
 from services.tracker.convert import tracks_message
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
 from services.tracker.core.stature import StatureParams, log_odds, observe
-from services.tracker.core.types import FrameResult
+from services.tracker.core.types import FrameResult, TrackStatus
+from tests.helpers.views import camera_looking_along_x, turned_round
 
 P = StatureParams()
 COLOUR = AppearanceModel(0.35, 0.85, 0.40)
@@ -153,3 +154,21 @@ def test_a_tracks_stature_is_reported_and_published() -> None:
     assert msg.tracks[0].stature_m == pytest.approx(1.72)
     assert last(P, [np.nan] * 4)[0].stature is None
     assert last(None, [1.70, 1.72, 1.74, 1.72])[0].stature is None
+
+
+def test_a_hand_over_between_cameras_takes_the_old_tracks_stature_too() -> None:
+    """A person seen by the head camera for 1 s (1.76 m), then out of its view for 3 s, confirmed
+    by the back camera: the track that takes their ID takes their stature's measurements too."""
+    fov = camera_looking_along_x()
+    away = turned_round(fov)
+    trk = RobustTracker(RobustParams(max_coast_unseen_s=6.0, max_position_var_unseen=100.0, handover_gate_sq=13.8))
+    for k in range(10):
+        trk.update(k * 0.1, np.array([[3.0, 0.0, 1.0]]), view=fov, camera="head", statures=np.array([1.76]))
+    for k in range(10, 40):
+        trk.update(k * 0.1, np.zeros((0, 3)), view=away, camera="head", statures=np.zeros(0))
+    for k in range(40, 45):
+        r = trk.update(k * 0.1, np.array([[3.0, 0.3, 1.0]]), view=away, camera="back", statures=np.array([1.78]))
+    [view] = [v for v in r.tracks if v.status is TrackStatus.CONFIRMED]
+    assert view.id == 1  # handed over
+    assert view.stature == pytest.approx((10 * 1.76 + 5 * 1.78) / 15)
+    assert [t.stature_n for t in trk.tracks] == [15]

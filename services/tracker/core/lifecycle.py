@@ -199,8 +199,8 @@ def confirm(state: RobustTrackerState, p: RobustParams, result: FrameResult) -> 
 def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float | None) -> tuple[int, float] | None:
     """Hand-over by motion: the track coasting out of view, last seen by another camera than the
     one track ``j`` was born in, whose prediction the newly confirmed ``j`` is nearest (squared
-    Mahalanobis distance on (x, y) within ``gate``), which ``j`` replaces (it takes its gallery
-    and classifier too; ``removed`` gets it): (its row, that distance), None when there is none.
+    Mahalanobis distance on (x, y) within ``gate``), which ``j`` replaces (it takes its gallery,
+    classifier and stature too; ``removed`` gets it): (its row, that distance), None when there is none.
     A person leaving one camera's view and coming back into it is left to appearance."""
     if gate is None:
         return None
@@ -225,6 +225,10 @@ def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float |
                 bank.add(t.slot[j], desc)
     if t.clf_steps[best] and t.clf_steps[j] == 0 and t.clf is not None:
         t.clf[j], t.clf_steps[j] = t.clf[best], t.clf_steps[best]
+    n_old, n_new = int(t.stature_n[best]), int(t.stature_n[j])
+    if n_old:  # the stature too: the measurements of both, weighed by their counts
+        t.stature[j] = (t.stature[best] * n_old + t.stature[j] * n_new) / (n_old + n_new)
+        t.stature_n[j] = n_old + n_new
     removed.add(best)
     return best, best_d2
 

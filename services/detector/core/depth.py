@@ -22,7 +22,8 @@ from services.detector.core.cloud import backproject, cluster_points, voxel_grid
 from services.detector.core.depth_params import DepthParams
 from services.detector.core.ground import Plane, acquire_plane, initial_plane, refine_plane
 from services.detector.core.hog import HogDetector
-from services.detector.core.seated import find_seated, floor_coordinates
+from services.detector.core import head
+from services.detector.core.seated import find_seated
 
 __all__ = ["DEPTH_PERCENTILE", "DepthClusterDetector", "DepthParams", "backproject", "cluster_points", "voxel_grid"]
 
@@ -31,11 +32,6 @@ log = logging.getLogger(__name__)
 #: The percentile of a person's point depths reported as their depth: the localizer's default
 #: for a box (services/localizer: the person's front, not the wall behind them).
 DEPTH_PERCENTILE = 25.0
-#: Half a head's width (m): where :meth:`DepthClusterDetector._clear` looks beside the top.
-HEAD_HALF_WIDTH_M = 0.12
-#: A flat top (:meth:`DepthClusterDetector._flat_topped`): along its span, at least this share of
-#: bins this wide (m) reach within this much (m) of the top.
-FLAT_BIN_M, FLAT_TOP_M, FLAT_SHARE = 0.05, 0.05, 0.8
 
 
 def _extent(points: np.ndarray) -> float:
@@ -134,7 +130,8 @@ class DepthClusterDetector:
         boxes, scores, heights, postures, depths, statures = [], [], [], [], [], []
         for member, posture, to_floor in self._postured(points, height, cut_low, hidden, count, labels, K, depth):
             top = float(height[member].max())
-            if posture == "standing" and self._flat_topped(points[member], height[member], top, K, depth):
+            if posture == "standing" and head.flat_topped(points[member], height[member], top, self.plane.normal, K,
+                                                          depth, p):
                 continue  # no head on top: furniture or a wall piece
             cluster = points[member]
             own_depth = float(np.percentile(cluster[:, 2], DEPTH_PERCENTILE))
@@ -148,8 +145,8 @@ class DepthClusterDetector:
             postures.append(posture)
             depths.append(own_depth)
             # a standing person's top is their stature where it is the top of their head
-            statures.append(top if posture == "standing" and self._clear(self._crown(points[member], height[member], top),
-                                                                          K, depth, sides=True) else np.nan)
+            statures.append(top if posture == "standing" and head.top_seen(points[member], height[member], top, K, depth,
+                                                                            p, sides=True) else np.nan)
             low, high = (p.min_height_m, p.max_height_m) if posture == "standing" else \
                 (p.seated.min_height_m, p.seated.max_height_m)
             scores.append(1.0 - 0.5 * min(abs(top - (low + high) / 2) / ((high - low) / 2), 1.0))
@@ -194,62 +191,6 @@ class DepthClusterDetector:
         with np.errstate(invalid="ignore"):
             hidden = below < z - p.occluder_gap_m  # NaN (no depth, outside) compares False
         return hidden
-
-    def _crown(self, points: np.ndarray, height: np.ndarray, top: float) -> np.ndarray:
-        """The points of a person's ``points`` within a voxel of their ``top`` (their head's top)."""
-        return points[height >= top - self.params.voxel_m]
-
-    def _clear(self, crown: np.ndarray, K: np.ndarray, depth: np.ndarray, sides: bool) -> bool:
-        """Whether the image goes on above ``crown`` (a voxel and two sampling steps up, and a
-        voxel more) and, with ``sides``, a head's half-width to either side, and nothing there is
-        nearer by ``occluder_gap_m``. The image's edges, a shelf or a person in front would hide
-        the head (a person cut by the image's side shows a shoulder), and the top would be lower."""
-        p = self.params
-        if len(crown) == 0:
-            return False
-        z = np.maximum(crown[:, 2], 1e-3)
-        u0 = K[0, 0] * crown[:, 0] / z + K[0, 2]
-        v0 = K[1, 1] * crown[:, 1] / z + K[1, 2] - K[1, 1] * p.voxel_m / z - 2 * p.pixel_step
-        up = K[1, 1] * p.voxel_m / z
-        if sides:
-            side = K[0, 0] * HEAD_HALF_WIDTH_M / z
-            u, v, zz = np.concatenate([u0, u0 - side, u0 + side, u0]), np.concatenate([v0, v0, v0, v0 - up]), np.tile(z, 4)
-        else:
-            u, v, zz = np.concatenate([u0, u0]), np.concatenate([v0, v0 - up]), np.tile(z, 2)
-        u, v = np.rint(u).astype(np.int64), np.rint(v).astype(np.int64)
-        rows, cols = depth.shape
-        if v.min() < 0 or u.min() < 0 or u.max() >= cols or v.max() >= rows:
-            return False  # the image ends beside or above the head: it may lie beyond
-        with np.errstate(invalid="ignore"):  # NaN (no depth) is no occluder
-            return not bool(np.any(depth[v, u] < zz - p.occluder_gap_m))
-
-    def _flat_topped(self, points: np.ndarray, height: np.ndarray, top: float, K: np.ndarray,
-                     depth: np.ndarray) -> bool:
-        """Whether a standing cluster's top, seen whole from above, is a flat slab wider than a
-        head (``head_max_width_m``): a cupboard, a door or a piece of wall, not a person. Its
-        points within ``seated.head_depth_m`` of the top (and ``head_separation_m`` of the
-        highest point on the floor) span more than a head, and along that span nearly every
-        ``FLAT_BIN_M`` reaches within ``FLAT_TOP_M`` of the top. Two heads close together also
-        span more than a head, but the top dips between them."""
-        p = self.params
-        if p.head_max_width_m <= 0:
-            return False
-        uv = floor_coordinates(points, self.plane.normal)
-        peak = int(np.argmax(height))
-        near = (height >= top - p.seated.head_depth_m) & (np.hypot(*(uv - uv[peak]).T) < p.head_separation_m)
-        if near.sum() < 2:
-            return False
-        centred = uv[near] - uv[near].mean(axis=0)
-        _, vectors = np.linalg.eigh(centred.T @ centred)
-        along = centred @ vectors[:, -1]
-        if float(np.ptp(along)) <= p.head_max_width_m:
-            return False
-        bins = np.floor((along - along.min()) / FLAT_BIN_M).astype(np.int64)
-        profile = np.full(int(bins.max()) + 1, -np.inf)
-        np.maximum.at(profile, bins, height[near])
-        if np.mean(profile >= top - FLAT_TOP_M) < FLAT_SHARE:
-            return False  # the top dips: heads, not a slab
-        return self._clear(self._crown(points, height, top), K, depth, sides=False)
 
     def _is_person(self, member: np.ndarray, points: np.ndarray, height: np.ndarray, cut_low: np.ndarray | None,
                    hidden: np.ndarray) -> bool:

@@ -172,3 +172,9 @@ def test_a_hand_over_between_cameras_takes_the_old_tracks_stature_too() -> None:
     assert view.id == 1  # handed over
     assert view.stature == pytest.approx((10 * 1.76 + 5 * 1.78) / 15)
     assert [t.stature_n for t in trk.tracks] == [15]
+
+
+def test_statures_of_the_wrong_length_are_refused_with_a_clear_error() -> None:
+    trk = RobustTracker(RobustParams())
+    with pytest.raises(ValueError, match="one value per detection"):
+        trk.update(0.0, np.array([[2.0, 0.0, 1.0], [3.0, 0.0, 1.0]]), statures=np.array([1.7]))

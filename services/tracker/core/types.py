@@ -343,7 +343,11 @@ class FrameInput(NamedTuple):
         if postures is not None:
             postures = np.asarray(postures, np.int8).reshape(n)
         if statures is not None:
-            statures = np.asarray(statures, np.float64).reshape(n)
+            statures = np.asarray(statures, np.float64)
+            if statures.size != n:
+                raise ValueError(f"statures must hold one value per detection (N = {n}, NaN: not measured), "
+                                 f"got shape {statures.shape}")
+            statures = statures.reshape(n)
         return cls(positions, descriptors, measurement_cov, None, scores, view, aspects, orientations, score_model,
                    camera, postures, statures)
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from typing import Any
 
 import cv2
@@ -93,15 +94,12 @@ class DetectorService(Node):
         postures = list(self.detector.postures)
         return postures if len(postures) == n else [None] * n  # type: ignore[return-value]
 
-    def _depths(self, n: int) -> list[float | None]:
-        """Each of the ``n`` last detections' own depth (m), None where the backend did not measure it."""
-        depths = [float(d) for d in self.detector.depths]
-        return [d if np.isfinite(d) and d > 0 else None for d in depths] if len(depths) == n else [None] * n
-
-    def _statures(self, n: int) -> list[float | None]:
-        """Each of the ``n`` last detections' stature (m), None where the backend did not measure it."""
-        statures = [float(h) for h in self.detector.statures]
-        return [h if np.isfinite(h) and h > 0 else None for h in statures] if len(statures) == n else [None] * n
+    @staticmethod
+    def _measured(values: Sequence[float], n: int) -> list[float | None]:
+        """One of the backend's measures of its ``n`` last detections (their own depth, their
+        stature; m), None where it did not measure it (NaN, or no values from this backend)."""
+        out = [float(v) for v in values]
+        return [v if np.isfinite(v) and v > 0 else None for v in out] if len(out) == n else [None] * n
 
     def _floor_agreement(self, floor: Plane | None) -> None:
         """Count frames whose depth shows no floor where the transforms put it, with the camera's
@@ -175,8 +173,9 @@ class DetectorService(Node):
             detections=[Detection(index=i, bbox_xyxy=tuple(float(v) for v in b), score=float(s), posture=posture,
                                   depth_m=z, stature_m=h)
                         for i, (b, s, posture, z, h) in enumerate(zip(boxes, scores, self._postures(len(boxes)),
-                                                                      self._depths(len(boxes)),
-                                                                      self._statures(len(boxes))))],
+                                                                      self._measured(self.detector.depths, len(boxes)),
+                                                                      self._measured(self.detector.statures,
+                                                                                     len(boxes))))],
             image_width=int(rgb.shape[1]),
             image_height=int(rgb.shape[0]),
             detector=self.detector.name,

@@ -77,37 +77,9 @@ def test_config_section_builds_the_params_and_checks_the_window() -> None:
         TrackerConfig.model_validate({"robust": {"stature": {"window": 2, "min_samples": 3}}})
 
 
-def _newcomer(stature: StatureParams | None) -> list[list[int]]:
-    """Person A (1.62 m) stands at (2, 0) for 3 s; then B (1.86 m), dressed much like A, stands
-    0.2 m from there: the IDs reported in B's first second."""
-    rng = np.random.default_rng(0)
-    a = rng.normal(size=8)
-    a /= np.linalg.norm(a)
-    b = a + 0.4 * rng.normal(size=8)  # as near as appearance alone lets pass: about 1.0 apart
-    b /= np.linalg.norm(b)
-    trk = RobustTracker(RobustParams(appearance=COLOUR, stature=stature))
-    t = 0.0
-    for _ in range(30):
-        trk.update(t, np.array([[2.0, 0.0, 1.0]]), a[None].astype(np.float32), None, np.array([0.9]),
-                   statures=np.array([1.62]))
-        t += 0.1
-    seen = []
-    for _ in range(10):
-        r = trk.update(t, np.array([[2.2, 0.0, 1.0]]), b[None].astype(np.float32), None, np.array([0.9]),
-                       statures=np.array([1.86]))
-        seen.append([v.id for v in trk.reported(r)])
-        t += 0.1
-    return seen
-
-
-def test_a_taller_newcomer_in_a_look_alikes_place_gets_a_new_id() -> None:
-    assert _newcomer(None)[-1] == [1]  # position and a look this near: B continues A's track
-    assert _newcomer(P)[-1] == [2]  # their statures tell them apart: a new ID
-
-
-def _return(stature: StatureParams | None, mix: float, height: float) -> list[int]:
-    """Person A (1.62 m) stands at (2, 0) for 3 s and is gone for 3 s; then someone ``height`` tall,
-    whose look is A's moved by ``mix``, stands 0.5 m from there: the IDs reported after 1 s."""
+def _a_then_b(stature: StatureParams | None, mix: float, height: float, gone_s: float, x: float) -> list[int]:
+    """Person A (1.62 m) stands at (2, 0) for 3 s and is gone for ``gone_s``; then someone ``height``
+    tall, whose look is A's moved by ``mix``, stands at (``x``, 0): the IDs reported after 1 s."""
     rng = np.random.default_rng(0)
     a = rng.normal(size=8)
     a /= np.linalg.norm(a)
@@ -119,24 +91,31 @@ def _return(stature: StatureParams | None, mix: float, height: float) -> list[in
         trk.update(t, np.array([[2.0, 0.0, 1.0]]), a[None].astype(np.float32), None, np.array([0.9]),
                    statures=np.array([1.62]))
         t += 0.1
-    for _ in range(30):
+    for _ in range(round(gone_s * 10)):
         trk.update(t, np.zeros((0, 3)), np.zeros((0, 8), np.float32), None, np.zeros(0), statures=np.zeros(0))
         t += 0.1
     for _ in range(10):
-        r = trk.update(t, np.array([[2.5, 0.0, 1.0]]), b[None].astype(np.float32), None, np.array([0.9]),
+        r = trk.update(t, np.array([[x, 0.0, 1.0]]), b[None].astype(np.float32), None, np.array([0.9]),
                        statures=np.array([height]))
         t += 0.1
     return [v.id for v in trk.reported(r)]
+
+
+def test_a_taller_newcomer_in_a_look_alikes_place_gets_a_new_id() -> None:
+    """B (1.86 m), dressed much like A (about 1.0 apart: as near as appearance alone lets pass),
+    steps 0.2 m from where A stands."""
+    assert _a_then_b(None, 0.4, 1.86, 0.0, 2.2) == [1]  # position and a look this near: B continues A's track
+    assert _a_then_b(P, 0.4, 1.86, 0.0, 2.2) == [2]  # their statures tell them apart: a new ID
 
 
 def test_the_id_memory_weighs_the_remembered_stature() -> None:
     """A returning person's stature is remembered with their departure: it gives back the ID of
     someone whose look changed a little (other clothes, other light) and keeps it from a taller
     stranger who looks as near."""
-    assert _return(None, 0.25, 1.62) == [2]  # appearance alone: too far, a new ID
-    assert _return(P, 0.25, 1.62) == [1]  # the same stature: their own ID back
-    assert _return(None, 0.2, 1.86) == [1]  # appearance alone: near enough, A's ID
-    assert _return(P, 0.2, 1.86) == [2]  # 24 cm taller: someone new
+    assert _a_then_b(None, 0.25, 1.62, 3.0, 2.5) == [2]  # appearance alone: too far, a new ID
+    assert _a_then_b(P, 0.25, 1.62, 3.0, 2.5) == [1]  # the same stature: their own ID back
+    assert _a_then_b(None, 0.2, 1.86, 3.0, 2.5) == [1]  # appearance alone: near enough, A's ID
+    assert _a_then_b(P, 0.2, 1.86, 3.0, 2.5) == [2]  # 24 cm taller: someone new
 
 
 def test_a_tracks_stature_is_reported_and_published() -> None:

@@ -15,8 +15,8 @@ their track.
 * The log-odds that detection d is track t: the measurement under the track's stature
   (``N(h; est, noise^2 (1 + 1 / n))``) against a stranger's, drawn from the population
   (``N(h; population_mean_m, population_sd_m^2 + noise^2)``), clipped to ``clip``, times
-  ``weight``. Each side
-  is mixed with the measurements that are not the stature, the same for both: a share
+  ``weight``. Each side is mixed with the measurements that are not the stature, the same for
+  both: a share
   ``outlier_low`` up to ``low_range_m`` lower (a tall person sitting on a high seat still
   passes as standing, a head bent or hidden) and ``outlier_high`` up to ``high_range_m``
   higher (a raised arm, a hat), uniform there (for a stranger, a population's sd farther
@@ -68,7 +68,7 @@ class StatureParams:
                 and self.high_range_m > 0 and self.outlier_low > 0 and self.outlier_high > 0
                 and self.outlier_low + self.outlier_high < 1 and self.min_samples >= 1
                 and self.window >= self.min_samples and self.clip > 0 and self.weight >= 0):
-            raise ValueError("need noise_m, population_sd_m, gate_m, low_range_m, high_range_m > 0, outlier_low, "
+            raise ValueError("need noise_m, population_sd_m, gate_m, low_range_m, high_range_m, clip > 0, outlier_low, "
                              "outlier_high > 0 with a sum below 1, 1 <= min_samples <= window and weight >= 0")
 
 
@@ -97,9 +97,9 @@ def log_odds(heights: np.ndarray, est: np.ndarray, n: np.ndarray, p: StaturePara
     tracks' estimates ``est`` (T,) from ``n`` (T,) measurements; None where no pair has both."""
     known = np.isfinite(heights)
     learnt = n >= p.min_samples
-    every_known, every_learnt = bool(known.all()), bool(learnt.all())
-    if not (every_known or known.any()) or not (every_learnt or learnt.any()):
+    if not known.any() or not learnt.any():
         return None
+    every_known, every_learnt = bool(known.all()), bool(learnt.all())
     inlier, low, high, pop_var, pop_norm = _constants(p)
     h = heights if every_known else np.where(known, heights, p.population_mean_m)
     var = p.noise_m ** 2 * (1.0 + 1.0 / np.maximum(n, 1))  # (T,): the measurement's and the estimate's

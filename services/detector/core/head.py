@@ -59,9 +59,10 @@ def flat_topped(points: np.ndarray, height: np.ndarray, top: float, normal: np.n
     together also span more than a head, but the top dips between them."""
     if p.head_max_width_m <= 0:
         return False
-    uv = floor_coordinates(points, normal)
-    peak = int(np.argmax(height))
-    near = (height >= top - p.seated.head_depth_m) & (np.hypot(*(uv - uv[peak]).T) < p.head_separation_m)
+    upper = height >= top - p.seated.head_depth_m  # only the top's points: the floor coordinates of a few
+    uv, up_height = floor_coordinates(points[upper], normal), height[upper]
+    peak = int(np.argmax(up_height))
+    near = np.hypot(*(uv - uv[peak]).T) < p.head_separation_m
     if near.sum() < 2:
         return False
     centred = uv[near] - uv[near].mean(axis=0)
@@ -71,7 +72,7 @@ def flat_topped(points: np.ndarray, height: np.ndarray, top: float, normal: np.n
         return False
     bins = np.floor((along - along.min()) / FLAT_BIN_M).astype(np.int64)
     profile = np.full(int(bins.max()) + 1, -np.inf)
-    np.maximum.at(profile, bins, height[near])
+    np.maximum.at(profile, bins, up_height[near])
     if np.mean(profile >= top - FLAT_TOP_M) < FLAT_SHARE:
         return False  # the top dips: heads, not a slab
     return top_seen(points, height, top, K, depth, p, sides=False)

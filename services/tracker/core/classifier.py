@@ -52,6 +52,8 @@ def normalise(x: np.ndarray) -> np.ndarray:
     """Rows of ``x`` scaled to unit length (zero rows stay zero): (N, D) float64."""
     x = np.asarray(x, np.float64)
     norm = np.sqrt(np.add.reduce(x * x, axis=1, keepdims=True))  # np.linalg.norm's sum, without its checks
+    if norm.all():  # the usual case: no zero row
+        return x / norm
     return np.divide(x, norm, out=np.zeros_like(x), where=norm > 0)
 
 

@@ -136,8 +136,8 @@ class RobustTracker(TrackerCore):
         if state.last_stamp is not None and stamp < state.last_stamp:
             raise ValueError(f"stamp {stamp} is older than the last update {state.last_stamp}; apply frames in order")
         appearance = descriptors is not None and p.appearance is not None and descriptors.shape[1] > 0
-        has_desc = np.all(np.isfinite(descriptors), axis=1) if appearance else np.zeros(n, bool)  # type: ignore[arg-type]
-        any_desc = bool(has_desc.any())
+        has_desc = np.isfinite(descriptors).all(axis=1) if appearance else np.zeros(n, bool)  # type: ignore[union-attr]
+        any_desc = appearance and bool(has_desc.any())
         if any_desc:
             state.bank.check_dim(descriptors.shape[1])  # type: ignore[union-attr]
         scores = np.zeros(n) if frame.scores is None else frame.scores

@@ -120,6 +120,7 @@ from tools.evaluation.identity import DEFAULT_GAP, DEFAULT_MIN_FRAMES, Identity,
 from tools.evaluation.why import false_by_decision, reasons  # noqa: E402
 from tools.evaluation.metrics import ClearMot  # noqa: E402
 from tools.evaluation.readers import TrackTable  # noqa: E402
+from tools.simulator.static_map import write_apartment_map  # noqa: E402
 
 SHARED = Path(os.environ.get("PERCEPTION_SHARED_DATA", ROOT.parent / "shared" / "data"))
 DEFAULT_CACHE = ROOT / "benchmarks" / ".cache"
@@ -205,6 +206,20 @@ def pets_site_adapter(root: Path) -> TrackerAdapter:
         return track_config(dets, config, "colour" if dets.descriptors is not None else None, view=view)
 
     return TrackerAdapter("robust, floor view, open place", run, uses_appearance=True, config=config)
+
+
+#: The simulator's robot as its site would configure it: its map of the apartment (the laser's).
+SIM_MAP_LABEL = "robust, the robot's static map"
+
+
+def sim_map_adapter(cache_dir: Path) -> TrackerAdapter:
+    """The robust profile given the simulated apartment's static map (``perception simulate
+    --write-map``, written into ``cache_dir``): no track is born on a wall or a door jamb."""
+    path = cache_dir / "apartment_map.yaml"
+    write_apartment_map(path)
+    config = TrackerConfig.model_validate({"profile": "robust", "memory_path": None,
+                                           "robust": {"static_map": {"path": str(path)}}})
+    return project_adapter(SIM_MAP_LABEL, config)
 
 
 def _positions_only(dets: Detections) -> Detections:
@@ -869,7 +884,9 @@ def main(argv: list[str] | None = None) -> int:
         seconds = args.sim_seconds or (SIM_QUICK_SECONDS if args.quick else quality_sim.SIM_SECONDS)
         scenarios = args.scenarios or quality_sim.scenario_names()
         t0 = time.perf_counter()
-        title, scores, check = run_sim(scenarios, seconds, args.cache_dir, trackers, args.refresh_sim)
+        args.cache_dir.mkdir(parents=True, exist_ok=True)
+        title, scores, check = run_sim(scenarios, seconds, args.cache_dir, trackers + [sim_map_adapter(args.cache_dir)],
+                                       args.refresh_sim)
         tables[title] = scores
         print(format_sequences(title, scores) + "\n")
         print(format_false_causes(scores) + "\n")

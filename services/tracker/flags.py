@@ -27,6 +27,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--no-embeddings", action="append", default=None, metavar="STREAM",
                    help="a stream no embedder reads (a second detector's, e.g. head-hog): tracked by position at "
                         "once; repeat for several (use with --camera '*')")
+    g.add_argument("--static-map", type=Path, default=None, metavar="MAP.yaml",
+                   help="robust: the robot's static map (a ROS map_server / Nav2 map_saver YAML file, in the tracking "
+                        "frame): no track is born on its walls and furniture (a door jamb seen as a person)")
     g.add_argument("--memory", type=Path, default=None, metavar="FILE", help="ID memory file")
     g.add_argument("--no-memory", action="store_true", help="do not load or save an ID memory")
     add_node_arguments(parser, "tracker")
@@ -34,7 +37,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def overrides(args: argparse.Namespace) -> dict[str, Any]:
     return {"camera": args.camera, "profile": args.profile, "embedding_model": args.embedding_model,
-            "thesis": {"time_step": args.time_step}, "memory_path": args.memory, "output_rate_hz": args.output_rate,
+            "thesis": {"time_step": args.time_step}, "robust": {"static_map": {"path": args.static_map}},
+            "memory_path": args.memory, "output_rate_hz": args.output_rate,
             "no_embeddings": args.no_embeddings}
 
 

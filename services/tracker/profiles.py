@@ -6,9 +6,14 @@ tests/unit/test_config_defaults.py checks they agree), and each building its cor
 from __future__ import annotations
 
 import dataclasses
+from functools import lru_cache
+from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
+
+from common.geometry.map_file import MapFileError, read_map
+from common.geometry.occupancy import ObstacleMap
 
 from services.tracker.core import (
     AppearanceGate,
@@ -26,7 +31,8 @@ from services.tracker.core.posture import PostureParams
 from services.tracker.core.recovery import RecoveryParams
 from services.tracker.core.stature import StatureParams
 
-__all__ = ["ClassifierConfig", "PostureConfig", "RobustConfig", "ScoreConfig", "StatureConfig", "ThesisConfig"]
+__all__ = ["ClassifierConfig", "PostureConfig", "RobustConfig", "ScoreConfig", "StaticMapConfig", "StatureConfig",
+           "ThesisConfig"]
 
 _D = TrackerParams()
 _R = RobustParams()
@@ -105,6 +111,49 @@ class StatureConfig(BaseModel):
 
 
 _PO = PostureParams()
+
+
+@lru_cache(maxsize=4)
+def _obstacles(path: Path, mtime_ns: int, size: int, min_extent_m: float) -> ObstacleMap:
+    """A map file's obstacles, read once per version of the file (the distance transform of a
+    large map takes a moment)."""
+    return read_map(path).obstacles(min_extent_m)
+
+
+class StaticMapConfig(BaseModel):
+    """The robot's static map, its laser's walls and furniture (services/tracker/README.md, *A static
+    map*): no track is born on an obstacle. Read when the settings are loaded."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    path: Path | None = Field(default=None, description="a ROS map YAML file (map_server's, Nav2 map_saver's, "
+                                                        "slam_toolbox's) in the tracking frame; null: no map")
+    birth_clearance_m: float = Field(default=_R.birth_clearance_m, ge=0.0, le=1.0,
+                                     description="no track is born this near (m) an obstacle of the map (about a "
+                                                 "localization error)")
+    min_obstacle_m: float = Field(default=0.3, ge=0.0, le=5.0,
+                                  description="occupied areas shorter than this (m) on both sides are no obstacle: "
+                                              "chair and table legs, posts (a detection of someone behind a chair "
+                                              "lands among its legs)")
+    _obstacles: ObstacleMap | None = PrivateAttr(default=None)
+
+    @model_validator(mode="after")
+    def _load(self) -> StaticMapConfig:
+        if self.path is not None:
+            try:
+                stat = self.path.stat()
+                self._obstacles = _obstacles(self.path.resolve(), stat.st_mtime_ns, stat.st_size,
+                                             self.min_obstacle_m)
+            except FileNotFoundError:
+                raise ValueError(f"no map file {self.path}: give a ROS map YAML file (map.yaml beside its map.pgm), "
+                                 "e.g. one `ros2 run nav2_map_server map_saver_cli -f map` wrote") from None
+            except (OSError, MapFileError) as exc:
+                raise ValueError(str(exc)) from None
+        return self
+
+    @property
+    def obstacles(self) -> ObstacleMap | None:
+        return self._obstacles
 
 
 class PostureConfig(BaseModel):
@@ -235,13 +284,15 @@ class RobustConfig(BaseModel):
     posture: PostureConfig = Field(default_factory=PostureConfig)
     stature: StatureConfig = Field(default_factory=StatureConfig)
     recovery: RecoveryConfig = Field(default_factory=RecoveryConfig)
+    static_map: StaticMapConfig = Field(default_factory=StaticMapConfig)
 
     def params(self, appearance: AppearanceModel | None, memory_size: int) -> RobustParams:
         fields = self.model_dump(exclude={"scores", "detector_scores", "use_detection_covariance", "classifier",
-                                          "posture", "stature", "recovery"})
+                                          "posture", "stature", "recovery", "static_map"})
         return RobustParams(**fields, appearance=appearance, scores=self.scores.model(), memory_size=memory_size,
                             classifier=self.classifier.params(), posture=self.posture.params(),
-                            stature=self.stature.params(), recovery=self.recovery.params())
+                            stature=self.stature.params(), recovery=self.recovery.params(),
+                            obstacles=self.static_map.obstacles, birth_clearance_m=self.static_map.birth_clearance_m)
 
     def build(self, appearance: AppearanceModel | None, memory: IdentityMemory | None, memory_size: int) -> TrackerCore:
         return RobustTracker(self.params(appearance, memory_size), memory)

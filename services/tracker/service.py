@@ -120,8 +120,12 @@ class TrackerService(Node):
         return self.intake.model
 
     def describe(self) -> str:
+        sm = self.config.robust.static_map
+        where = "" if sm.path is None else (
+            f", static map {sm.path} (no birth within {sm.birth_clearance_m:g} m of its obstacles)"
+            if self.config.profile == "robust" else f", static map {sm.path} unused (the thesis profile has none)")
         return (f"tracking camera {self.config.camera!r} in frame {self.config.frame_id!r}, "
-                f"memory {self.config.memory_path or 'off'}")
+                f"memory {self.config.memory_path or 'off'}{where}")
 
     def _thresholds(self, thresholds: AppearanceConfig, metric: str | None) -> None:
         self.config.apply_thresholds(self.tracker, thresholds, metric)
@@ -205,6 +209,8 @@ class TrackerService(Node):
             self.counters.count("ids_recovered", len(result.recovered_ids))
         if result.recovery_undone:  # a recovery taken back (robust profile's ID memory)
             self.counters.count("ids_recovery_undone", len(result.recovery_undone))
+        if result.births_blocked:  # confident detections on the static map's obstacles: no track born
+            self.counters.count("births_on_obstacles", result.births_blocked)
         self._report_decisions(result, frame.loc.header)
         self.registry.record(result, self._epoch_ns)
         return result

@@ -59,6 +59,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a fixed camera's floor homography (the localizer's --floor-homography file, with its "
                              "image_size): what the camera sees, so a coasting person who walked out of the image is "
                              "not reported, and the ID memory knows who walked out (robust: recovery.left_weight)")
+    parser.add_argument("--static-map", type=Path, default=None, metavar="MAP.yaml",
+                        help="robust: the robot's static map (a ROS map_server / Nav2 map_saver YAML file, in the "
+                             "detections' frame): no track is born on its walls and furniture")
     parser.add_argument("--status", action="store_true",
                         help="add a status column: confirmed, or coasting (robust: reported through a short miss)")
     parser.add_argument("--id-log", type=Path, default=None, metavar="IDS.jsonl",
@@ -95,7 +98,7 @@ def main(args: argparse.Namespace) -> int:
                        f"give the tracker settings as --service-config {args.old_config}")
     config = load_node_config(TrackerConfig, "tracker", args.service_config, {
         "profile": args.profile, "thesis": {"time_step": args.time_step},
-        "robust": {"scores": {"birth_score": args.birth_score}}})
+        "robust": {"scores": {"birth_score": args.birth_score}, "static_map": {"path": args.static_map}}})
     check_input_file(args.detections, "expected a detections CSV file: frame,stamp,x,y,z,score[,e0,e1,...]")
     try:
         dets = read_detections(args.detections)

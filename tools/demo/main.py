@@ -38,6 +38,7 @@ from tools.demo.text import WIDTH, attention_line, closing_text, wrap
 from tools.launcher.supervisor import ProcessSpec, Supervisor
 from tools.simulator.core.cameras import BACK_CAMERA_OFFSET
 from tools.simulator.core.render import default_camera
+from tools.simulator.static_map import write_apartment_map
 
 DESCRIPTION = """\
 Run the whole system on a simulated RGB-D apartment with the embedded defaults: a local
@@ -89,6 +90,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="through ROS 2: the simulated robot publishes its camera and /tf as ROS 2 topics "
                              "(rmw_zenoh), the ros2 node reads them in and publishes the people on /humans/...; the "
                              "end report adds what /humans/bodies/tracked carried")
+    parser.add_argument("--no-static-map", action="store_true",
+                        help="do not give the tracker the apartment's static map (the robot's laser map, "
+                             "`perception simulate --write-map`; with it no track is born on a wall or a door jamb)")
     parser.add_argument("--json", action="store_true", help="print the final metrics as JSON")
     parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
                         help="where the top-down plot of the run goes (default: tracks.png in the log dir)")
@@ -99,7 +103,8 @@ def _perception(*args: str) -> list[str]:
     return [sys.executable, "-m", "perception", *args]
 
 
-def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memory: Path) -> list[ProcessSpec]:
+def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memory: Path,
+           static_map: Path | None = None) -> list[ProcessSpec]:
     env = {**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "error"), "OPENBLAS_NUM_THREADS": "1",
            "OMP_NUM_THREADS": "1"}
     common = ("--connect", endpoint, "--robot", robot)
@@ -110,7 +115,8 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
         "localizer": (),
         "embedder": ("--backend", "colour"),
         # once per camera frame: Table II scores every frame against its ground truth
-        "tracker": ("--memory", str(memory), "--output-rate", "0"),
+        "tracker": ("--memory", str(memory), "--output-rate", "0",
+                    *(("--static-map", str(static_map)) if static_map is not None else ())),
     }
     names = list(SERVICES)
     if args.second_detector:
@@ -189,7 +195,10 @@ def main(args: argparse.Namespace) -> int:
     robot = f"demo{os.getpid()}"
     keys = Keys(robot=robot)
     log_file = open(log_dir / "processes.log", "wb")  # noqa: SIM115
-    specs = _specs(endpoint, port, robot, args, log_dir / "id-memory.json")
+    static_map = None if args.no_static_map else log_dir / "map.yaml"
+    if static_map is not None:  # the robot's map of its home, as its laser drew it
+        write_apartment_map(static_map)
+    specs = _specs(endpoint, port, robot, args, log_dir / "id-memory.json", static_map)
     # CPU is reported per process (detector, detector-slow, detector-back, ...), not per service
     measured = [s.name for s in specs if s.name not in ("router", "viewer")]
     supervisor = Supervisor(specs, log_file, handle_signals=False)

@@ -14,12 +14,14 @@ from common.transport.zenoh_config import add_zenoh_arguments, options_from_args
 from common.transport.zenoh import TransportError, open_transport
 from tools.replay.recorder import McapRecorder
 from tools.simulator.config import SimulatorConfig
+from tools.simulator.core.laser_map import LASER_HEIGHT_M
 from tools.simulator.core.scenarios import SCENARIOS
 from tools.simulator.faults import FAULTS
 from tools.simulator.groundtruth import GroundTruthCsv
 from tools.simulator.service import SimulatorService
 from tools.simulator.snapshot import write_snapshot
 from tools.simulator.source import SimulatedStream
+from tools.simulator.static_map import write_apartment_map
 
 log = logging.getLogger(__name__)
 
@@ -105,6 +107,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     out = parser.add_argument_group("files instead of (or besides) publishing")
     out.add_argument("--output", type=Path, default=None, help="write an MCAP recording instead of publishing")
     out.add_argument("--gt-csv", type=Path, default=None, help="write the ground truth as frame,id,x,y,z")
+    out.add_argument("--write-map", type=Path, default=None, metavar="MAP.yaml",
+                     help="write the apartment's static map as the robot's laser would have mapped it (a ROS map "
+                          "YAML file and its PGM image, in the map frame) and exit: give it to "
+                          "`perception tracker --static-map`")
     out.add_argument("--snapshot", type=Path, default=None, help="write one RGB + depth picture (PNG) and exit")
     out.add_argument("--snapshot-time", type=float, default=5.0, metavar="S", help="time of the snapshot (default 5)")
     add_key_arguments(parser)
@@ -180,8 +186,13 @@ def main(args: argparse.Namespace) -> int:
         print(list_scenarios())
         return 0
     config = _config(args)
-    for path in (args.output, args.gt_csv, args.snapshot):
+    for path in (args.output, args.gt_csv, args.snapshot, args.write_map):
         _writable(path)
+    if args.write_map is not None:
+        image = write_apartment_map(args.write_map)
+        print(f"wrote {args.write_map} and {image}: the apartment as a laser {LASER_HEIGHT_M:g} m above the floor "
+              "maps it")
+        return 0
     if args.snapshot is not None:
         stream = SimulatedStream(config, keys_from_args(args))
         fd, _ = stream.messages(round(args.snapshot_time * config.fps))

@@ -167,6 +167,9 @@ class RobustTracker(TrackerCore):
         matched_d = {d for d, _ in matches}
         self._age(stamp, result, frame.view, previous)
         free = [d for d, c in enumerate(confident.tolist()) if c and d not in matched_d]
+        if p.obstacles is not None and free:  # no birth on the static map's obstacles (a wall end, a jamb)
+            on = p.obstacles.blocked(positions[free, :2], p.birth_clearance_m).tolist()
+            result.births_blocked, free = sum(on), [d for d, b in zip(free, on) if not b]
         born = lifecycle.births(free, matched_d, positions, p_det, p.birth_separation_m)
         lifecycle.birth(state, born, positions, descriptors, has_desc, p_det, stamp, frame.camera, self._p0,
                         None if p.stature is None else frame.statures)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
+from common.geometry.occupancy import ObstacleMap
 from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.posture import PostureParams
 from services.tracker.core.recovery import RecoveryParams
@@ -56,6 +57,11 @@ class RobustParams:
     #: one that went to a track, or to a stronger birth, is a second report of that person (a
     #: split depth cluster, a double box), not a new track; 0: off
     birth_separation_m: float = 0.3
+    #: the robot's static map (walls, furniture its laser sees): no track is born on an obstacle or
+    #: within ``birth_clearance_m`` (m) of one (Ban et al.'s birth process, with a place: a wall end
+    #: or a door jamb seen as a person-shaped cluster never starts a track); None: no map
+    obstacles: ObstacleMap | None = None
+    birth_clearance_m: float = 0.1
     gallery_size: int = 100
     memory_size: int = 500
     #: Basso/Munaro's online per-track appearance classifiers; None: off
@@ -86,7 +92,8 @@ class RobustParams:
             raise ValueError(f"handover_gate_sq must be positive or None, got {self.handover_gate_sq}")
         if not 0 <= self.view_margin < 0.5:
             raise ValueError(f"view_margin must be in [0, 0.5), got {self.view_margin}")
-        if not self.birth_separation_m >= 0:
-            raise ValueError(f"birth_separation_m must not be negative, got {self.birth_separation_m}")
+        if not (self.birth_separation_m >= 0 and self.birth_clearance_m >= 0):
+            raise ValueError(f"birth_separation_m and birth_clearance_m must not be negative, got "
+                             f"{self.birth_separation_m}, {self.birth_clearance_m}")
         if not 0.5 <= self.confirm_is_person < 1:
             raise ValueError("confirm_is_person must be in [0.5, 1)")

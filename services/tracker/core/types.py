@@ -221,6 +221,8 @@ class FrameResult:
     #: (robust profile's ID memory, when it weighed remembered people: :class:`IdDecision`)
     id_decisions: list[IdDecision] = field(default_factory=list)
     matches: int = 0
+    #: confident unmatched detections that started no track because they lie on the static map's obstacles
+    births_blocked: int = 0
 
     @property
     def confirmed(self) -> list[TrackView]:

@@ -137,6 +137,11 @@ class StaticMapConfig(BaseModel):
                                               "lands among its legs)")
     _obstacles: ObstacleMap | None = PrivateAttr(default=None)
 
+    @field_validator("path", mode="before")
+    @classmethod
+    def _empty_is_none(cls, value: object) -> object:
+        return None if value == "" else value  # a launch file's ${STATIC_MAP:-} when unset
+
     @model_validator(mode="after")
     def _load(self) -> StaticMapConfig:
         if self.path is not None:

@@ -9,8 +9,9 @@ from typing import TYPE_CHECKING, Any, Iterable
 
 import numpy as np
 
+from common.geometry.occupancy import ObstacleMap
 from common.geometry.transforms import FrameTreeError, PinholeCamera, RigidTransform, TransformBuffer
-from common.messages.schemas import CameraInfo, Header, Transform, TransformBatch
+from common.messages.schemas import CameraInfo, Header, StaticMap, Transform, TransformBatch
 
 if TYPE_CHECKING:
     from common.runtime.ratelog import RateLimitedLog
@@ -22,6 +23,7 @@ __all__ = [
     "add_transform",
     "batch_from_ros",
     "camera_from_info",
+    "obstacles_from_map",
     "rigid_from_msg",
     "take_transforms",
     "transform_from_ros",
@@ -116,3 +118,15 @@ def batch_from_ros(tf_message: Any, static: bool = False, source: str = "tf") ->
     transforms = [transform_from_ros(ts, static) for ts in tf_message.transforms]
     stamp = max((t.stamp_ns for t in transforms), default=0)
     return TransformBatch(header=Header(stamp_ns=stamp, source=source), transforms=transforms)
+
+
+#: A cell of a :class:`StaticMap` at least this occupied (percent) is an obstacle: map_server's
+#: ``occupied_thresh``, 0.65.
+OCCUPIED_PERCENT = 65
+
+
+def obstacles_from_map(grid: StaticMap, min_extent_m: float = 0.0) -> ObstacleMap:
+    """The distances to a :class:`StaticMap`'s obstacles (cells at least :data:`OCCUPIED_PERCENT`
+    occupied; posts under ``min_extent_m`` left out)."""
+    occupied = grid.occupancy() >= OCCUPIED_PERCENT
+    return ObstacleMap.from_occupied(occupied, grid.resolution, grid.origin, min_extent_m)

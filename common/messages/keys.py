@@ -15,7 +15,7 @@ from typing import Literal, NamedTuple
 
 from common.messages.registry import NODES
 
-__all__ = ["COMMANDS", "DEFAULT_PREFIX", "DEFAULT_ROBOT", "STREAMS", "AliveKey", "Delivery", "Keys", "Stream", "stream", "validate_chunk"]
+__all__ = ["COMMANDS", "DEFAULT_PREFIX", "DEFAULT_ROBOT", "STREAMS", "AliveKey", "Delivery", "Keys", "MAPS", "Stream", "stream", "validate_chunk"]
 
 DEFAULT_PREFIX = "pp"
 DEFAULT_ROBOT = "robot"
@@ -58,6 +58,8 @@ class Delivery:
 
 
 FRAMES = Delivery(latest=True, queue=1, congestion="drop", express=True)
+#: The robot's map: only the newest counts, and none is lost to congestion.
+MAPS = Delivery(latest=True, queue=1, congestion="block")
 RELIABLE = Delivery(latest=False, queue=256, congestion="block")
 STATUS = Delivery(latest=False, queue=64, congestion="drop")
 #: Commands to an actuator: only the newest matters, and it must not wait behind older ones.
@@ -106,6 +108,7 @@ STREAMS: tuple[Stream, ...] = (
     Stream("id_decisions", "id_decisions", "IdDecisions", "", "HRI, recorder", RELIABLE),
     Stream("tf", "tf", "TransformBatch", "localization, odometry, simulator, replay", "", RELIABLE),
     Stream("tf_static", "tf_static", "TransformBatch", "robot description, simulator, replay", "", RELIABLE),
+    Stream("static_map", "static_map", "StaticMap", "", "", MAPS),
     Stream("groundtruth", "groundtruth", "PeopleGroundTruth", "simulator, replay", "perception demo, evaluation, recorder",
            RELIABLE),
     Stream("status", "status/{service}/{instance}", "ServiceStatus", "every node (1 Hz, and on query)",
@@ -183,6 +186,10 @@ class Keys:
 
     def tf_static(self) -> str:
         return self._join("tf_static")
+
+    def static_map(self) -> str:
+        """The robot's map (:class:`~common.messages.schemas.StaticMap`; the ros2 node's ``/map``)."""
+        return self._join("static_map")
 
     def groundtruth(self) -> str:
         """True people positions (map frame) from a simulator or motion capture."""

@@ -34,6 +34,7 @@ from common.messages.schemas import (
     TrackState,
     Tracks,
     Transform,
+    StaticMap,
     TransformBatch,
 )
 
@@ -210,4 +211,6 @@ def example_messages(stamp_ns: int = 1_700_000_000_000_000_000, n_people: int = 
                 for i in range(n_people)
             ],
         ),
+        StaticMap(header=Header(stamp_ns=stamp_ns, frame_id="map", source="ros2"), resolution=0.05, width=4, height=3,
+                  origin=(-1.0, -2.0, 0.0), data=bytes([0, 0, 100, 255] * 3)),
     ]

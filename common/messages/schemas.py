@@ -27,6 +27,7 @@ from common.messages.arrays import NDArray, arrays_equal
 
 __all__ = [
     "MESSAGE_TYPES",
+    "StaticMap",
     "AppearanceThresholds",
     "CameraInfo",
     "CameraView",
@@ -333,6 +334,31 @@ class TransformBatch(Message):
     """Transforms published together, e.g. one TF message or the static transforms."""
 
     transforms: list[Transform]
+
+
+@message("perception.StaticMap", 1)
+class StaticMap(Message):
+    """The robot's static map, a ROS ``nav_msgs/OccupancyGrid`` (the ros2 node reads ``/map``):
+    ``width`` x ``height`` cells of ``resolution`` m in ``header.frame_id``, cell (0, 0)'s outer
+    corner at ``origin`` (x, y, yaw), row 0 at the lowest y; ``data`` one signed byte per cell, row
+    by row: the occupancy in percent (0 to 100), -1 unknown."""
+
+    resolution: float = Field(gt=0.0, allow_inf_nan=False)
+    width: int = Field(gt=0)
+    height: int = Field(gt=0)
+    origin: tuple[float, float, float]
+    data: bytes
+
+    @model_validator(mode="after")
+    def _check(self) -> StaticMap:
+        _finite(self.origin, "origin")
+        if len(self.data) != self.width * self.height:
+            raise ValueError(f"data holds {len(self.data)} cells, width x height is {self.width * self.height}")
+        return self
+
+    def occupancy(self) -> np.ndarray:
+        """(height, width) int8: percent, -1 unknown."""
+        return np.frombuffer(self.data, np.int8).reshape(self.height, self.width)
 
 
 # ------------------------------------------------------------------------ detections

@@ -50,6 +50,8 @@ class ZenohOptions(BaseModel):
     access_control: bool = Field(default=False, description="routers: enforce common.transport.acl's least-privilege rules")
     credentials: Path | None = Field(default=None, description="USER:PASSWORD file (mode 0600) for Zenoh's "
                                      "user/password authentication")
+    timestamping: bool = Field(default=False, description="timestamp every sample, as rmw_zenoh's sessions do (a "
+                                                          "transient-local ROS 2 publisher, a cached one, needs it)")
 
     @field_validator("connect", "listen")
     @classmethod
@@ -182,6 +184,8 @@ def build_zenoh_config(opts: ZenohOptions) -> "zenoh.Config":  # type: ignore[na
         conf.insert_json5("connect/retry", json.dumps(_RETRY))
     if not opts.shared_memory:
         conf.insert_json5("transport/shared_memory/enabled", "false")
+    if opts.timestamping:
+        conf.insert_json5("timestamping/enabled", "true")
     if opts.access_control:
         from common.transport.acl import access_control
 

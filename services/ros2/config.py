@@ -74,6 +74,10 @@ class Ros2Config(BaseModel):
                                                   "the static transforms from rmw_zenoh's publisher cache)")
     tf_topic: str = Field(default="/tf")
     tf_static_topic: str = Field(default="/tf_static")
+    map_topic: str = Field(default="/map", description="the robot's map, nav_msgs/OccupancyGrid (transient local: Nav2's "
+                                                       "map_server, slam_toolbox) -> static_map, for the tracker; '' for none")
+    map_period_s: float = Field(default=5.0, gt=0.0, le=600.0,
+                                description="the map received is re-sent on static_map this often, for late joiners")
 
     # --- out: the people as ROS 2 topics
     people_out: bool = Field(default=True, description="publish the tracker's people as ROS4HRI topics, /tf frames "
@@ -93,8 +97,8 @@ class Ros2Config(BaseModel):
     queue: int = Field(default=256, ge=1, description="tracks kept while the node is busy")
     log_every_s: float = Field(default=1.0, gt=0.0, description="a recurring input problem is logged at most this often")
 
-    @field_validator("colour_topic", "depth_topic", "camera_info_topic", "tf_topic", "tf_static_topic", "markers_topic",
-                     "humans_namespace")
+    @field_validator("colour_topic", "depth_topic", "camera_info_topic", "tf_topic", "tf_static_topic", "map_topic",
+                     "markers_topic", "humans_namespace")
     @classmethod
     def _topics(cls, v: str) -> str:
         return _topic(v)

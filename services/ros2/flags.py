@@ -30,6 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                    help="do not read a ROS 2 camera (the frames come from elsewhere)")
     g.add_argument("--no-tf", dest="tf_in", action="store_const", const=False, default=None,
                    help="do not read /tf and /tf_static")
+    g.add_argument("--map-topic", dest="map_topic", default=None, metavar="TOPIC",
+                   help="the robot's map, nav_msgs/OccupancyGrid, passed to the tracker (default /map, Nav2's "
+                        "map_server's and slam_toolbox's); '' for none")
     g.add_argument("--no-people", dest="people_out", action="store_const", const=False, default=None,
                    help="do not publish the people as ROS 2 topics")
     add_node_arguments(parser, "ros2")
@@ -37,7 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def overrides(args: argparse.Namespace) -> dict[str, Any]:
     names = ("domain_id", "distro", "node_name", "camera", "colour_topic", "colour_compressed", "depth_topic",
-             "camera_info_topic", "camera_in", "tf_in", "people_out")
+             "camera_info_topic", "map_topic", "camera_in", "tf_in", "people_out")
     out = {n: getattr(args, n) for n in names}
     if args.depth_topic == "":
         out["require_depth"] = False

@@ -21,18 +21,19 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from common.geometry.messages import transform_from_ros
-from common.messages.keys import FRAMES, RELIABLE, Delivery, Keys
+from common.messages.keys import FRAMES, MAPS, RELIABLE, Delivery, Keys
 from common.runtime.node import Node
 from common.runtime.pairing import StampPairer
 from common.runtime.ratelog import RateLimitedLog
 from common.runtime.service import Counters
-from common.messages.schemas import CameraInfo, Header, Image, RGBDFrame, TrackState, TransformBatch, Tracks
+from common.messages.schemas import CameraInfo, Header, Image, RGBDFrame, StaticMap, TrackState, TransformBatch, Tracks
 from common.transport.base import RawSample, RawSubscription, Transport
 from services.ros2.config import Ros2Config
 from services.ros2.core.images import ImageError, Intrinsics, Pixels, compressed_pixels, intrinsics, raw_pixels
 from services.ros2.core.people import PeopleWriter, Person
 from services.ros2.core.types import CdrError, known_hashes, types_of
 from services.ros2.core.wire import Qos, dds_to_ros, parse_attachment
+from services.ros2.maps import static_map_from_ros
 from services.ros2.participant import QOS_DEFAULT, QOS_SENSOR, QOS_TF, QOS_TF_STATIC, RosParticipant
 
 __all__ = ["Ros2Service"]
@@ -90,6 +91,11 @@ class Ros2Service(Node):
             self.tf_static_pub = self.io.publisher(keys.tf_static(), TransformBatch, RELIABLE)
             self._read(config.tf_topic, "tf2_msgs/msg/TFMessage", self._on_tf, QOS_TF)
             self._read(config.tf_static_topic, "tf2_msgs/msg/TFMessage", self._on_tf_static, QOS_TF_STATIC, history=16)
+        self._map: StaticMap | None = None
+        self._map_sent = -1e9
+        if config.map_topic:  # the robot's map, transient local as map_server publishes it
+            self.map_pub = self.io.publisher(keys.static_map(), StaticMap, MAPS)
+            self._read(config.map_topic, "nav_msgs/msg/OccupancyGrid", self._on_map, QOS_TF_STATIC, history=1)
         if config.people_out:
             self.tracks_sub = self.io.subscribe(keys.tracks(), Tracks, Delivery(latest=False, queue=config.queue,
                                                                                  congestion="block"))
@@ -180,6 +186,17 @@ class Ros2Service(Node):
         self.tf_static_pub.put(TransformBatch(header=Header(stamp_ns=max(t.stamp_ns for t in transforms), source="ros2"),
                                               transforms=transforms))
 
+    def _on_map(self, msg: Any) -> None:
+        self._map = static_map_from_ros(msg)
+        self.counters.count("maps")
+        self._send_map(force=True)
+
+    def _send_map(self, force: bool = False) -> None:
+        if self._map is None or (not force and self._now - self._map_sent < self.config.map_period_s):
+            return
+        self._map_sent = self._now
+        self.map_pub.put(self._map)
+
     def _frames(self, now: float) -> list[RGBDFrame]:
         out = []
         for pair in self.pairer.ready(now):
@@ -263,6 +280,8 @@ class Ros2Service(Node):
             self.counters.gauge("depth_unpaired", self.pairer.stale_depth)
         if self.config.tf_in:
             self._send_static()
+        if self.config.map_topic:
+            self._send_map()
         if self.config.people_out:
             while (got := self.tracks_sub.try_recv()) is not None:
                 self._publish_people(got.msg, now)
@@ -276,6 +295,8 @@ class Ros2Service(Node):
             return self.config.pair_wait_s / 4
         if self.config.tf_in and self._static:
             return self.config.static_period_s
+        if self._map is not None:
+            return self.config.map_period_s
         return None
 
     def describe(self) -> str:
@@ -285,6 +306,8 @@ class Ros2Service(Node):
                          f"{self.config.camera_info_topic} -> {self.keys.frames(self.config.camera)}")
         if self.config.tf_in:
             parts.append(f"{self.config.tf_topic}, {self.config.tf_static_topic} -> tf, tf_static")
+        if self.config.map_topic:
+            parts.append(f"{self.config.map_topic} -> static_map")
         if self.config.people_out:
             parts.append(f"tracks -> {self.config.humans_namespace}/bodies/..., /tf, {self.config.markers_topic}")
         return f"ROS 2 domain {self.config.domain_id} ({self.config.distro}), node {self.config.node_name}: " + "; ".join(parts)

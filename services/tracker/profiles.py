@@ -131,6 +131,8 @@ class StaticMapConfig(BaseModel):
     birth_clearance_m: float = Field(default=_R.birth_clearance_m, ge=0.0, le=1.0,
                                      description="no track is born this near (m) an obstacle of the map (about a "
                                                  "localization error)")
+    topic: bool = Field(default=True, description="without a path: take the map from the static_map stream (the ros2 "
+                                                  "node's /map, as Nav2's map_server or slam_toolbox publish it)")
     min_obstacle_m: float = Field(default=0.3, ge=0.0, le=5.0,
                                   description="occupied areas shorter than this (m) on both sides are no obstacle: "
                                               "chair and table legs, posts (a detection of someone behind a chair "

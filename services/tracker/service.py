@@ -35,8 +35,9 @@ from typing import Callable
 
 import numpy as np
 
-from common.messages.keys import RELIABLE, Keys
-from common.messages.schemas import Embeddings, ForgetReply, Header, IdDecisions, LocalizedDetections, Tracks
+from common.geometry.messages import obstacles_from_map
+from common.messages.keys import MAPS, RELIABLE, Keys
+from common.messages.schemas import Embeddings, ForgetReply, Header, IdDecisions, LocalizedDetections, StaticMap, Tracks
 from common.runtime.node import Node
 from common.runtime.ratelog import RateLimitedLog
 from common.runtime.service import Counters
@@ -98,6 +99,9 @@ class TrackerService(Node):
         self.pacing: Pacing[Frame] = Pacing(config.output_rate_hz)
         self.registry = IdRegistry(config, self.tracker, self.counters, self._log, self._lock, self.buffer.rebase,
                                    lambda: self.model or "", clock, wall_clock)
+        sm = config.robust.static_map
+        self.map_sub = self.io.subscribe(keys.static_map(), StaticMap, MAPS) if sm.path is None and sm.topic else None
+        self._map_seen: tuple[object, ...] | None = None
         self.loc_sub = self.io.subscribe(keys.localized(config.camera), LocalizedDetections, RELIABLE)
         self.emb_sub = self.io.subscribe(keys.embeddings(config.camera), Embeddings, RELIABLE)
         self.publisher = self.io.publisher(keys.tracks(), Tracks, RELIABLE)
@@ -121,7 +125,8 @@ class TrackerService(Node):
 
     def describe(self) -> str:
         sm = self.config.robust.static_map
-        where = "" if sm.path is None else (
+        where = (", the static map from the static_map stream (the ros2 node's /map)" if self.map_sub is not None
+                 else "") if sm.path is None else (
             f", static map {sm.path} (no birth within {sm.birth_clearance_m:g} m of its obstacles)"
             if self.config.profile == "robust" else f", static map {sm.path} unused (the thesis profile has none)")
         return (f"tracking camera {self.config.camera!r} in frame {self.config.frame_id!r}, "
@@ -134,9 +139,33 @@ class TrackerService(Node):
         return self.intake.view(loc)
 
     # ---------------------------------------------------------------- inputs
+    def _take_map(self) -> None:
+        """The newest map on ``static_map`` (the ros2 node re-sends it): used when it changed and is
+        in the tracking frame, its obstacles then keep tracks from being born on them."""
+        grid = None
+        while (got := self.map_sub.try_recv()) is not None:  # type: ignore[union-attr]
+            grid = got.msg
+        seen = None if grid is None else (grid.header.frame_id, grid.resolution, grid.width, grid.height, grid.origin,
+                                          hash(grid.data))
+        if grid is None or seen == self._map_seen:
+            return
+        self._map_seen = seen
+        if grid.header.frame_id != self.config.frame_id:
+            self.counters.count("static_map_wrong_frame")
+            self._log.warning("static_map_frame", "the static map is in frame %r, the tracking frame is %r: not used "
+                              "(publish the map in the tracking frame, or set frame_id)", grid.header.frame_id,
+                              self.config.frame_id)
+            return
+        self.tracker.set_obstacles(obstacles_from_map(grid, self.config.robust.static_map.min_obstacle_m))
+        self.counters.count("static_maps")
+        log.info("static map from %s: %d x %d cells of %g m; no track is born on its obstacles", grid.header.source,
+                 grid.width, grid.height, grid.resolution)
+
     def _drain(self, now: float) -> list[Tracks]:
         """Take what has arrived; returns what a clock jump made publish first."""
         published: list[Tracks] = []
+        if self.map_sub is not None:
+            self._take_map()
         while (got := self.loc_sub.try_recv()) is not None:
             arrival, back_ns = self.intake.localized(got.msg)
             if arrival is None:

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from common.messages.keys import FRAMES, RELIABLE, Keys
-from common.messages.schemas import Header, RGBDFrame, Tracks, TrackState, Transform, TransformBatch
+from common.messages.schemas import Header, RGBDFrame, StaticMap, Tracks, TrackState, Transform, TransformBatch
 from services.ros2.convert import camera_info_message, image_message, tf_message
 from services.ros2.core.types import types_of
 from services.ros2.core.wire import attachment
@@ -200,3 +200,55 @@ def test_a_late_joiner_gets_the_static_transforms(router: Any, zenoh_client: Any
         pub.undeclare()
         robot.close()
         _stop(node)
+
+
+def test_a_late_joiner_gets_the_robots_map(router: Any, zenoh_client: Any) -> None:
+    """/map is transient local (Nav2's map_server publishes it once, with zenoh-ext's advanced publisher
+    and a cache under rmw_zenoh): a node started after it gets it and passes it on as static_map."""
+    import zenoh
+    from zenoh import ext as zext
+
+    conf = zenoh.Config()
+    for path, value in (("mode", '"client"'), ("connect/endpoints", f'["{router.endpoint}"]'),
+                        ("scouting/multicast/enabled", "false"), ("timestamping/enabled", "true")):
+        conf.insert_json5(path, value)
+    robot = zenoh.open(conf)
+    type_name = "nav_msgs/msg/OccupancyGrid"
+    pub = zext.declare_advanced_publisher(robot, T.key(DOMAIN, "/map", type_name),
+                                          cache=zext.CacheConfig(max_samples=1), publisher_detection=True)
+    cls = T.store.types  # rosbags' classes and CDR, not this project's writer
+    stamp = 1_700_000_000_000_000_000
+    origin = cls["geometry_msgs/msg/Pose"](position=cls["geometry_msgs/msg/Point"](x=-3.0, y=-2.0, z=0.0),
+                                           orientation=cls["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0))
+    header = T.header(stamp, "map")
+    data = np.zeros(6 * 4, np.int8)
+    data[:6], data[10] = 100, -1
+    grid = cls[type_name](header=header, data=data, info=cls["nav_msgs/msg/MapMetaData"](
+        map_load_time=header.stamp, resolution=0.05, width=6, height=4, origin=origin))
+    pub.put(bytes(T.store.serialize_cdr(grid, type_name)), attachment=attachment(1, stamp, bytes(range(16))))
+    app = zenoh_client()
+    maps = app.subscribe(KEYS.static_map(), StaticMap, RELIABLE)
+    node = _node(router, "--no-camera", "--no-people")
+    try:
+        got = None
+        deadline = time.monotonic() + 30
+        while got is None and time.monotonic() < deadline:
+            if (m := maps.recv(timeout=0.2)) is not None:
+                got = m.msg
+            assert node.poll() is None
+        assert got is not None, "the map published before the node started never came"
+        assert (got.width, got.height, got.header.frame_id, got.origin) == (6, 4, "map", (-3.0, -2.0, 0.0))
+        assert got.occupancy()[0].tolist() == [100] * 6 and got.occupancy()[1, 4] == -1
+    finally:
+        pub.undeclare()
+        _stop(node)
+        robot.close()
+
+
+def test_a_ros2_robots_session_timestamps_its_samples() -> None:
+    """A transient-local ROS 2 publisher (a cached advanced publisher: the simulated robot's /map)
+    needs timestamping, as rmw_zenoh's sessions have it; other sessions go without."""
+    from common.transport.zenoh_config import ZenohOptions, build_zenoh_config
+
+    assert build_zenoh_config(ZenohOptions(timestamping=True)).get_json("timestamping/enabled") == "true"
+    assert build_zenoh_config(ZenohOptions()).get_json("timestamping/enabled") != "true"

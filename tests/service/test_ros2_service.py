@@ -16,7 +16,8 @@ import pytest
 from common.messages.keys import RELIABLE, Delivery, Keys
 from common.transport.memory import MemoryBus
 from common.runtime.service import Counters
-from common.messages.schemas import CameraInfo, Header, Image, RGBDFrame, Tracks, TrackState, Transform, TransformBatch
+from common.messages.schemas import (CameraInfo, Header, Image, RGBDFrame, StaticMap, Tracks, TrackState, Transform,
+                                     TransformBatch)
 from services.ros2.config import Ros2Config
 from services.ros2.convert import camera_info_message, image_message, tf_message
 from services.ros2.core.types import types_of
@@ -284,3 +285,49 @@ def test_bad_ros2_input_is_counted_and_survived(case: str, reason: str) -> None:
     rig.send_frame(later)
     rig.node.poll(5.1)
     assert [f.header.stamp_ns for f in rig.got(rig.frames)] == [later.header.stamp_ns]
+
+
+def _grid_message(stamp: int = STAMP, frame_id: str = "map") -> Any:
+    """A 5 x 4 nav_msgs/OccupancyGrid built with rosbags' own classes: a wall along the top row,
+    one unknown cell, the origin turned 90 degrees."""
+    cls = T.store.types
+    data = np.zeros(20, np.int8)
+    data[15:] = 100
+    data[7] = -1
+    q = cls["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=np.sin(np.pi / 4), w=np.cos(np.pi / 4))
+    pose = cls["geometry_msgs/msg/Pose"](position=cls["geometry_msgs/msg/Point"](x=2.0, y=-1.0, z=0.0), orientation=q)
+    header = T.header(stamp, frame_id)
+    info = cls["nav_msgs/msg/MapMetaData"](map_load_time=header.stamp, resolution=0.05, width=5, height=4, origin=pose)
+    return cls["nav_msgs/msg/OccupancyGrid"](header=header, info=info, data=data)
+
+
+def test_the_robots_map_reaches_a_late_joiner_and_is_sent_again() -> None:
+    """/map is transient local (map_server publishes it once): a node started after it still gets it,
+    passes it on as static_map, and sends it again every map_period_s for this project's late joiners."""
+    bus = MemoryBus()
+    robot = RosParticipant(bus.transport(), T, domain_id=0, node_name="map_server")
+    robot.publisher("/map", "nav_msgs/msg/OccupancyGrid", QOS_TF_STATIC, cache=1).put(_grid_message())
+    node = Ros2Service(bus.transport(), KEYS, Ros2Config(domain_id=0, camera_in=False, people_out=False,
+                                                         map_period_s=5.0), Counters())
+    maps = bus.transport().subscribe(KEYS.static_map(), StaticMap, RELIABLE)
+    node.poll(0.0)
+    (grid,) = _drain(maps)
+    assert (grid.width, grid.height, grid.resolution, grid.header.frame_id) == (5, 4, pytest.approx(0.05), "map")
+    assert grid.origin == pytest.approx((2.0, -1.0, np.pi / 2))
+    cells = grid.occupancy()
+    assert cells[3].tolist() == [100] * 5 and cells[1, 2] == -1 and cells[0].tolist() == [0] * 5
+    node.poll(1.0)
+    assert not _drain(maps)
+    node.poll(5.5)
+    assert len(_drain(maps)) == 1 and node.counters.extra["maps"] == 1
+    assert "/map -> static_map" in node.describe()
+
+
+def test_a_map_of_another_type_is_counted_not_taken() -> None:
+    bus = MemoryBus()
+    robot = RosParticipant(bus.transport(), T, domain_id=0, node_name="robot")
+    node = Ros2Service(bus.transport(), KEYS, Ros2Config(domain_id=0, camera_in=False, people_out=False), Counters())
+    maps = bus.transport().subscribe(KEYS.static_map(), StaticMap, RELIABLE)
+    robot.publisher("/map", "tf2_msgs/msg/TFMessage").put(T.cls("tf2_msgs/msg/TFMessage")(transforms=[]))
+    node.poll(0.0)
+    assert not _drain(maps) and node.counters.extra["invalid_wrong_type"] == 1

@@ -92,7 +92,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "end report adds what /humans/bodies/tracked carried")
     parser.add_argument("--no-static-map", action="store_true",
                         help="do not give the tracker the apartment's static map (the robot's laser map, "
-                             "`perception simulate --write-map`; with it no track is born on a wall or a door jamb)")
+                             "`perception simulate --write-map`, or with --ros2 the robot's /map; with it no track "
+                             "is born on a wall or a door jamb)")
     parser.add_argument("--json", action="store_true", help="print the final metrics as JSON")
     parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png",
                         help="where the top-down plot of the run goes (default: tracks.png in the log dir)")
@@ -140,6 +141,8 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
                                  "PERCEPTION_DETECTOR__DEPTH__TILT_DEG": "0"}}
     if args.back_camera:  # the tracker bridges the blind stretches between the two views
         own_env["tracker"] = {f"PERCEPTION_TRACKER__ROBUST__{k.upper()}": f"{v:g}" for k, v in SEVERAL_CAMERAS.items()}
+    if args.no_static_map:  # nor from the ROS 2 robot's /map
+        own_env.setdefault("tracker", {})["PERCEPTION_TRACKER__ROBUST__STATIC_MAP__TOPIC"] = "false"
     for name in names:
         command = name.partition("-")[0]  # detector-slow, localizer-back, ...: the service's command
         specs.append(ProcessSpec(name, _perception(command, *common, *extra[name]), {**env, **own_env.get(name, {})},
@@ -195,8 +198,9 @@ def main(args: argparse.Namespace) -> int:
     robot = f"demo{os.getpid()}"
     keys = Keys(robot=robot)
     log_file = open(log_dir / "processes.log", "wb")  # noqa: SIM115
-    static_map = None if args.no_static_map else log_dir / "map.yaml"
-    if static_map is not None:  # the robot's map of its home, as its laser drew it
+    # the robot's map of its home, as its laser drew it (--ros2: the robot's map server sends it on /map)
+    static_map = None if args.no_static_map or args.ros2 else log_dir / "map.yaml"
+    if static_map is not None:
         write_apartment_map(static_map)
     specs = _specs(endpoint, port, robot, args, log_dir / "id-memory.json", static_map)
     # CPU is reported per process (detector, detector-slow, detector-back, ...), not per service

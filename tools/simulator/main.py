@@ -214,6 +214,8 @@ def _publish(config: SimulatorConfig, args: argparse.Namespace, gt: GroundTruthC
     keys = keys_from_args(args)
     try:
         opts = options_from_args(args)
+        if config.ros2:  # a ROS 2 robot's session: /map is transient local, a cached publisher
+            opts = opts.model_copy(update={"timestamping": True})
         transport = open_transport(opts)
     except (TransportError, ValueError) as exc:
         raise CliError(str(exc)) from exc

@@ -1,6 +1,7 @@
 """The simulated robot as a ROS 2 robot (``perception simulate --ros2``): its head camera as
 the RealSense ROS 2 driver publishes it (rgb8 colour, 16UC1 depth aligned to colour, camera
-info, on the driver's default topics) and its transforms on ``/tf`` and ``/tf_static``,
+info, on the driver's default topics), its transforms on ``/tf`` and ``/tf_static`` and its map
+on ``/map`` (as Nav2's map_server: once, transient local),
 through rmw_zenoh's wire format. The ``perception ros2`` node reads them back into this
 project's streams, as it would on a real ROS 2 robot."""
 
@@ -8,11 +9,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from common.messages.schemas import RGBDFrame, TransformBatch
+from common.messages.schemas import RGBDFrame, StaticMap, TransformBatch
 from common.transport.base import Transport
 from services.ros2.config import Ros2Config
 from services.ros2.convert import camera_info_message, image_message, tf_message
 from services.ros2.core.types import types_of
+from services.ros2.maps import occupancy_grid_message
 from services.ros2.participant import QOS_SENSOR, QOS_TF, QOS_TF_STATIC, RosParticipant
 
 __all__ = ["RosRobot"]
@@ -54,6 +56,11 @@ class RosRobot:
         self.info = self.ros.publisher(c.camera_info_topic, "sensor_msgs/msg/CameraInfo", QOS_SENSOR)
         self.tf = self.ros.publisher(c.tf_topic, "tf2_msgs/msg/TFMessage", QOS_TF)
         self.tf_static = self.ros.publisher(c.tf_static_topic, "tf2_msgs/msg/TFMessage", QOS_TF_STATIC)
+        # the robot's map server: /map once, transient local (kept for late joiners)
+        self.map = self.ros.publisher(c.map_topic, "nav_msgs/msg/OccupancyGrid", QOS_TF_STATIC, cache=1)
+
+    def publish_map(self, grid: StaticMap) -> None:
+        self.map.put(occupancy_grid_message(self.types, grid), grid.header.stamp_ns)
 
     def _frame(self, frame: RGBDFrame) -> None:
         stamp = frame.header.stamp_ns

@@ -46,6 +46,10 @@ class SimulatorService:
 
             self.ros = RosRobot(transport, config.ros2_domain_id)
         self.stream = SimulatedStream(config, keys)
+        if self.ros is not None:
+            from tools.simulator.static_map import apartment_static_map
+
+            self.ros.publish_map(apartment_static_map(self.stream.stamp_ns(0), self.stream.world.apartment))
         self.gt_csv = gt_csv
         self.seq = 0
         self._timeouts_in_row = 0

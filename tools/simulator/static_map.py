@@ -4,11 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from common.geometry.map_file import OccupancyGrid, write_map
+from common.messages.schemas import Header, StaticMap
 from tools.simulator.core.apartment import Apartment, default_apartment
 from tools.simulator.core.laser_map import MAP_RESOLUTION_M, laser_map
+from tools.simulator.messages import MAP
 
-__all__ = ["write_apartment_map"]
+__all__ = ["apartment_static_map", "write_apartment_map"]
 
 
 def write_apartment_map(path: Path, apartment: Apartment | None = None) -> Path:
@@ -16,3 +20,13 @@ def write_apartment_map(path: Path, apartment: Apartment | None = None) -> Path:
     (YAML) and its PGM image beside it, in the map frame; returns the image's path."""
     occupied, unknown, origin = laser_map(apartment or default_apartment())
     return write_map(path, OccupancyGrid(occupied, unknown, MAP_RESOLUTION_M, origin))
+
+
+def apartment_static_map(stamp_ns: int, apartment: Apartment | None = None) -> StaticMap:
+    """``apartment``'s laser map as a :class:`StaticMap` in the map frame, what the simulated ROS 2
+    robot's map server publishes on ``/map`` (100 occupied, 0 free, -1 unknown)."""
+    occupied, unknown, origin = laser_map(apartment or default_apartment())
+    cells = np.where(occupied, 100, np.where(unknown, -1, 0)).astype(np.int8)
+    h, w = cells.shape
+    return StaticMap(header=Header(stamp_ns=stamp_ns, frame_id=MAP, source="simulator"), resolution=MAP_RESOLUTION_M,
+                     width=w, height=h, origin=origin, data=cells.tobytes())

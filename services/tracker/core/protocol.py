@@ -19,6 +19,7 @@ from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, ScoreModel, TrackView
 
 if TYPE_CHECKING:
+    from common.geometry.occupancy import ObstacleMap
     from services.tracker.core.view import View
 
 __all__ = ["TrackerCore"]
@@ -55,6 +56,11 @@ class TrackerCore(Protocol):
 
     def set_appearance(self, model: AppearanceModel | None) -> None:
         """Use the embedding model's calibrated thresholds (None: position-only association)."""
+        ...
+
+    def set_obstacles(self, obstacles: ObstacleMap | None) -> None:
+        """Use a static map's obstacles: no track is born on them (robust; the thesis profile has
+        no birth map and keeps none). None: no map."""
         ...
 
     def snapshot(self) -> Any:

@@ -32,16 +32,15 @@ the TU Ilmenau framework, Basso/Munaro's RGB-D tracker and Ban et al.'s robotic 
    one), then the remaining confident detections x the tentative tracks.
 4. **Update** the matched tracks with each detection's own covariance when it has one
    (the localizer's, which grows with distance^2 as in Basso/Munaro's tracker), else ``sigma_r``.
-5. **Life cycle, in time** (:mod:`~services.tracker.core.lifecycle`): birth candidates
-   (Ban et al.), confirmation with IsPerson (TU Ilmenau: a binary Bayes filter over the
-   detections' confidences that fades back to 0.5 with ``is_person_tau_s``), coasting,
-   deletion, hand-over between cameras and the ID memory (Algorithm 2, open-set: ``recovery``).
+5. **Life cycle, in time** (:mod:`~services.tracker.core.lifecycle`): birth candidates (Ban et
+   al.; none on the static map's ``obstacles``), confirmation with IsPerson (TU Ilmenau: a binary
+   Bayes filter over the detections' confidences that fades back to 0.5 with ``is_person_tau_s``),
+   coasting, deletion, hand-over between cameras and the ID memory (Algorithm 2, open-set).
 
 Its parts: ``robust_params`` (the settings), ``cues`` (each cue's log-odds, the measurement
 covariance), ``lifecycle`` and ``tracks`` (the tracks as rows of arrays, their galleries in
-one array); this module runs them in order. Nothing of a frame stays but the state.
-
-Pure numpy and scipy; no I/O.
+one array); this module runs them in order. Nothing of a frame stays but the state. Pure numpy
+and scipy; no I/O.
 """
 
 from __future__ import annotations
@@ -51,6 +50,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from common.geometry.occupancy import ObstacleMap
 from services.tracker.core import classifier as clf
 from services.tracker.core import cues, kalman, lifecycle, stature, ukf
 from services.tracker.core import posture as pose
@@ -107,6 +107,9 @@ class RobustTracker(TrackerCore):
         """Set the embedding model's calibration (e.g. once its model card is known)."""
         self.params = replace(self.params, appearance=model)
 
+    def set_obstacles(self, obstacles: ObstacleMap | None) -> None:  # a static map's, e.g. from ROS 2's /map
+        self.params = replace(self.params, obstacles=obstacles)
+
     def _q(self, dt: float) -> np.ndarray:
         q = self._q_of.get(dt)
         if q is None:
@@ -117,14 +120,13 @@ class RobustTracker(TrackerCore):
 
     # ------------------------------------------------------------------ update
     def step(self, stamp: float, frame: FrameInput) -> FrameResult:
-        """Process one frame (see :class:`FrameInput`): ``stamp`` in seconds. A coasting track
-        out of ``frame.view`` is kept but not reported; without ``frame.aspects`` posture is not
-        estimated (the positions' z need not be a height above the floor either);
-        ``frame.orientations`` are used while the person is too slow for the walking direction
-        to tell; ``frame.score_model`` (None: ``params.scores``) reads this frame's detector's
-        scores, when several detectors feed the tracker; ``frame.camera``: a hand-over by motion
-        (``handover_gate_sq``) joins a track last seen by one camera to a new track born in
-        another's view only."""
+        """Process one frame (see :class:`FrameInput`): ``stamp`` in seconds. A coasting track out of
+        ``frame.view`` is kept but not reported; without ``frame.aspects`` posture is not estimated
+        (the positions' z need not be a height above the floor either); ``frame.orientations`` are
+        used while the person is too slow for the walking direction to tell; ``frame.score_model``
+        (None: ``params.scores``) reads this frame's detector's scores, when several detectors feed
+        the tracker; ``frame.camera``: a hand-over by motion (``handover_gate_sq``) joins a track
+        last seen by one camera to a new track born in another's view only."""
         p, state = self.params, self.state
         positions, descriptors = frame.positions, frame.descriptors
         n = len(positions)

@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from common.geometry.occupancy import ObstacleMap
 from services.tracker.core import kalman
 from services.tracker.core.association import (
     AppearanceGate,
@@ -120,6 +121,9 @@ class Tracker(TrackerCore):
         s_max = self.params.s_max if model.s_max is None else model.s_max
         gate = AppearanceGate(model.t_lower, model.t_upper, s_max, self.params.inf)
         self.params = replace(self.params, gate=gate, t_recover=model.t_recover)
+
+    def set_obstacles(self, obstacles: ObstacleMap | None) -> None:
+        """The thesis has no birth map: a static map changes nothing."""
 
     # ------------------------------------------------------------------ update
     def step(self, stamp: float, frame: FrameInput) -> FrameResult:

@@ -46,6 +46,9 @@ def test_a_healthy_ros2_camera() -> None:
     assert checks[COLOUR].status == "ok" and "/camera/camera" in checks[COLOUR].figure
     assert "2 nodes" in checks["graph"].figure
     assert checks["/tf"].status == "warn"  # nobody publishes /tf: a warning, the camera may be fixed
+    assert checks["/map"].status == "ok" and "no map" in checks["/map"].figure  # a map is welcome, not required
+    with_map = _ros2(_obs([*graph, _pub("ms", "map_server", "/map", "nav_msgs/msg/OccupancyGrid")]))
+    assert with_map["/map"].status == "ok" and "map_server" in with_map["/map"].figure
 
 
 def test_another_distributions_hash_a_compressed_topic_and_a_missing_publisher_are_named() -> None:

@@ -47,6 +47,8 @@ class _Input:
     topic: str
     type_name: str
     required: bool = True
+    #: without a publisher the node still works, and nothing is wrong: said, not warned about
+    optional: str = ""
 
 
 def input_topics(node: NodeFacts) -> list[_Input]:
@@ -64,6 +66,9 @@ def input_topics(node: NodeFacts) -> list[_Input]:
         out.append(_Input("tf_topic", s.get("tf_topic", "/tf"), "tf2_msgs/msg/TFMessage", required=False))
         out.append(_Input("tf_static_topic", s.get("tf_static_topic", "/tf_static"), "tf2_msgs/msg/TFMessage",
                           required=False))
+    out.append(_Input("map_topic", s.get("map_topic", "/map"), "nav_msgs/msg/OccupancyGrid", required=False,
+                      optional="no map: the tracker runs without one unless given a file (a door jamb seen as a "
+                               "person may start a track); Nav2's map_server or slam_toolbox publish it"))
     return [i for i in out if i.topic]
 
 
@@ -79,6 +84,8 @@ def _topic_check(inp: _Input, graph: list[GraphEntity], mine: set[str], distro: 
         similar = sorted({e.topic for e in graph if e.kind == "MP" and e.zid not in mine
                           and e.topic.rsplit("/", 1)[-1] == inp.topic.rsplit("/", 1)[-1]})
         hint = f"; topics of that name here: {', '.join(similar[:4])}" if similar else ""
+        if inp.optional:
+            return Check(SECTION, name, "ok", inp.optional)
         status = "fail" if inp.required else "warn"
         return Check(SECTION, name, status, f"no publisher in the ROS 2 graph{hint}",
                      f"start the robot's driver, or set {inp.setting} to the topic it publishes (ros2 topic list -t)")

@@ -23,6 +23,7 @@ __all__ = [
     "add_transform",
     "batch_from_ros",
     "camera_from_info",
+    "OCCUPIED_PERCENT",
     "obstacles_from_map",
     "rigid_from_msg",
     "take_transforms",

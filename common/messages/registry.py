@@ -78,7 +78,7 @@ NODES: tuple[NodeEntry, ...] = (
     NodeEntry("viewer", "tools.viewer", "tools.viewer.node:ViewerNode", "tools.viewer.config:ViewerConfig",
               "the operator's live page",
               subscribes=("frames", "detections", "localized", "embeddings", "tracks", "id_decisions", "tf", "tf_static",
-                          "status"),
+                          "static_map", "status"),
               watches=("alive",)),
 )
 

@@ -23,7 +23,7 @@ import pytest
 from common.messages.keys import Keys
 from common.transport.router_process import RouterProcess, free_port
 from common.transport.zenoh import ZenohTransport
-from tests.fixtures.viewer_scene import IDS, ScenePublisher
+from tests.fixtures.viewer_scene import IDS, WALL_RGB, ScenePublisher
 from tests.helpers.chromium import Browser, chromium_path
 
 pytestmark = [pytest.mark.zenoh, pytest.mark.skipif(
@@ -88,6 +88,14 @@ def test_the_page_shows_the_tracks_camera_and_health_in_a_real_browser(
                     f" if (Math.abs(d[i]-{rgb[0]}) < 4 && Math.abs(d[i+1]-{rgb[1]}) < 4 && Math.abs(d[i+2]-{rgb[2]}) < 4) n++;"
                     " return n; })()")
                 assert painted > 50, f"track {track_id} is not drawn on the map"
+            # the robot's map, under the tracks: the wall at x = 5 m
+            assert browser.wait_for("staticMap && staticMap.runs.length", 30) == 80
+            walls = browser.wait_for(
+                "(() => { const c = document.getElementById('map'); const d = c.getContext('2d')"
+                ".getImageData(0, 0, c.width, c.height).data; let n = 0; for (let i = 0; i < d.length; i += 4)"
+                f" if (Math.abs(d[i]-{WALL_RGB[0]}) < 4 && Math.abs(d[i+1]-{WALL_RGB[1]}) < 4 && Math.abs(d[i+2]-{WALL_RGB[2]}) < 4)"
+                " n++; return n > 200 ? n : null; })()", 30)
+            assert walls, "the robot's map is not drawn"
             # the tracker's latest ID decisions, in words
             why = browser.wait_for("document.querySelector('#id-decisions li[data-outcome=\"recovered\"]')?.textContent", 30)
             assert f"ID {IDS[0]} recovered: support 0.85" in why and " s ago: " in why

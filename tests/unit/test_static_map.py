@@ -175,3 +175,12 @@ def test_a_missing_or_broken_map_stops_the_tracker_with_the_fix(tmp_path: Path) 
         TrackerConfig.model_validate({"robust": {"static_map": {"path": str(tmp_path / "bad.yaml")}}})
     assert main(["track", "--detections", str(tmp_path / "d.csv"), "--output", str(tmp_path / "t.csv"),
                  "--static-map", str(tmp_path / "nope.yaml")]) == 2
+
+
+def test_the_page_draws_a_map_as_runs_of_occupied_cells() -> None:
+    from tools.viewer.core.drawing import occupied_runs
+
+    grid = np.zeros((3, 6), bool)
+    grid[0, 1:4] = grid[0, 5] = grid[2, :] = True
+    assert occupied_runs(grid) == [[0, 1, 4], [0, 5, 6], [2, 0, 6]]
+    assert occupied_runs(np.zeros((2, 2), bool)) == []

@@ -18,13 +18,13 @@ from typing import Any, Callable, Protocol
 import numpy as np
 
 from common.geometry.transforms import TransformBuffer, TransformError
-from common.geometry.messages import add_batch
-from common.messages.keys import RELIABLE, STATUS, Delivery, Keys
+from common.geometry.messages import OCCUPIED_PERCENT, add_batch
+from common.messages.keys import MAPS, RELIABLE, STATUS, Delivery, Keys
 from common.runtime.node import Node
 from common.messages.registry import stages
 from common.runtime.service import Counters, Shutdown
 from common.messages.schemas import (Detections, Embeddings, IdDecisions, IdDecisionState, LocalizedDetections, Message,
-                                     RGBDFrame, ServiceStatus, Tracks,
+                                     RGBDFrame, ServiceStatus, StaticMap, Tracks,
                                      TransformBatch)
 from common.transport.base import Subscription, Transport
 from tools.drawing.images import jpeg_of
@@ -32,7 +32,7 @@ from tools.drawing.tracks import label_boxes, project_to_image
 from tools.viewer.config import ViewerConfig
 from tools.viewer.core.health import NodeSeen, health
 from tools.drawing.meters import StageMeter
-from tools.viewer.core.drawing import Trails, colour_hex, yaw_of
+from tools.viewer.core.drawing import Trails, colour_hex, occupied_runs, yaw_of
 from tools.viewer.web import LatestState
 
 __all__ = ["STAGES", "Sink", "ViewerNode"]
@@ -94,7 +94,9 @@ class ViewerNode(Node):
             "tf_static": self.io.subscribe(keys.tf_static(), TransformBatch, _EVERY_TF),
             "status": self.io.subscribe(keys.status(), ServiceStatus, _EVERY_STATUS),
             "id_decisions": self.io.subscribe(keys.id_decisions(), IdDecisions, _EVERY_STATUS),
+            "static_map": self.io.subscribe(keys.static_map(), StaticMap, replace(MAPS, wake=False)),
         }
+        self._map: dict[str, Any] | None = None  # the newest static map's version and extent
         self.meters = {stage: StageMeter() for stage in STAGES}
         self.trails = Trails(span_s=config.trail_s)
         self.buffer = TransformBuffer(history_s=10.0, tolerance_s=0.1)
@@ -144,6 +146,8 @@ class ViewerNode(Node):
                     self._trail(msg, now)
                 elif isinstance(msg, IdDecisions):
                     self.decisions.extend((now, d) for d in msg.decisions)
+                elif isinstance(msg, StaticMap):
+                    self._take_map(msg)
                 elif isinstance(msg, TransformBatch):
                     add_batch(self.buffer, msg, static=stream == "tf_static")
                 elif isinstance(msg, ServiceStatus):
@@ -180,6 +184,19 @@ class ViewerNode(Node):
         self.latest[stream] = got.msg
         if isinstance(got.msg, Tracks):
             self._trail(got.msg, now)
+
+    def _take_map(self, grid: StaticMap) -> None:
+        """The robot's map for the page: its occupied cells (65 % and more) as runs, sent once per
+        map (``/api/map``); one re-sent unchanged is not sent again."""
+        seen = (grid.header.frame_id, grid.resolution, grid.width, grid.height, grid.origin, hash(grid.data))
+        if self._map is not None and self._map["seen"] == seen:
+            return
+        version = 1 if self._map is None else self._map["version"] + 1
+        self._map = {"seen": seen, "version": version, "frame_id": grid.header.frame_id}
+        if self.state is not None:
+            self.state.set_map({"version": version, "frame_id": grid.header.frame_id, "resolution": grid.resolution,
+                                "origin": list(grid.origin), "width": grid.width, "height": grid.height,
+                                "runs": occupied_runs(grid.occupancy() >= OCCUPIED_PERCENT)})
 
     def _trail(self, tracks: Tracks, now: float) -> None:
         for t in tracks.tracks:
@@ -230,6 +247,8 @@ class ViewerNode(Node):
             "time": time.time(),
             "camera": self.config.camera,
             "map_frame": self.config.map_frame,
+            "static_map": None if self._map is None else {"version": self._map["version"],
+                                                           "frame_id": self._map["frame_id"]},
             "robot": self._robot(),
             "tracks": out_tracks,
             "appearance_available": tracks.appearance_available if tracks else None,

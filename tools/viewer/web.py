@@ -4,7 +4,8 @@ Every browser pulls at its own pace and always gets the newest state: ``/api/sta
 waits (up to ``LONG_POLL_S``) until the state is newer than version ``V`` and returns it.
 With ``&image=S`` the reply also carries the newest camera image (``jpeg``, base64) when it
 is not image ``S``, so the page needs one request per refresh, not two. ``/api/image.jpg``
-returns the newest camera image on its own. Nothing is queued per browser, so a slow
+returns the newest camera image on its own, ``/api/map`` the robot's static map (its walls as
+runs of cells; the state names its version). Nothing is queued per browser, so a slow
 browser skips states instead of falling behind. The server is the standard
 library's threading HTTP server, bound to one address; the page needs no internet.
 """
@@ -44,6 +45,7 @@ class LatestState:
         #: monotonic s of the last request from a browser (state or image): someone watches
         self.watched_at = 0.0
         self.closed = False
+        self._map = b"null"
 
     def set_state(self, state: dict[str, Any]) -> None:
         with self._cond:
@@ -57,6 +59,16 @@ class LatestState:
         b64 = base64.b64encode(jpeg)
         with self._cond:
             self._image, self._image_seq, self._image_b64 = jpeg, seq, b64
+
+    def set_map(self, static_map: dict[str, Any]) -> None:
+        """The robot's static map as the page draws it (``/api/map``); the state names its version."""
+        body = json.dumps(static_map, separators=(",", ":")).encode()
+        with self._cond:
+            self._map = body
+
+    def static_map(self) -> bytes:
+        with self._cond:
+            return self._map
 
     def image(self) -> bytes | None:
         self.watched_at = time.monotonic()
@@ -122,6 +134,8 @@ class _Handler(BaseHTTPRequestHandler):
                 self._send(HTTPStatus.BAD_REQUEST, b"after and image must be integers", "text/plain")
                 return
             self._send(HTTPStatus.OK, state.wait_state(after, LONG_POLL_S, have_image), "application/json")
+        elif url.path == "/api/map":
+            self._send(HTTPStatus.OK, state.static_map(), "application/json")
         elif url.path == "/api/image.jpg":
             jpeg = state.image()
             if jpeg is None:

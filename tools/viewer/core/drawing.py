@@ -14,7 +14,7 @@ import numpy as np
 
 from tools.drawing.tracks import colour_rgb
 
-__all__ = ["Trails", "colour_hex", "yaw_of"]
+__all__ = ["Trails", "colour_hex", "occupied_runs", "yaw_of"]
 
 
 def colour_hex(track_id: int) -> str:
@@ -58,3 +58,14 @@ class Trails:
     def get(self, track_id: int) -> list[tuple[float, float]]:
         """The trail of ``track_id``, oldest first, as (x, y) pairs."""
         return [(x, y) for _, x, y in self._points.get(track_id, ())]
+
+
+def occupied_runs(occupied: np.ndarray) -> list[list[int]]:
+    """The occupied cells of an (H, W) grid as runs ``[row, first column, end column)``, row by
+    row: a map's walls in a few hundred rectangles for the page to draw, not one per cell."""
+    occupied = np.asarray(occupied, bool)
+    padded = np.zeros((occupied.shape[0], occupied.shape[1] + 2), np.int8)
+    padded[:, 1:-1] = occupied
+    rows, cols = np.nonzero(np.diff(padded, axis=1))  # +1 where a run starts, -1 where it ends
+    starts, ends = cols[0::2], cols[1::2]
+    return [[int(r), int(a), int(b)] for r, a, b in zip(rows[0::2], starts, ends)]

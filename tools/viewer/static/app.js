@@ -7,6 +7,20 @@ const $ = (id) => document.getElementById(id);
 let version = 0;
 let state = null;
 let imageSeq = -1;
+let staticMap = null;  // the robot's map (/api/map): its walls as runs of cells
+let mapLoading = false;
+
+async function loadMap() {
+  mapLoading = true;
+  try {
+    const res = await fetch("/api/map", { cache: "no-store" });
+    if (res.ok) { staticMap = await res.json(); if (state) drawMap(); }
+  } catch (err) {
+    // the next state asks again
+  } finally {
+    mapLoading = false;
+  }
+}
 
 function setConnection(ok, text) {
   const el = $("connection");
@@ -24,6 +38,8 @@ async function pull() {
         version = next.version;
         state = next;
         if (next.jpeg && next.image) showImage(next.image.seq, next.jpeg);
+        const wanted = next.static_map ? next.static_map.version : null;
+        if (wanted !== null && (!staticMap || staticMap.version !== wanted) && !mapLoading) loadMap();
         render();
       }
       setConnection(true, "live");
@@ -141,7 +157,17 @@ function drawMap() {
   ctx.strokeStyle = "#262b33"; ctx.lineWidth = 1;
   for (let g = Math.floor(cx - span); g <= cx + span; g++) { ctx.beginPath(); ctx.moveTo(px(g), 0); ctx.lineTo(px(g), H); ctx.stroke(); }
   for (let g = Math.floor(cy - span); g <= cy + span; g++) { ctx.beginPath(); ctx.moveTo(0, py(g)); ctx.lineTo(W, py(g)); ctx.stroke(); }
-  ctx.fillStyle = "#667"; ctx.font = "11px sans-serif"; ctx.fillText("grid 1 m", 6, H - 6);
+  const m = staticMap;
+  if (m && m.runs && m.frame_id === state.map_frame) {  // the walls, under everything else
+    const [ox, oy, yaw] = m.origin;
+    ctx.save(); ctx.translate(px(ox), py(oy)); ctx.rotate(-yaw); ctx.scale(scale, -scale);
+    ctx.fillStyle = "#5f6b7a";
+    const res = m.resolution, seam = 0.6 / scale;  // a little overlap: no hairline between rows
+    for (const [r, c0, c1] of m.runs) ctx.fillRect(c0 * res, r * res, (c1 - c0) * res + seam, res + seam);
+    ctx.restore();
+  }
+  ctx.fillStyle = "#667"; ctx.font = "11px sans-serif";
+  ctx.fillText(m && m.runs ? "grid 1 m; grey: the robot's map" : "grid 1 m", 6, H - 6);
   if (state.robot) {
     const r = state.robot, x = px(r.x), y = py(r.y);
     ctx.save(); ctx.translate(x, y); ctx.rotate(-r.yaw);

@@ -6,6 +6,7 @@ import base64
 import json
 import threading
 import urllib.request
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -182,4 +183,36 @@ def test_page_states_are_built_once_a_second_while_nobody_watches() -> None:
         scene.step(3.0 + k * 0.11)
         node.poll(103.0 + k * 0.11)
     assert state.version - before >= 9
+    node.close()
+
+
+def test_the_robots_map_goes_to_the_page_once_from_a_file_or_the_stream(tmp_path: Path) -> None:
+    from common.geometry.map_file import OccupancyGrid, write_map
+    from common.messages.keys import MAPS
+    from common.messages.schemas import Header, StaticMap
+
+    bus = MemoryBus()
+    pub = bus.transport().publisher(KEYS.static_map(), StaticMap, MAPS)
+    cells = np.zeros((4, 6), np.int8)
+    cells[1, 2:5] = 100
+    grid = StaticMap(header=Header(stamp_ns=1, frame_id="map"), resolution=0.1, width=6, height=4,
+                     origin=(1.0, 2.0, 0.0), data=cells.tobytes())
+    state = LatestState()
+    node = ViewerNode(bus.transport(), KEYS, ViewerConfig(port=0), state=state)
+    for _ in range(2):  # sent again by the ros2 node: one version
+        pub.put(grid)
+        node.poll(0.0)
+    shown = json.loads(state.static_map())
+    assert shown["runs"] == [[1, 2, 5]] and shown["origin"] == [1.0, 2.0, 0.0] and shown["version"] == 1
+    assert node.snapshot(0.0)["static_map"] == {"version": 1, "frame_id": "map"}
+    node.close()
+    # a map file wins over the stream
+    occupied = np.zeros((3, 3), bool)
+    occupied[0, 0] = True
+    write_map(tmp_path / "m.yaml", OccupancyGrid(occupied, np.zeros_like(occupied), 0.05, (0.0, 0.0, 0.0)))
+    state = LatestState()
+    node = ViewerNode(bus.transport(), KEYS, ViewerConfig(port=0, static_map=tmp_path / "m.yaml"), state=state)
+    pub.put(grid)
+    node.poll(0.0)
+    assert json.loads(state.static_map())["runs"] == [[0, 0, 1]]
     node.close()

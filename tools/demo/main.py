@@ -155,7 +155,8 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
         specs.append(ProcessSpec("ros2", _perception("ros2", *common, "--domain-id", "0"), env,
                                  restart="on-failure", backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
     if args.view:
-        specs.append(ProcessSpec("viewer", _perception("view", *common, "--port", str(args.view_port)), env,
+        shown = ("--static-map", str(static_map)) if static_map is not None else ()  # --ros2: /map's
+        specs.append(ProcessSpec("viewer", _perception("view", *common, "--port", str(args.view_port), *shown), env,
                                  restart="on-failure", backoff_initial_s=0.5, backoff_max_s=5.0, stop_timeout_s=5.0))
     return specs
 

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
+
+from common.geometry.map_file import MapFileError, OccupancyGrid, read_map
 
 __all__ = ["ViewerConfig"]
 
@@ -23,9 +27,22 @@ class ViewerConfig(BaseModel):
     state_hz: float = Field(default=10.0, gt=0.0, le=60.0, description="most page states per second")
     image_hz: float = Field(default=10.0, gt=0.0, le=60.0, description="most camera images encoded per second")
     jpeg_quality: int = Field(default=75, ge=10, le=100)
+    static_map: Path | None = Field(default=None, description="the robot's map (a ROS map YAML file, in map_frame) to "
+                                                             "draw; without it the static_map stream's (perception ros2)")
+    _grid: OccupancyGrid | None = PrivateAttr(default=None)
 
     @model_validator(mode="after")
     def _something_to_serve(self) -> ViewerConfig:
         if self.port is None and self.foxglove_port is None:
             raise ValueError("nothing to serve: give --port or --foxglove-port")
+        if self.static_map is not None:
+            try:
+                self._grid = read_map(self.static_map)
+            except MapFileError as exc:
+                raise ValueError(str(exc)) from None
         return self
+
+    @property
+    def grid(self) -> OccupancyGrid | None:
+        """The map file's grid (None: no file)."""
+        return self._grid

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any, Mapping
 
 from common.runtime.cli_util import CliError
@@ -43,6 +44,8 @@ _FLAGS: dict[str, tuple[str, type, str | None, str]] = {
     "--map-frame": ("map_frame", str, None, "frame of the map and the tracks (default map)"),
     "--base-frame": ("base_frame", str, None, "the robot's body frame (default base_link)"),
     "--trail": ("trail_s", float, "S", "length of the tracks' trails (default 5 s)"),
+    "--static-map": ("static_map", Path, "MAP.yaml", "the robot's map (a ROS map YAML file) drawn under the tracks "
+                                                     "(default: the one perception ros2 passes on from /map)"),
 }
 
 

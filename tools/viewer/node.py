@@ -97,6 +97,9 @@ class ViewerNode(Node):
             "static_map": self.io.subscribe(keys.static_map(), StaticMap, replace(MAPS, wake=False)),
         }
         self._map: dict[str, Any] | None = None  # the newest static map's version and extent
+        if config.grid is not None:  # a map file: drawn in the map frame
+            g = config.grid
+            self._show_map(config.map_frame, g.resolution, g.origin, g.occupied, 0)
         self.meters = {stage: StageMeter() for stage in STAGES}
         self.trails = Trails(span_s=config.trail_s)
         self.buffer = TransformBuffer(history_s=10.0, tolerance_s=0.1)
@@ -186,17 +189,24 @@ class ViewerNode(Node):
             self._trail(got.msg, now)
 
     def _take_map(self, grid: StaticMap) -> None:
-        """The robot's map for the page: its occupied cells (65 % and more) as runs, sent once per
-        map (``/api/map``); one re-sent unchanged is not sent again."""
-        seen = (grid.header.frame_id, grid.resolution, grid.width, grid.height, grid.origin, hash(grid.data))
+        """The static_map stream's map (cells 65 % occupied and more), unless a file was given."""
+        if self.config.grid is None:
+            self._show_map(grid.header.frame_id, grid.resolution, grid.origin,
+                           grid.occupancy() >= OCCUPIED_PERCENT, hash(grid.data))
+
+    def _show_map(self, frame_id: str, resolution: float, origin: tuple[float, float, float], occupied: np.ndarray,
+                  content: int) -> None:
+        """The robot's map for the page: its occupied cells as runs, sent once per map
+        (``/api/map``); one re-sent unchanged is not sent again."""
+        seen = (frame_id, resolution, occupied.shape, origin, content)
         if self._map is not None and self._map["seen"] == seen:
             return
         version = 1 if self._map is None else self._map["version"] + 1
-        self._map = {"seen": seen, "version": version, "frame_id": grid.header.frame_id}
+        self._map = {"seen": seen, "version": version, "frame_id": frame_id}
         if self.state is not None:
-            self.state.set_map({"version": version, "frame_id": grid.header.frame_id, "resolution": grid.resolution,
-                                "origin": list(grid.origin), "width": grid.width, "height": grid.height,
-                                "runs": occupied_runs(grid.occupancy() >= OCCUPIED_PERCENT)})
+            self.state.set_map({"version": version, "frame_id": frame_id, "resolution": resolution,
+                                "origin": list(origin), "width": occupied.shape[1], "height": occupied.shape[0],
+                                "runs": occupied_runs(occupied)})
 
     def _trail(self, tracks: Tracks, now: float) -> None:
         for t in tracks.tracks:

@@ -26,11 +26,12 @@ FIFO = Delivery(latest=False, queue=4096, congestion="block")
 TIMEOUT = 90.0
 FRAMES = 8
 #: Foxglove topic -> its schema name, or "json" for the messages written as JSON; one message per scene frame each
+#: (the robot's map: one, the scene sends it on its first frame)
 EXPECTED = {
     "/camera/image": "foxglove.CompressedImage",
     "/camera/annotations": "foxglove.ImageAnnotations",
     "/people": "foxglove.SceneUpdate",
-    "/tf": "foxglove.FrameTransforms",
+    "/tf": "foxglove.FrameTransforms", "/map": "foxglove.Grid",
     "/perception/tracks": "json", "/perception/detections": "json", "/perception/localized": "json",
     "/perception/status": "json",
 }
@@ -83,7 +84,7 @@ def test_record_writes_the_live_streams_in_foxglove_schemas_too(tmp_path: Path, 
     assert native == sent, native
     counts, schemas = _mcap_counts(fox)  # embeddings have no Foxglove topic
     assert schemas == EXPECTED, schemas
-    assert counts == {topic: FRAMES for topic in EXPECTED}, counts
+    assert counts == {topic: 1 if topic == "/map" else FRAMES for topic in EXPECTED}, counts  # the map: once
 
 
 def test_bad_foxglove_paths_fail_before_recording(tmp_path: Path) -> None:

@@ -147,3 +147,16 @@ def test_export_foxglove_writes_well_known_schemas_read_back_with_the_mcap_reade
     again = subprocess.run([sys.executable, "-m", "perception", "export-foxglove", str(recording), str(out)],
                            capture_output=True, text=True, timeout=120, check=False)
     assert again.returncode == 2 and "--force" in again.stderr
+
+
+def test_the_robots_map_is_a_foxglove_grid_when_it_changes_and_every_few_seconds() -> None:
+    from tests.fixtures.viewer_scene import static_map
+    from tools.foxglove.bridge import MAP_PERIOD_S, FoxgloveBridge
+
+    bridge = FoxgloveBridge()
+    for k in range(12):  # the ros2 node's copies, one a second
+        bridge.on_message("static_map", static_map(10**18 + k * 10**9))
+    assert bridge.counts == {"/map": 1 + int(11 // MAP_PERIOD_S)}
+    moved = static_map(10**18 + 12 * 10**9).model_copy(update={"origin": (1.0, -3.0, 0.0)})
+    bridge.on_message("static_map", moved)  # a new map: at once
+    assert bridge.counts == {"/map": 2 + int(11 // MAP_PERIOD_S)}

@@ -216,3 +216,29 @@ def test_the_robots_map_goes_to_the_page_once_from_a_file_or_the_stream(tmp_path
     node.poll(0.0)
     assert json.loads(state.static_map())["runs"] == [[0, 0, 1]]
     node.close()
+
+
+def test_a_map_file_goes_to_the_sinks_every_few_seconds(tmp_path: Path) -> None:
+    from common.geometry.map_file import OccupancyGrid, write_map
+    from common.messages.schemas import StaticMap
+
+    occupied = np.zeros((3, 4), bool)
+    occupied[1, :] = True
+    write_map(tmp_path / "m.yaml", OccupancyGrid(occupied, np.zeros_like(occupied), 0.05, (2.0, 1.0, 0.0)))
+    got: list[StaticMap] = []
+
+    class Sink:
+        def on_message(self, stream: str, msg: object) -> None:
+            if isinstance(msg, StaticMap):
+                got.append(msg)
+
+        def close(self) -> None:
+            pass
+
+    node = ViewerNode(MemoryBus().transport(), KEYS, ViewerConfig(port=None, foxglove_port=0,
+                                                                   static_map=tmp_path / "m.yaml"), sinks=(Sink(),))
+    for now in (0.0, 1.0, 4.0, 5.5):
+        node.poll(now)
+    node.close()
+    assert len(got) == 2 and got[0].origin == (2.0, 1.0, 0.0) and got[0].header.frame_id == "map"
+    assert got[0].occupancy()[1].tolist() == [100] * 4 and got[0].occupancy()[0].tolist() == [0] * 4

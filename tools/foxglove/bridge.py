@@ -8,6 +8,9 @@ One :class:`FoxgloveBridge` owns a Foxglove SDK context and these channels:
 * ``/people`` SceneUpdate in the tracks' frame: per person a body-sized cylinder, the ID
   as text, a velocity arrow and the 2-sigma covariance ellipse on the ground;
 * ``/tf`` FrameTransforms of ``tf`` and ``tf_static``;
+* ``/map`` Grid: the robot's static map (``static_map``), its occupancy in percent (-1 unknown)
+  in one ``int8`` field, when it changes and again every :data:`MAP_PERIOD_S` (a live client
+  that connects later gets it);
 * ``/perception/{tracks,detections,localized,status}`` as JSON.
 
 A live server (:func:`start_live_server`) and an MCAP file (:class:`FoxgloveMcap`, for
@@ -23,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from common.messages.schemas import (Detections, LocalizedDetections, Message, RGBDFrame, ServiceStatus, Tracks,
-                                     TransformBatch)
+from common.messages.schemas import (Detections, LocalizedDetections, Message, RGBDFrame, ServiceStatus, StaticMap,
+                                     Tracks, TransformBatch)
 from tools.drawing.tracks import colour_rgb, label_boxes, project_to_image
 
 __all__ = ["FoxgloveBridge", "FoxgloveMcap", "FoxgloveUnavailable", "TOPICS", "require_sdk", "start_live_server"]
@@ -35,10 +38,13 @@ TOPICS = {
     "/camera/annotations": "foxglove.ImageAnnotations",
     "/people": "foxglove.SceneUpdate",
     "/tf": "foxglove.FrameTransforms",
+    "/map": "foxglove.Grid",
 }
 _JSON = {Tracks: "/perception/tracks", Detections: "/perception/detections",
          LocalizedDetections: "/perception/localized", ServiceStatus: "/perception/status"}
 _BODY_HEIGHT_M, _BODY_DIAMETER_M = 1.7, 0.45
+#: An unchanged map is logged again after this many seconds of its stamps.
+MAP_PERIOD_S = 5.0
 
 
 class FoxgloveUnavailable(RuntimeError):
@@ -89,6 +95,9 @@ class FoxgloveBridge:
         self.annotations = ch.ImageAnnotationsChannel("/camera/annotations", context=ctx)
         self.people = ch.SceneUpdateChannel("/people", context=ctx)
         self.tf = ch.FrameTransformsChannel("/tf", context=ctx)
+        self.map = ch.GridChannel("/map", context=ctx)
+        self._map_seen: tuple[Any, ...] | None = None
+        self._map_at = 0
         self.json = {model: fg.Channel(topic, message_encoding="json", context=ctx) for model, topic in _JSON.items()}
         self._tracks: Tracks | None = None
         self._view: LocalizedDetections | None = None
@@ -118,12 +127,28 @@ class FoxgloveBridge:
         elif isinstance(msg, TransformBatch):
             self.tf.log(self._transforms(msg), log_time=t)
             self._count("/tf")
+        elif isinstance(msg, StaticMap):
+            seen = (msg.header.frame_id, msg.resolution, msg.width, msg.height, msg.origin, hash(msg.data))
+            if seen != self._map_seen or t - self._map_at >= MAP_PERIOD_S * 1e9:  # not each of the ros2 node's
+                self._map_seen, self._map_at = seen, t
+                self.map.log(self._grid(msg), log_time=t)
+                self._count("/map")
         model = type(msg)
         if model in self.json:
             self.json[model].log(_jsonable(msg.model_dump()), log_time=t)
             self._count(_JSON[model])
 
     # ------------------------------------------------------------------ conversions
+
+    def _grid(self, grid: StaticMap) -> Any:
+        m = self.fg.messages
+        x, y, yaw = grid.origin
+        pose = m.Pose(position=m.Vector3(x=x, y=y, z=0.0),
+                      orientation=m.Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)))
+        field = m.PackedElementField(name="occupancy", offset=0, type=m.PackedElementFieldNumericType.Int8)
+        return m.Grid(timestamp=self._stamp(grid.header.stamp_ns), frame_id=grid.header.frame_id or "map", pose=pose,
+                      column_count=grid.width, cell_size=m.Vector2(x=grid.resolution, y=grid.resolution),
+                      row_stride=grid.width, cell_stride=1, fields=[field], data=grid.data)
 
     def _stamp(self, stamp_ns: int) -> Any:
         return self.fg.messages.Timestamp(stamp_ns // 10**9, stamp_ns % 10**9)

@@ -27,8 +27,9 @@ queueing them.
 --foxglove-port PORT also serves Foxglove's WebSocket protocol (foxglove-sdk, the 'view'
 extra): in the Foxglove app, open a "Foxglove WebSocket" connection to ws://127.0.0.1:PORT.
 It shows /camera/image (JPEG), /camera/annotations (boxes with track IDs), /people (a
-3-D scene in the map frame: body, ID, velocity arrow, covariance ellipse), /tf, and the
-tracks, detections, localized detections and statuses as JSON.
+3-D scene in the map frame: body, ID, velocity arrow, covariance ellipse), /tf, /map (the
+robot's map, a Grid: --static-map's file, or what perception ros2 passes on from /map), and
+the tracks, detections, localized detections and statuses as JSON.
 
 examples:
   perception view                       # the page on http://127.0.0.1:8080/

@@ -23,7 +23,8 @@ from common.messages.keys import MAPS, RELIABLE, STATUS, Delivery, Keys
 from common.runtime.node import Node
 from common.messages.registry import stages
 from common.runtime.service import Counters, Shutdown
-from common.messages.schemas import (Detections, Embeddings, IdDecisions, IdDecisionState, LocalizedDetections, Message,
+from common.messages.schemas import (Detections, Embeddings, Header, IdDecisions, IdDecisionState, LocalizedDetections,
+                                     Message,
                                      RGBDFrame, ServiceStatus, StaticMap, Tracks,
                                      TransformBatch)
 from common.transport.base import Subscription, Transport
@@ -42,6 +43,8 @@ __all__ = ["STAGES", "Sink", "ViewerNode"]
 #: Small messages the viewer reads: the newest 64 (it only needs the newest).
 #: the ID decisions the page lists
 _DECISIONS = 6
+#: a map file goes to the sinks (Foxglove) this often, for clients that connect later
+_MAP_PERIOD_S = 5.0
 _LOOSE = Delivery(latest=False, queue=64, congestion="drop", wake=False)
 #: Frames: the few that arrive between two polls, so the camera's rate counts each of them
 #: (only the newest is decoded); older ones are dropped uncounted.
@@ -97,9 +100,15 @@ class ViewerNode(Node):
             "static_map": self.io.subscribe(keys.static_map(), StaticMap, replace(MAPS, wake=False)),
         }
         self._map: dict[str, Any] | None = None  # the newest static map's version and extent
+        self._file_map: StaticMap | None = None  # a map file, for the sinks too (every few seconds)
+        self._file_map_at = -1e9
         if config.grid is not None:  # a map file: drawn in the map frame
             g = config.grid
             self._show_map(config.map_frame, g.resolution, g.origin, g.occupied, 0)
+            cells = np.where(g.occupied, 100, np.where(g.unknown, -1, 0)).astype(np.int8)
+            self._file_map = StaticMap(header=Header(stamp_ns=time.time_ns(), frame_id=config.map_frame, source="viewer"),
+                                       resolution=g.resolution, width=cells.shape[1], height=cells.shape[0],
+                                       origin=g.origin, data=cells.tobytes())
         self.meters = {stage: StageMeter() for stage in STAGES}
         self.trails = Trails(span_s=config.trail_s)
         self.buffer = TransformBuffer(history_s=10.0, tolerance_s=0.1)
@@ -284,6 +293,12 @@ class ViewerNode(Node):
 
     def poll(self, now: float) -> list[Any]:
         self._take(now)
+        if self._file_map is not None and self.sinks and now - self._file_map_at >= _MAP_PERIOD_S:
+            self._file_map_at = now
+            msg = self._file_map.model_copy(update={"header": self._file_map.header.model_copy(
+                update={"stamp_ns": time.time_ns()})})
+            for sink in self.sinks:
+                sink.on_message("static_map", msg)
         if self.state is None:
             return []
         frame: RGBDFrame | None = self.latest.get("camera")

@@ -6,14 +6,14 @@ unknown); the origin's pose is reduced to its yaw (a map lies on the floor)."""
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from common.messages.schemas import Header, StaticMap
 from services.ros2.core.types import RosTypes
 
-__all__ = ["occupancy_grid_message", "static_map_from_ros"]
+__all__ = ["MapRelay", "occupancy_grid_message", "static_map_from_ros"]
 
 
 def static_map_from_ros(msg: Any, source: str = "ros2") -> StaticMap:
@@ -39,3 +39,25 @@ def occupancy_grid_message(types: RosTypes, grid: StaticMap) -> Any:
                                                  width=grid.width, height=grid.height, origin=pose)
     return types.cls("nav_msgs/msg/OccupancyGrid")(header=header, info=info, data=grid.occupancy().reshape(-1).copy())
 
+
+
+class MapRelay:
+    """``/map`` to ``static_map``: each map received goes out at once (``send``), and the newest
+    again every ``period_s`` for this project's late joiners (``poll``)."""
+
+    def __init__(self, send: Callable[[StaticMap], None], period_s: float) -> None:
+        self.send, self.period_s = send, period_s
+        self.latest: StaticMap | None = None
+        self.received = 0
+        self._sent_at = -1e9
+
+    def take(self, msg: Any, now: float) -> None:
+        self.latest = static_map_from_ros(msg)
+        self.received += 1
+        self._sent_at = now
+        self.send(self.latest)
+
+    def poll(self, now: float) -> None:
+        if self.latest is not None and now - self._sent_at >= self.period_s:
+            self._sent_at = now
+            self.send(self.latest)

@@ -5,7 +5,8 @@ ROS 2 participant on the robot's own router: no bridge process, no ROS install. 
 the ROS 2 graph (``ros2 node list``, ``ros2 topic list``) through rmw_zenoh's liveliness tokens.
 
 In (each switchable): colour + depth + camera info -> ``frames/{camera}`` (approximate-time
-pairing); ``/tf`` and ``/tf_static`` -> ``tf`` and ``tf_static``. Out: the tracker's ``tracks``
+pairing); ``/tf`` and ``/tf_static`` -> ``tf`` and ``tf_static``; ``/map`` -> ``static_map``
+(:class:`~services.ros2.maps.MapRelay`). Out: the tracker's ``tracks``
 -> ``/humans/bodies/...``, ``body_<id>`` frames on ``/tf`` and ``/humans/markers``.
 
 Each ROS topic is read on ``<domain>/<topic>/*/*``, every type and hash: a sample of another
@@ -33,7 +34,7 @@ from services.ros2.core.images import ImageError, Intrinsics, Pixels, compressed
 from services.ros2.core.people import PeopleWriter, Person
 from services.ros2.core.types import CdrError, known_hashes, types_of
 from services.ros2.core.wire import Qos, dds_to_ros, parse_attachment
-from services.ros2.maps import static_map_from_ros
+from services.ros2.maps import MapRelay
 from services.ros2.participant import QOS_DEFAULT, QOS_SENSOR, QOS_TF, QOS_TF_STATIC, RosParticipant
 
 __all__ = ["Ros2Service"]
@@ -91,10 +92,9 @@ class Ros2Service(Node):
             self.tf_static_pub = self.io.publisher(keys.tf_static(), TransformBatch, RELIABLE)
             self._read(config.tf_topic, "tf2_msgs/msg/TFMessage", self._on_tf, QOS_TF)
             self._read(config.tf_static_topic, "tf2_msgs/msg/TFMessage", self._on_tf_static, QOS_TF_STATIC, history=16)
-        self._map: StaticMap | None = None
-        self._map_sent = -1e9
+        self.maps: MapRelay | None = None
         if config.map_topic:  # the robot's map, transient local as map_server publishes it
-            self.map_pub = self.io.publisher(keys.static_map(), StaticMap, MAPS)
+            self.maps = MapRelay(self.io.publisher(keys.static_map(), StaticMap, MAPS).put, config.map_period_s)
             self._read(config.map_topic, "nav_msgs/msg/OccupancyGrid", self._on_map, QOS_TF_STATIC, history=1)
         if config.people_out:
             self.tracks_sub = self.io.subscribe(keys.tracks(), Tracks, Delivery(latest=False, queue=config.queue,
@@ -187,15 +187,8 @@ class Ros2Service(Node):
                                               transforms=transforms))
 
     def _on_map(self, msg: Any) -> None:
-        self._map = static_map_from_ros(msg)
+        self.maps.take(msg, self._now)  # type: ignore[union-attr]
         self.counters.count("maps")
-        self._send_map(force=True)
-
-    def _send_map(self, force: bool = False) -> None:
-        if self._map is None or (not force and self._now - self._map_sent < self.config.map_period_s):
-            return
-        self._map_sent = self._now
-        self.map_pub.put(self._map)
 
     def _frames(self, now: float) -> list[RGBDFrame]:
         out = []
@@ -280,8 +273,8 @@ class Ros2Service(Node):
             self.counters.gauge("depth_unpaired", self.pairer.stale_depth)
         if self.config.tf_in:
             self._send_static()
-        if self.config.map_topic:
-            self._send_map()
+        if self.maps is not None:
+            self.maps.poll(now)
         if self.config.people_out:
             while (got := self.tracks_sub.try_recv()) is not None:
                 self._publish_people(got.msg, now)
@@ -295,7 +288,7 @@ class Ros2Service(Node):
             return self.config.pair_wait_s / 4
         if self.config.tf_in and self._static:
             return self.config.static_period_s
-        if self._map is not None:
+        if self.maps is not None and self.maps.latest is not None:
             return self.config.map_period_s
         return None
 

@@ -16,6 +16,7 @@ The image's top row is the map's highest y; the grids here have row 0 at the low
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,7 @@ import yaml
 
 from common.geometry.occupancy import ObstacleMap
 
-__all__ = ["MapFileError", "OccupancyGrid", "read_map", "write_map"]
+__all__ = ["MapFileError", "OccupancyGrid", "load_obstacles", "read_map", "write_map"]
 
 #: The pixel values :func:`write_map` uses, map_saver's: occupied, free, unknown.
 OCCUPIED_PIXEL, FREE_PIXEL, UNKNOWN_PIXEL = 0, 254, 205
@@ -104,6 +105,21 @@ def read_map(path: str | Path) -> OccupancyGrid:
         occupied = p > occupied_thresh
         unknown = ~occupied & ~(p < free_thresh)
     return OccupancyGrid(occupied, unknown, resolution, (float(origin[0]), float(origin[1]), float(origin[2])))
+
+
+def load_obstacles(path: str | Path, min_extent_m: float = 0.0) -> ObstacleMap:
+    """``read_map(path).obstacles(min_extent_m)``, computed once per version of the file (a large
+    map's distance transform takes a moment, and settings are validated more than once)."""
+    path = Path(path)
+    if not path.is_file():
+        read_map(path)  # MapFileError naming the fix
+    stat = path.stat()
+    return _obstacles(path.resolve(), stat.st_mtime_ns, stat.st_size, min_extent_m)
+
+
+@lru_cache(maxsize=4)
+def _obstacles(path: Path, mtime_ns: int, size: int, min_extent_m: float) -> ObstacleMap:
+    return read_map(path).obstacles(min_extent_m)
 
 
 def write_map(path: str | Path, grid: OccupancyGrid) -> Path:

@@ -360,6 +360,10 @@ class StaticMap(Message):
         """(height, width) int8: percent, -1 unknown."""
         return np.frombuffer(self.data, np.int8).reshape(self.height, self.width)
 
+    def content(self) -> tuple[object, ...]:
+        """What makes it this map, its stamp aside: a map sent again has the same content."""
+        return (self.header.frame_id, self.resolution, self.width, self.height, self.origin, hash(self.data))
+
 
 # ------------------------------------------------------------------------ detections
 

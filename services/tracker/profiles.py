@@ -6,13 +6,12 @@ tests/unit/test_config_defaults.py checks they agree), and each building its cor
 from __future__ import annotations
 
 import dataclasses
-from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
-from common.geometry.map_file import MapFileError, read_map
+from common.geometry.map_file import MapFileError, load_obstacles
 from common.geometry.occupancy import ObstacleMap
 
 from services.tracker.core import (
@@ -113,13 +112,6 @@ class StatureConfig(BaseModel):
 _PO = PostureParams()
 
 
-@lru_cache(maxsize=4)
-def _obstacles(path: Path, mtime_ns: int, size: int, min_extent_m: float) -> ObstacleMap:
-    """A map file's obstacles, read once per version of the file (the distance transform of a
-    large map takes a moment)."""
-    return read_map(path).obstacles(min_extent_m)
-
-
 class StaticMapConfig(BaseModel):
     """The robot's static map, its laser's walls and furniture (services/tracker/README.md, *A static
     map*): no track is born on an obstacle. Read when the settings are loaded."""
@@ -148,12 +140,7 @@ class StaticMapConfig(BaseModel):
     def _load(self) -> StaticMapConfig:
         if self.path is not None:
             try:
-                stat = self.path.stat()
-                self._obstacles = _obstacles(self.path.resolve(), stat.st_mtime_ns, stat.st_size,
-                                             self.min_obstacle_m)
-            except FileNotFoundError:
-                raise ValueError(f"no map file {self.path}: give a ROS map YAML file (map.yaml beside its map.pgm), "
-                                 "e.g. one `ros2 run nav2_map_server map_saver_cli -f map` wrote") from None
+                self._obstacles = load_obstacles(self.path, self.min_obstacle_m)
             except (OSError, MapFileError) as exc:
                 raise ValueError(str(exc)) from None
         return self

@@ -145,11 +145,9 @@ class TrackerService(Node):
         grid = None
         while (got := self.map_sub.try_recv()) is not None:  # type: ignore[union-attr]
             grid = got.msg
-        seen = None if grid is None else (grid.header.frame_id, grid.resolution, grid.width, grid.height, grid.origin,
-                                          hash(grid.data))
-        if grid is None or seen == self._map_seen:
+        if grid is None or grid.content() == self._map_seen:
             return
-        self._map_seen = seen
+        self._map_seen = grid.content()
         if grid.header.frame_id != self.config.frame_id:
             self.counters.count("static_map_wrong_frame")
             self._log.warning("static_map_frame", "the static map is in frame %r, the tracking frame is %r: not used "

@@ -166,19 +166,35 @@ def test_a_third_party_ros2_camera_in_and_the_people_out(router: Any, zenoh_clie
     assert "Traceback" not in out
 
 
-def test_a_late_joiner_gets_the_static_transforms(router: Any, zenoh_client: Any) -> None:
-    """/tf_static is transient local: rmw_zenoh publishes it with zenoh-ext's advanced publisher and a
-    cache; a node started after it must still get the robot's static transforms."""
+def _transient_local(router: Any, topic: str, type_name: str) -> tuple[Any, Any]:
+    """(session, publisher): a robot's transient-local ROS 2 publisher as rmw_zenoh makes one, zenoh-ext's
+    advanced publisher with a cache of one sample, on a session that timestamps its samples."""
     import zenoh
     from zenoh import ext as zext
 
     conf = zenoh.Config()
     for path, value in (("mode", '"client"'), ("connect/endpoints", f'["{router.endpoint}"]'),
                         ("scouting/multicast/enabled", "false"), ("timestamping/enabled", "true")):
-        conf.insert_json5(path, value)  # rmw_zenoh's sessions timestamp their samples
+        conf.insert_json5(path, value)
     robot = zenoh.open(conf)
-    key = T.key(DOMAIN, "/tf_static", "tf2_msgs/msg/TFMessage")
-    pub = zext.declare_advanced_publisher(robot, key, cache=zext.CacheConfig(max_samples=1), publisher_detection=True)
+    return robot, zext.declare_advanced_publisher(robot, T.key(DOMAIN, topic, type_name),
+                                                  cache=zext.CacheConfig(max_samples=1), publisher_detection=True)
+
+
+def _first(sub: Any, node: subprocess.Popen[str], what: str) -> Any:
+    """The first message on ``sub`` within 30 s, the node staying up."""
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        if (m := sub.recv(timeout=0.2)) is not None:
+            return m.msg
+        assert node.poll() is None
+    raise AssertionError(f"{what} published before the node started never came")
+
+
+def test_a_late_joiner_gets_the_static_transforms(router: Any, zenoh_client: Any) -> None:
+    """/tf_static is transient local: rmw_zenoh publishes it with zenoh-ext's advanced publisher and a
+    cache; a node started after it must still get the robot's static transforms."""
+    robot, pub = _transient_local(router, "/tf_static", "tf2_msgs/msg/TFMessage")
     stamp = 1_700_000_000_000_000_000
     batch = TransformBatch(header=Header(stamp_ns=stamp), transforms=[
         Transform(parent_frame="base_link", child_frame="camera_link", stamp_ns=stamp, translation=np.array([0.1, 0, 1.2]),
@@ -188,13 +204,7 @@ def test_a_late_joiner_gets_the_static_transforms(router: Any, zenoh_client: Any
     tf_static = app.subscribe(KEYS.tf_static(), TransformBatch, RELIABLE)
     node = _node(router, "--no-camera", "--no-people")
     try:
-        got = None
-        deadline = time.monotonic() + 30
-        while got is None and time.monotonic() < deadline:
-            if (m := tf_static.recv(timeout=0.2)) is not None:
-                got = m.msg
-            assert node.poll() is None
-        assert got is not None, "the static transforms published before the node started never came"
+        got = _first(tf_static, node, "the static transforms")
         assert got.transforms[0].child_frame == "camera_link" and got.transforms[0].static
     finally:
         pub.undeclare()
@@ -205,17 +215,8 @@ def test_a_late_joiner_gets_the_static_transforms(router: Any, zenoh_client: Any
 def test_a_late_joiner_gets_the_robots_map(router: Any, zenoh_client: Any) -> None:
     """/map is transient local (Nav2's map_server publishes it once, with zenoh-ext's advanced publisher
     and a cache under rmw_zenoh): a node started after it gets it and passes it on as static_map."""
-    import zenoh
-    from zenoh import ext as zext
-
-    conf = zenoh.Config()
-    for path, value in (("mode", '"client"'), ("connect/endpoints", f'["{router.endpoint}"]'),
-                        ("scouting/multicast/enabled", "false"), ("timestamping/enabled", "true")):
-        conf.insert_json5(path, value)
-    robot = zenoh.open(conf)
     type_name = "nav_msgs/msg/OccupancyGrid"
-    pub = zext.declare_advanced_publisher(robot, T.key(DOMAIN, "/map", type_name),
-                                          cache=zext.CacheConfig(max_samples=1), publisher_detection=True)
+    robot, pub = _transient_local(router, "/map", type_name)
     cls = T.store.types  # rosbags' classes and CDR, not this project's writer
     stamp = 1_700_000_000_000_000_000
     origin = cls["geometry_msgs/msg/Pose"](position=cls["geometry_msgs/msg/Point"](x=-3.0, y=-2.0, z=0.0),
@@ -230,13 +231,7 @@ def test_a_late_joiner_gets_the_robots_map(router: Any, zenoh_client: Any) -> No
     maps = app.subscribe(KEYS.static_map(), StaticMap, RELIABLE)
     node = _node(router, "--no-camera", "--no-people")
     try:
-        got = None
-        deadline = time.monotonic() + 30
-        while got is None and time.monotonic() < deadline:
-            if (m := maps.recv(timeout=0.2)) is not None:
-                got = m.msg
-            assert node.poll() is None
-        assert got is not None, "the map published before the node started never came"
+        got = _first(maps, node, "the map")
         assert (got.width, got.height, got.header.frame_id, got.origin) == (6, 4, "map", (-3.0, -2.0, 0.0))
         assert got.occupancy()[0].tolist() == [100] * 6 and got.occupancy()[1, 4] == -1
     finally:

@@ -128,9 +128,8 @@ class FoxgloveBridge:
             self.tf.log(self._transforms(msg), log_time=t)
             self._count("/tf")
         elif isinstance(msg, StaticMap):
-            seen = (msg.header.frame_id, msg.resolution, msg.width, msg.height, msg.origin, hash(msg.data))
-            if seen != self._map_seen or t - self._map_at >= MAP_PERIOD_S * 1e9:  # not each of the ros2 node's
-                self._map_seen, self._map_at = seen, t
+            if msg.content() != self._map_seen or t - self._map_at >= MAP_PERIOD_S * 1e9:  # not each of the ros2 node's
+                self._map_seen, self._map_at = msg.content(), t
                 self.map.log(self._grid(msg), log_time=t)
                 self._count("/map")
         model = type(msg)

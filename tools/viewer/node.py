@@ -104,7 +104,7 @@ class ViewerNode(Node):
         self._file_map_at = -1e9
         if config.grid is not None:  # a map file: drawn in the map frame
             g = config.grid
-            self._show_map(config.map_frame, g.resolution, g.origin, g.occupied, 0)
+            self._show_map(("file",), config.map_frame, g.resolution, g.origin, g.occupied)
             cells = np.where(g.occupied, 100, np.where(g.unknown, -1, 0)).astype(np.int8)
             self._file_map = StaticMap(header=Header(stamp_ns=time.time_ns(), frame_id=config.map_frame, source="viewer"),
                                        resolution=g.resolution, width=cells.shape[1], height=cells.shape[0],
@@ -200,14 +200,13 @@ class ViewerNode(Node):
     def _take_map(self, grid: StaticMap) -> None:
         """The static_map stream's map (cells 65 % occupied and more), unless a file was given."""
         if self.config.grid is None:
-            self._show_map(grid.header.frame_id, grid.resolution, grid.origin,
-                           grid.occupancy() >= OCCUPIED_PERCENT, hash(grid.data))
+            self._show_map(grid.content(), grid.header.frame_id, grid.resolution, grid.origin,
+                           grid.occupancy() >= OCCUPIED_PERCENT)
 
-    def _show_map(self, frame_id: str, resolution: float, origin: tuple[float, float, float], occupied: np.ndarray,
-                  content: int) -> None:
-        """The robot's map for the page: its occupied cells as runs, sent once per map
-        (``/api/map``); one re-sent unchanged is not sent again."""
-        seen = (frame_id, resolution, occupied.shape, origin, content)
+    def _show_map(self, seen: tuple[object, ...], frame_id: str, resolution: float, origin: tuple[float, float, float],
+                  occupied: np.ndarray) -> None:
+        """The robot's map for the page: its occupied cells as runs, sent once per map (``/api/map``;
+        ``seen``: what makes it this map); one re-sent unchanged is not sent again."""
         if self._map is not None and self._map["seen"] == seen:
             return
         version = 1 if self._map is None else self._map["version"] + 1

@@ -1,6 +1,6 @@
-"""A ROS 2 robot made of a third party's rmw_zenoh implementation: the simulator's head camera and
-transforms published by zenoh-ros2-sdk (as a RealSense ROS 2 driver and tf would), and the people
-read back by its subscriber. The ground truth goes on this project's key, for scoring.
+"""A ROS 2 robot made of a third party's rmw_zenoh implementation: the simulator's head camera,
+transforms and map published by zenoh-ros2-sdk (as a RealSense ROS 2 driver, tf and Nav2's map
+server would), and the people read back by its subscriber. The ground truth goes on this project's key, for scoring.
 
     python -m tests.helpers.ros2_robot --connect tcp/127.0.0.1:PORT --robot NAME [--max] ...
 
@@ -47,6 +47,8 @@ def main(argv: list[str]) -> int:
     from services.ros2.config import Ros2Config
     from services.ros2.convert import camera_info_message, image_message, tf_message
     from services.ros2.core.types import types_of
+    from services.ros2.maps import occupancy_grid_message
+    from tools.simulator.static_map import apartment_static_map
     from tools.simulator.config import SimulatorConfig
     from tools.simulator.source import SimulatedStream
 
@@ -66,6 +68,7 @@ def main(argv: list[str]) -> int:
     colour = pub(topics.colour_topic, "sensor_msgs/msg/Image")
     tf = pub(topics.tf_topic, "tf2_msgs/msg/TFMessage")
     tf_static = pub(topics.tf_static_topic, "tf2_msgs/msg/TFMessage")
+    grid = pub(topics.map_topic, "nav_msgs/msg/OccupancyGrid")  # the robot's map server
     tracked: list[Any] = []
     sdk.ROS2Subscriber("/humans/bodies/tracked", "hri_msgs/msg/IdsList", tracked.append,
                        msg_definition=types.definition("hri_msgs/msg/IdsList"), type_hash=types.hash("hri_msgs/msg/IdsList"),
@@ -87,6 +90,9 @@ def main(argv: list[str]) -> int:
                 time.sleep(delay)
         _, pairs = stream.messages(seq)
         stamp = 0
+        if seq % 50 == 0:  # the map, now and then (map_server sends it once, transient local)
+            grid.publish(**_fields(occupancy_grid_message(
+                types, apartment_static_map(stream.stamp_ns(seq), stream.world.apartment))))
         for key, msg in pairs:
             if isinstance(msg, RGBDFrame):
                 stamp = msg.header.stamp_ns

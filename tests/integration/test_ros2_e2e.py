@@ -1,4 +1,4 @@
-"""End to end through ROS 2: the simulator's frames and transforms, published as ROS 2 topics by a
+"""End to end through ROS 2: the simulator's frames, transforms and map, published as ROS 2 topics by a
 third party's rmw_zenoh implementation (zenoh-ros2-sdk), go through deploy/ros2.yaml (the ros2
 node and the four services on one router), and the people come back to that third party as
 /humans/bodies/tracked. Table II on `still` must agree with the native path (deploy/single-pc.yaml
@@ -53,3 +53,5 @@ def test_the_pipeline_through_ros2_scores_as_the_native_path(tmp_path: Path) -> 
     assert back["frames_sent"] == 200, back
     assert back["tracked_messages"] > 100, back
     assert max(back["bodies"].values()) > 50, back
+    # the robot's map went the same way: /map, the ros2 node, static_map, the tracker
+    assert "static map from ros2: 182 x 142 cells of 0.05 m" in (tmp_path / "ros2" / "launch.log").read_text()

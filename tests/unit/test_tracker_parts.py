@@ -67,6 +67,25 @@ def test_pairs_compared_several_times_get_the_same_distances_as_alone() -> None:
         np.testing.assert_allclose(both[k], alone, rtol=1e-5, atol=1e-6)
 
 
+def test_a_bank_too_large_for_the_cache_is_streamed_to_the_same_distances(monkeypatch: pytest.MonkeyPatch) -> None:
+    from services.tracker.core import bank as bank_module
+
+    bank = GalleryBank(capacity=40)
+    slots = [bank.allocate(16) for _ in range(6)]
+    for s in slots:
+        for x in _unit(30, 16):  # partly filled: the slots past a gallery's descriptors stay inf
+            bank.add(s, x)
+    x = _unit(4, 16)
+    for order in ([0, 1, 2, 3], [5, 2, 0, 4]):  # the bank's used part in order, and a gather
+        picked = np.array([slots[k] for k in order])
+        cached = bank.pair_sq_distances(picked, x)
+        monkeypatch.setattr(bank_module, "_STREAM_BYTES", 0)
+        streamed = bank.pair_sq_distances(picked, x)
+        monkeypatch.undo()
+        assert np.array_equal(np.isinf(streamed), np.isinf(cached)) and np.isinf(cached[:, 30:]).all()
+        np.testing.assert_allclose(streamed[:, :30], cached[:, :30], rtol=1e-5, atol=1e-6)
+
+
 def test_cues_return_what_they_computed() -> None:
     model = AppearanceModel(0.3, 0.7, 0.4)
     bank = GalleryBank(capacity=5)

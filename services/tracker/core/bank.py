@@ -18,6 +18,12 @@ __all__ = ["GalleryBank"]
 
 #: up to this many compared pairs, :meth:`GalleryBank.pair_sq_distances` takes the galleries one by one
 _FEW_PAIRS = 2
+#: above this many bytes of galleries (about half a server's last-level cache: they no longer stay
+#: in it from one frame to the next) the product streams them through ``einsum``, which reads
+#: memory at about twice the rate of the stacked ``matmul`` (measured on a 32 MiB L3: 100
+#: galleries of 500 128-D descriptors, 24 MiB, in 0.79 ms against 1.55 ms; 60, 15 MiB, 0.39
+#: against 0.26 ms, where ``matmul`` is faster)
+_STREAM_BYTES = 16 << 20
 
 
 class GalleryBank:
@@ -145,7 +151,11 @@ class GalleryBank:
         else:
             xs = np.zeros((hi, 1, self.dim), np.float32)
             xs[slots, 0] = x
-        prod = np.matmul(xs, self.data[:hi])[:, 0]  # (hi, capacity): one product per slot
+        bank = self.data[:hi]
+        if bank.nbytes > _STREAM_BYTES:
+            prod = np.einsum("sd,sdc->sc", xs[:, 0], bank)  # (hi, capacity), the galleries streamed once
+        else:
+            prod = np.matmul(xs, bank)[:, 0]  # (hi, capacity): one product per slot
         out = prod if in_order else prod[slots]
         out *= -2.0  # sq - 2 x . g, without temporaries
         out += self.sq[:hi] if in_order else self.sq[slots]

@@ -108,17 +108,28 @@ def read_map(path: str | Path) -> OccupancyGrid:
 
 
 def load_obstacles(path: str | Path, min_extent_m: float = 0.0) -> ObstacleMap:
-    """``read_map(path).obstacles(min_extent_m)``, computed once per version of the file (a large
-    map's distance transform takes a moment, and settings are validated more than once)."""
+    """``read_map(path).obstacles(min_extent_m)``, computed once per version of the YAML file and
+    of its image (a large map's distance transform takes a moment, and settings are validated
+    more than once; a map saved again under the same name, image only, is read again)."""
     path = Path(path)
     if not path.is_file():
         read_map(path)  # MapFileError naming the fix
-    stat = path.stat()
-    return _obstacles(path.resolve(), stat.st_mtime_ns, stat.st_size, min_extent_m)
+    return _obstacles(path.resolve(), _version(path), min_extent_m)
+
+
+def _version(path: Path) -> tuple[tuple[int, int], ...]:
+    """(modification time, size) of the YAML file ``path`` and, when it names one, of its image."""
+    stats = [path.stat()]
+    try:
+        meta = yaml.safe_load(path.read_text())
+        stats.append((path.parent / str(meta["image"])).stat())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError):
+        pass  # read_map says what is wrong with the file
+    return tuple((s.st_mtime_ns, s.st_size) for s in stats)
 
 
 @lru_cache(maxsize=4)
-def _obstacles(path: Path, mtime_ns: int, size: int, min_extent_m: float) -> ObstacleMap:
+def _obstacles(path: Path, version: tuple[tuple[int, int], ...], min_extent_m: float) -> ObstacleMap:
     return read_map(path).obstacles(min_extent_m)
 
 

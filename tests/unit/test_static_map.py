@@ -79,6 +79,28 @@ def test_a_written_map_reads_back_cell_for_cell(tmp_path: Path) -> None:
     assert pixels[-1, 40] == 0 and pixels[0, 0] == 254  # the image's bottom row is the lowest y
 
 
+def test_a_map_saved_again_is_read_again_even_when_only_its_image_changed(tmp_path: Path) -> None:
+    import os
+
+    from common.geometry.map_file import load_obstacles
+
+    occupied, _ = wall_map()
+    path = tmp_path / "map.yaml"
+    image = write_map(path, OccupancyGrid(occupied, np.zeros_like(occupied), RES, (0.0, 0.0, 0.0)))
+    before = load_obstacles(path, 0.3)
+    assert load_obstacles(path, 0.3) is before  # the distances are computed once per version
+    yaml_stat = path.stat()
+    moved = np.roll(occupied, 20, axis=1)  # the wall 1 m further in x, the image the same size
+    assert cv2.imwrite(str(image), np.where(moved, 0, 254).astype(np.uint8)[::-1])  # the image alone saved again
+    assert path.stat().st_mtime_ns == yaml_stat.st_mtime_ns
+    stat = image.stat()
+    os.utime(image, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1_000_000_000))  # a later save, whatever the clock
+    after = load_obstacles(path, 0.3)
+    wall_then, wall_now = np.array([[2.05, 1.0]]), np.array([[3.05, 1.0]])
+    assert before.blocked(wall_then, 0.0).tolist() == [True] and before.blocked(wall_now, 0.0).tolist() == [False]
+    assert after.blocked(wall_then, 0.0).tolist() == [False] and after.blocked(wall_now, 0.0).tolist() == [True]
+
+
 def test_map_saver_files_read_as_nav2_reads_them(tmp_path: Path) -> None:
     """A map as map_saver writes it (0 occupied, 254 free, 205 unknown, free_thresh 0.25, Nav2
     then reads 205 as free), negated and raw images, and a colour PNG."""

@@ -11,6 +11,11 @@ the KITTI dev split (``kitti_ped_dev`` of the shared data, skipped when absent):
 told KITTI's score calibration), the tracking alone (no process start, no file reading),
 median of ``--kitti-reps`` passes over the 7 sequences.
 
+``--map-sizes`` times what the robust tracker does with a robot's static map (``robust.static_map``):
+taking a map of N x N cells of 5 cm (walls every 2.5 and 3.5 m, 2000 posts: the post filter has
+work) as it comes in (slam_toolbox republishes a growing map every few seconds), and the birth
+check of a frame's 3 new detections against it.
+
 Each case starts a tracker with ``people`` Confirmed tracks and fills their galleries
 (``gallery`` descriptors of dimension 128) by as many updates, then times updates in which
 every person is detected again with a fresh descriptor, i.e. steady state: the association
@@ -132,6 +137,31 @@ def bench_kitti(profile: str, reps: int, data: Path) -> float | None:
     return float(np.median(rates))
 
 
+def bench_static_map(sizes: list[int], reps: int = 5) -> None:
+    """Median ms to take an N x N map (``ObstacleMap.from_occupied`` as the tracker does, posts under
+    0.3 m left out) and µs for the birth check of 3 detections, per size in ``sizes``."""
+    from common.geometry.occupancy import ObstacleMap
+
+    rng = np.random.default_rng(0)
+    for n in sizes:
+        occupied = np.zeros((n, n), bool)
+        occupied[::50, :], occupied[:, ::70] = True, True
+        occupied[rng.integers(0, n, 2000), rng.integers(0, n, 2000)] = True
+        takes = []
+        for _ in range(reps):
+            start = time.perf_counter()
+            obstacles = ObstacleMap.from_occupied(occupied, 0.05, (0.0, 0.0, 0.0), 0.3)
+            takes.append(time.perf_counter() - start)
+        points = rng.uniform(0.0, n * 0.05, (3, 2))
+        checks = []
+        for _ in range(200):
+            start = time.perf_counter()
+            obstacles.blocked(points, 0.1)
+            checks.append(time.perf_counter() - start)
+        print(f"static map {n} x {n} cells of 5 cm ({n * 0.05:g} m square): taken in {np.median(takes) * 1e3:.1f} ms, "
+              f"{obstacles.occupied.nbytes / 2**20:.1f} MiB; birth check of 3 detections {np.median(checks) * 1e6:.0f} µs")
+
+
 def bench_profile(profile: str, args: argparse.Namespace, bar: Bar) -> None:
     """The update table and the ``perception track`` throughput of one profile; ``bar`` counts the cases."""
     config = TrackerConfig(memory_path=None, profile=profile)
@@ -173,6 +203,8 @@ def main() -> None:
     parser.add_argument("--without", nargs="+", default=[], choices=("classifier", "posture"),
                         help="robust: time it with these per-track filters off (Basso/Munaro's online classifiers, "
                              "the TU Ilmenau posture and orientation filters), to see what they cost")
+    parser.add_argument("--map-sizes", type=int, nargs="*", default=[400, 2000, 4000], metavar="N",
+                        help="static maps of N x N cells to time taking and checking (none: skip)")
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
     print(f"tracker update, ms (median / p95), {DIM}-D descriptors, {args.reps} updates per case")
@@ -182,6 +214,9 @@ def main() -> None:
     with progress_bar(cases, desc="tracker", unit="case") as bar:
         for profile in args.profiles:
             bench_profile(profile, args, bar)
+    if args.map_sizes:
+        print()
+        bench_static_map(args.map_sizes)
 
 
 if __name__ == "__main__":

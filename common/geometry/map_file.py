@@ -108,9 +108,9 @@ def read_map(path: str | Path) -> OccupancyGrid:
 
 
 def load_obstacles(path: str | Path, min_extent_m: float = 0.0) -> ObstacleMap:
-    """``read_map(path).obstacles(min_extent_m)``, computed once per version of the YAML file and
-    of its image (a large map's distance transform takes a moment, and settings are validated
-    more than once; a map saved again under the same name, image only, is read again)."""
+    """``read_map(path).obstacles(min_extent_m)``, made once per version of the YAML file and of
+    its image (reading a large image takes a moment, and settings are validated more than once; a
+    map saved again under the same name, image only, is read again)."""
     path = Path(path)
     if not path.is_file():
         read_map(path)  # MapFileError naming the fix

@@ -50,6 +50,20 @@ def test_posts_shorter_than_the_minimum_extent_are_no_obstacle() -> None:
     assert np.isinf(ObstacleMap.from_occupied(np.zeros((3, 3), bool), RES).clearance(np.array([[0.0, 0.0]])))[0]
 
 
+def test_a_bounded_search_finds_what_the_whole_map_holds() -> None:
+    rng = np.random.default_rng(3)
+    occupied = rng.random((70, 90)) < 0.01
+    occupied[30, :55] = True  # a wall reaching the map's left edge: windows cut by the border
+    m = ObstacleMap.from_occupied(occupied, RES, (0.4, -1.2, 0.7))
+    occupied[:] = False  # the map keeps its own cells
+    points = np.vstack([rng.uniform(-3.0, 5.0, (1000, 2)), [[np.nan, 0.0]]])  # on the map, around it and off it
+    whole = m.clearance(points)  # the k-d tree over every obstacle
+    assert 100 < np.isfinite(whole).sum() < 1000 and (whole == 0.0).any()
+    for bound in (0.0, 0.05, 0.1, 0.125, 0.3, 1.0):  # a window of cells around each point
+        np.testing.assert_array_equal(m.clearance(points, up_to=bound), np.where(whole <= bound, whole, np.inf))
+        np.testing.assert_array_equal(m.blocked(points, bound), whole <= bound)
+
+
 def test_the_origin_and_its_yaw_place_the_grid_in_the_map_frame() -> None:
     _, shifted = wall_map((10.0, -5.0, 0.0))
     assert shifted.clearance(np.array([[12.05, -4.0]]))[0] == 0.0

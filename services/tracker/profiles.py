@@ -203,8 +203,9 @@ class RecoveryConfig(BaseModel):
     probation_s: float = Field(default=_RE.probation_s, ge=0.0,
                                description="how long a recovery is checked again (s); 0: never undone")
     check_period_s: float = Field(default=_RE.check_period_s, gt=0.0, description="how often during probation (s)")
-    compete: bool = Field(default=_RE.compete, description="a detection near a coasting track that looks like a "
-                          "remembered person known to be someone else counts that as an alternative")
+    compete: bool = Field(default=_RE.compete, description="a detection near a coasting track, or near a confirmed "
+                          "one whose person it does not look like, that looks like a remembered person known to be "
+                          "someone else counts that as an alternative")
     left_weight: float = Field(default=_RE.left_weight, gt=0.0, le=1.0,
                                description="prior weight of a remembered person who walked out of the cameras' view, "
                                            "against one lost inside it; 1: no difference")

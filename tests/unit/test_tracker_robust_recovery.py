@@ -2,7 +2,8 @@
 looks like two remembered people gets a new ID, a person who could not have walked there
 gets a new ID, a recovery that drifts away is undone and the remembered person kept; the
 recovery state is in snapshots and forgotten with the person; a person back in view competes
-with a look-alike's coasting track (the memory in the association)."""
+with a look-alike's coasting track, and with the track of someone who walked out where they walked
+in (the memory in the association)."""
 
 from __future__ import annotations
 
@@ -170,3 +171,42 @@ def test_a_remembered_person_never_seen_with_the_track_does_not_compete_with_it(
     run(trk, 4.0, 4.3, [])
     run(trk, 4.3, 5.3, [(STRIPED, (8.4, 0.0))])  # reachable by now
     assert id_at(trk, 8.4, 0.0) == plain  # position and a fair look keep the coasting track's ID
+
+
+#: a look 0.65 from PLAIN: by appearance alone a little more likely someone else (log-odds -0.4)
+COMER = (_E[0] + 0.78 * _E[1]) / np.linalg.norm(_E[0] + 0.78 * _E[1])
+
+
+def _walk_in_as_the_other_walks_out(compete: bool) -> tuple[RobustTracker, int, int]:
+    trk = tracker(compete=compete)
+    run(trk, 0.0, 2.0, [(PLAIN, (0.0, 0.0)), (COMER, (1.5, 0.0))])  # seen together: two people
+    plain, comer = id_at(trk, 0.0, 0.0), id_at(trk, 1.5, 0.0)
+    run(trk, 2.0, 3.5, [(PLAIN, (0.0, 0.0))])  # the second walks out and is remembered
+    assert comer in trk.memory.entries and comer not in trk.live_ids()
+    # the first walks out of the spot as the second walks into it, in the next frame: the first's
+    # track is confirmed (detected a frame ago), the detection a little unlike its person
+    run(trk, 3.5, 4.5, [(COMER, (0.05, 0.0))])
+    return trk, plain, comer
+
+
+@pytest.mark.parametrize("compete", [True, False])
+def test_a_person_who_walks_in_where_another_walks_out_keeps_their_own_id(compete: bool) -> None:
+    trk, plain, comer = _walk_in_as_the_other_walks_out(compete)
+    assert id_at(trk, 0.05, 0.0) == (comer if compete else plain)
+
+
+def test_a_detection_that_looks_like_the_tracks_person_weighs_no_remembered_alternative() -> None:
+    from services.tracker.core import cues
+
+    trk, plain, comer = _walk_in_as_the_other_walks_out(True)
+    row = trk.state.tracks.id.index(comer)
+    positions, desc = np.array([[0.05, 0.0, 1.0]]), np.stack([view(PLAIN)])  # looks like the remembered one
+    r = np.broadcast_to(np.diag([0.04, 0.04, 0.09]), (1, 3, 3))
+    gated = np.zeros((1, len(trk.state.tracks)), bool)
+    gated[0, row] = True
+    alternatives = [cues.memory_alternatives(trk.state, trk.params, positions, r, desc, np.array([True]), gated,
+                                             np.full(gated.shape, sign)) for sign in (-1.0, 1.0)]
+    # the comer's track is confirmed, PLAIN remembered and once seen with the comer: where the pair's
+    # appearance says "unlike the track's person", PLAIN is the alternative; where it says "like", none
+    assert plain in trk.memory.entries
+    assert alternatives[0][0, row] > 3.0 and alternatives[1][0, row] == 0.0

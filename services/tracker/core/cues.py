@@ -136,22 +136,37 @@ def classifier_log_odds(weights: np.ndarray | None, steps: list[int], u: np.ndar
 
 
 def memory_alternatives(state: RobustTrackerState, p: RobustParams, positions: np.ndarray, r: np.ndarray,
-                        descriptors: np.ndarray, has_desc: np.ndarray, gated: np.ndarray) -> np.ndarray:
-    """(N, T) what to take off the log-odds of each gated pair of a detection and a coasting track:
-    the ID memory's alternative. A remembered person (not live, reachable from where they left)
-    known to be someone else than the track's person (the two were detected in one frame; a
-    remembered ID never seen with it may be the same person remembered twice) competes with the
-    track, by the association's appearance log-odds to their gallery less what a stranger
-    reaches here (:func:`recovery.stranger_llr <services.tracker.core.recovery.stranger_llr>`
-    of the detection against the other live tracks' galleries, certainly other people if the
-    detection is the track's person); at least 0. A person back in view then keeps their own ID
-    instead of continuing a look-alike's coasting track (Ban et al.: returning people compete
-    with the tracks)."""
-    t, bank, rp = state.tracks, state.bank, p.recovery
-    coasting = np.array([s is TrackStatus.COASTING for s in t.status], bool)
+                        descriptors: np.ndarray, has_desc: np.ndarray, gated: np.ndarray,
+                        appearance: np.ndarray) -> np.ndarray:
+    """(N, T) what to take off the log-odds of the gated pairs of a detection and a track whose
+    person may not be the one detected: a coasting track, or a confirmed one the detection does not
+    look like (``appearance`` (N, T), the pairs' appearance log-odds, below 0): the ID memory's
+    alternative. A remembered person (not live, reachable from where they left) known to be
+    someone else than the track's person (the two were detected in one frame; a remembered ID
+    never seen with it may be the same person remembered twice) competes with the track, by the
+    association's appearance log-odds to their gallery less what a stranger reaches here
+    (:func:`recovery.stranger_llr <services.tracker.core.recovery.stranger_llr>` of the detection
+    against the other live tracks' galleries, certainly other people if the detection is the
+    track's person); at least 0. A person back in view then keeps their own ID instead of
+    continuing a look-alike's coasting track, or the track of someone who walked out where they
+    walked in (Ban et al.: returning people compete with the tracks). A detection that looks like
+    the track's own person leaves that track no alternative to weigh: where everyone looks alike,
+    remembered look-alikes would otherwise tax every correct continuation. Only the remembered
+    people known to differ from a compared track's person are measured, and the stranger only where
+    one of them outweighs "no alternative" (the stranger's log-odds is never below 0)."""
+    t, bank, rp, memory = state.tracks, state.bank, p.recovery, state.memory
     out = np.zeros(gated.shape)
-    rows = np.flatnonzero((gated & coasting[None, :]).any(axis=1) & has_desc)
-    if not len(rows) or p.appearance is None:
+    if p.appearance is None:
+        return out
+    live_ids = state.live_ids()
+    together, none = state.recovery.together, frozenset()
+    rivals_of = [none if s is TrackStatus.TENTATIVE or not i else
+                 frozenset(k for k in together.get(i, none) if k in memory.entries and k not in live_ids)
+                 for i, s in zip(t.id, t.status)]
+    compared = gated & ((appearance < 0) | np.array([s is TrackStatus.COASTING for s in t.status], bool)[None, :])
+    tracks_of = [[j for j in np.flatnonzero(compared[d]).tolist() if rivals_of[j]] if has_desc[d] else []
+                 for d in range(len(gated))]
+    if not any(tracks_of):
         return out
     model = p.appearance
 
@@ -160,22 +175,25 @@ def memory_alternatives(state: RobustTrackerState, p: RobustParams, positions: n
 
     live = [(t.id[c], t.slot[c]) for c in range(len(t)) if t.id[c] and bank.size(t.slot[c])]
     slots = np.array([s for _, s in live], np.int64)
-    stamp, live_ids = state.last_stamp or 0.0, state.live_ids()
-    for d in rows.tolist():
-        ids_a, dist = state.memory.distances(descriptors[d], exclude=live_ids)
-        if not len(ids_a):
+    stamp = state.last_stamp or 0.0
+    for d, tracks in enumerate(tracks_of):
+        if not tracks:
             continue
-        ids = ids_a.tolist()
+        ids = sorted(set().union(*(rivals_of[j] for j in tracks)))
+        x = np.asarray(descriptors[d], np.float32)[None]
+        dist = np.array([memory.entries[k].min_distances(x)[0] for k in ids], np.float64)
         var = 0.5 * float(r[d, 0, 0] + r[d, 1, 1])
         reach = rec.reachable(stamp, float(positions[d, 0]), float(positions[d, 1]), var,
                               [state.recovery.departures.get(k) for k in ids], rp).tolist()
-        llr = pair_llr(dist).tolist()
-        cohort = pair_llr(np.sqrt(bank.pair_sq_distances(slots, np.repeat(descriptors[d][None], len(slots), axis=0))
-                                  .min(axis=1))).tolist() if len(slots) else []
-        for j in np.flatnonzero(gated[d] & coasting).tolist():
-            known = state.recovery.together.get(t.id[j], frozenset())
-            rivals = [v for k, v, ok in zip(ids, llr, reach) if ok and k in known]
-            if rivals:
-                others = [v for (i, _), v in zip(live, cohort) if i != t.id[j]]
-                out[d, j] = max(0.0, max(rivals) - (rec.stranger_llr(np.array(others)) if others else 0.0))
+        llr_of = {k: v for k, v, ok in zip(ids, pair_llr(dist).tolist(), reach) if ok}
+        cohort: list[float] | None = None
+        for j in tracks:
+            best = max((llr_of[k] for k in rivals_of[j] if k in llr_of), default=0.0)
+            if best <= 0.0:  # no rival outweighs "no alternative": the stranger cannot change that
+                continue
+            if cohort is None:  # the detection against every live gallery, once
+                here = np.repeat(descriptors[d][None], len(slots), axis=0)
+                cohort = pair_llr(np.sqrt(bank.pair_sq_distances(slots, here).min(axis=1))).tolist() if len(slots) else []
+            others = [v for (i, _), v in zip(live, cohort) if i != t.id[j]]
+            out[d, j] = max(0.0, best - (rec.stranger_llr(np.array(others)) if others else 0.0))
     return out

@@ -87,9 +87,9 @@ class RecoveryParams:
     probation_s: float = 3.0
     #: s: how often during probation
     check_period_s: float = 0.5
-    #: the ID memory competes in the association: a detection near a coasting track that looks
-    #: like a remembered person known to be someone else counts that as an alternative
-    #: (core/cues.py's :func:`memory_alternatives`)
+    #: the ID memory competes in the association: a detection near a coasting track, or near a
+    #: confirmed one whose person it does not look like, that looks like a remembered person known
+    #: to be someone else counts that as an alternative (core/cues.py's :func:`memory_alternatives`)
     compete: bool = True
     #: prior weight of a remembered person who walked out of the cameras' view, against one lost
     #: inside it (still about); below 1 for an open place, whose people seldom turn straight back

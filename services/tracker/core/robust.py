@@ -216,7 +216,7 @@ class RobustTracker(TrackerCore):
             return np.zeros((n, nt)), None
         total, d2 = cues.position_log_odds(positions, r, t.mean[:, :2], t.cov[:, :2, :2], p.new_density)
         gated = d2 <= p.gate_sq
-        pairs = None
+        pairs, app = None, np.zeros(d2.shape)  # no appearance: no pair looks unlike its track
         if descriptors is not None and u is not None and p.appearance is not None:
             app, pairs = cues.appearance_log_odds(p.appearance, self.state.bank, t.slot, descriptors,
                                                   has_desc[:, None] & gated)
@@ -230,7 +230,7 @@ class RobustTracker(TrackerCore):
         if body is not None:
             total = total + body
         if descriptors is not None and p.recovery.compete and len(self.state.memory):  # returning people compete
-            total = total - cues.memory_alternatives(self.state, p, positions, r, descriptors, has_desc, gated)
+            total = total - cues.memory_alternatives(self.state, p, positions, r, descriptors, has_desc, gated, app)
         return np.where(gated, total, -np.inf), pairs
 
     def _associate(self, log_odds: np.ndarray, confident: np.ndarray) -> list[tuple[int, int]]:

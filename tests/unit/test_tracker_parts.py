@@ -3,6 +3,8 @@ tracker that keeps nothing of a frame but its state."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -84,6 +86,16 @@ def test_a_bank_too_large_for_the_cache_is_streamed_to_the_same_distances(monkey
         monkeypatch.undo()
         assert np.array_equal(np.isinf(streamed), np.isinf(cached)) and np.isinf(cached[:, 30:]).all()
         np.testing.assert_allclose(streamed[:, :30], cached[:, :30], rtol=1e-5, atol=1e-6)
+
+
+def test_the_last_level_cache_is_read_as_linux_reports_it(tmp_path: Path) -> None:
+    from services.tracker.core.bank import last_level_cache_bytes
+
+    for index, size in (("index0", "32K"), ("index2", "1024K"), ("index3", "32768K"), ("index4", "junk")):
+        (tmp_path / index).mkdir()
+        (tmp_path / index / "size").write_text(size + "\n")
+    assert last_level_cache_bytes(tmp_path) == 32 << 20
+    assert last_level_cache_bytes(tmp_path / "absent") is None  # another system: the default threshold
 
 
 def test_cues_return_what_they_computed() -> None:

@@ -11,19 +11,37 @@ descriptor of the track's gallery. Pure numpy.
 from __future__ import annotations
 
 import bisect
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["GalleryBank"]
+__all__ = ["GalleryBank", "last_level_cache_bytes"]
 
 #: up to this many compared pairs, :meth:`GalleryBank.pair_sq_distances` takes the galleries one by one
 _FEW_PAIRS = 2
-#: above this many bytes of galleries (about half a server's last-level cache: they no longer stay
-#: in it from one frame to the next) the product streams them through ``einsum``, which reads
-#: memory at about twice the rate of the stacked ``matmul`` (measured on a 32 MiB L3: 100
-#: galleries of 500 128-D descriptors, 24 MiB, in 0.79 ms against 1.55 ms; 60, 15 MiB, 0.39
-#: against 0.26 ms, where ``matmul`` is faster)
-_STREAM_BYTES = 16 << 20
+
+
+def last_level_cache_bytes(root: Path = Path("/sys/devices/system/cpu/cpu0/cache")) -> int | None:
+    """The largest CPU cache's size in bytes as Linux reports it (``index*/size``, e.g. ``32768K``);
+    None where it cannot be read (another system, a container that hides it)."""
+    sizes = []
+    for entry in root.glob("index*/size"):
+        try:
+            text = entry.read_text().strip().upper()
+            scale = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}.get(text[-1:], 1)
+            sizes.append(int(text.rstrip("KMG")) * scale)
+        except (OSError, ValueError):
+            continue
+    return max(sizes) if sizes else None
+
+
+#: above this many bytes of galleries (half the last-level cache, which the galleries share with
+#: everything else: they no longer stay in it from one frame to the next; 16 MiB where it is not
+#: known) the product streams them through ``einsum``, which reads memory at about twice the rate
+#: of the stacked ``matmul`` there (measured on a 32 MiB L3: 100 galleries of 500 128-D
+#: descriptors, 24 MiB, in 0.79 ms against 1.55 ms; 60, 15 MiB, 0.39 against 0.26 ms, where
+#: ``matmul`` is faster: in the cache, ``einsum`` is the slower)
+_STREAM_BYTES = (last_level_cache_bytes() or 32 << 20) // 2
 
 
 class GalleryBank:

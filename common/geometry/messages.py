@@ -14,6 +14,7 @@ from common.geometry.transforms import FrameTreeError, PinholeCamera, RigidTrans
 from common.messages.schemas import CameraInfo, Header, StaticMap, Transform, TransformBatch
 
 if TYPE_CHECKING:
+    from common.geometry.map_file import OccupancyGrid
     from common.runtime.ratelog import RateLimitedLog
     from common.runtime.service import Counters
     from common.transport.base import Subscription
@@ -25,6 +26,7 @@ __all__ = [
     "camera_from_info",
     "OCCUPIED_PERCENT",
     "obstacles_from_map",
+    "static_map_from_grid",
     "rigid_from_msg",
     "take_transforms",
     "transform_from_ros",
@@ -131,3 +133,12 @@ def obstacles_from_map(grid: StaticMap, min_extent_m: float = 0.0) -> ObstacleMa
     occupied; posts under ``min_extent_m`` left out)."""
     occupied = grid.occupancy() >= OCCUPIED_PERCENT
     return ObstacleMap.from_occupied(occupied, grid.resolution, grid.origin, min_extent_m)
+
+
+def static_map_from_grid(grid: OccupancyGrid, header: Header) -> StaticMap:
+    """An occupancy grid (e.g. a map file's, :func:`common.geometry.map_file.read_map`) as a
+    :class:`StaticMap`, as a map server publishes it: 100 occupied, 0 free, -1 unknown."""
+    cells = np.where(grid.occupied, 100, np.where(grid.unknown, -1, 0)).astype(np.int8)
+    h, w = cells.shape
+    return StaticMap(header=header, resolution=grid.resolution, width=w, height=h, origin=grid.origin,
+                     data=cells.tobytes())

@@ -26,6 +26,10 @@ from scipy.spatial import cKDTree
 __all__ = ["ObstacleMap"]
 
 
+#: windows up to this many cells from their point (a birth check's 0.1 m is 3 at 5 cm); farther the k-d tree
+_WINDOW_MAX = 16
+
+
 @lru_cache(maxsize=8)
 def _window(k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The cells of a (2k + 1)^2 window: row and column offsets and their squared distances."""
@@ -98,8 +102,9 @@ class ObstacleMap:
         if not on.any():
             return out
         res = self.resolution
-        if math.isfinite(up_to):  # a window of cells around each point: the cells whose centre is that near
-            k = max(0, int(math.floor(max(up_to, 0.0) / res + 0.5))) + 1  # a ring more: rounding
+        # the cells whose centre can be that near, a ring more for rounding: a window around each point
+        k = max(0, int(math.floor(max(up_to, 0.0) / res + 0.5))) + 1 if math.isfinite(up_to) else _WINDOW_MAX + 1
+        if k <= _WINDOW_MAX:
             dr, dc, d2 = _window(k)
             hit = self._padded(k)[row[on, None] + (dr + k), col[on, None] + (dc + k)]  # (M, window) around each
             out[on] = np.sqrt(np.where(hit, d2, np.inf).min(axis=1))

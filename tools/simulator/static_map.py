@@ -4,9 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from common.geometry.map_file import OccupancyGrid, write_map
+from common.geometry.messages import static_map_from_grid
 from common.messages.schemas import Header, StaticMap
 from tools.simulator.core.apartment import Apartment, default_apartment
 from tools.simulator.core.laser_map import MAP_RESOLUTION_M, laser_map
@@ -26,7 +25,5 @@ def apartment_static_map(stamp_ns: int, apartment: Apartment | None = None) -> S
     """``apartment``'s laser map as a :class:`StaticMap` in the map frame, what the simulated ROS 2
     robot's map server publishes on ``/map`` (100 occupied, 0 free, -1 unknown)."""
     occupied, unknown, origin = laser_map(apartment or default_apartment())
-    cells = np.where(occupied, 100, np.where(unknown, -1, 0)).astype(np.int8)
-    h, w = cells.shape
-    return StaticMap(header=Header(stamp_ns=stamp_ns, frame_id=MAP, source="simulator"), resolution=MAP_RESOLUTION_M,
-                     width=w, height=h, origin=origin, data=cells.tobytes())
+    return static_map_from_grid(OccupancyGrid(occupied, unknown, MAP_RESOLUTION_M, origin),
+                                Header(stamp_ns=stamp_ns, frame_id=MAP, source="simulator"))

@@ -18,7 +18,7 @@ from typing import Any, Callable, Protocol
 import numpy as np
 
 from common.geometry.transforms import TransformBuffer, TransformError
-from common.geometry.messages import OCCUPIED_PERCENT, add_batch
+from common.geometry.messages import OCCUPIED_PERCENT, add_batch, static_map_from_grid
 from common.messages.keys import MAPS, RELIABLE, STATUS, Delivery, Keys
 from common.runtime.node import Node
 from common.messages.registry import stages
@@ -105,10 +105,8 @@ class ViewerNode(Node):
         if config.grid is not None:  # a map file: drawn in the map frame
             g = config.grid
             self._show_map(("file",), config.map_frame, g.resolution, g.origin, g.occupied)
-            cells = np.where(g.occupied, 100, np.where(g.unknown, -1, 0)).astype(np.int8)
-            self._file_map = StaticMap(header=Header(stamp_ns=time.time_ns(), frame_id=config.map_frame, source="viewer"),
-                                       resolution=g.resolution, width=cells.shape[1], height=cells.shape[0],
-                                       origin=g.origin, data=cells.tobytes())
+            self._file_map = static_map_from_grid(g, Header(stamp_ns=time.time_ns(), frame_id=config.map_frame,
+                                                            source="viewer"))
         self.meters = {stage: StageMeter() for stage in STAGES}
         self.trails = Trails(span_s=config.trail_s)
         self.buffer = TransformBuffer(history_s=10.0, tolerance_s=0.1)

@@ -9,4 +9,8 @@ COMMANDS = {
         "services.localizer.localize_cli",
         "localize the boxes of a detections JSONL file on a depth image, print JSON",
     ),
+    "calibrate-localizer": (
+        "services.localizer.calibrate_cli",
+        "a detector's foot-point noise against ground-truth boxes: the floor paths' settings",
+    ),
 }

@@ -45,6 +45,7 @@ FORMATS: dict[str, tuple[str, str | bytes, str | bytes]] = {
     "track-csv": ("in.csv", "a,b,c\n1,2,3\n",
                   "frame,stamp,x,y,z,score\n0,0.0,1,1,1,0.9\n1,0.1,abc,1,1,0.9\n"),
     "gt-csv": ("in.csv", "a,b,c\n1,2,3\n", "frame,id,x,y,z\n0,1,1,1,1\n1,1,abc,1,1\n"),
+    "mot": ("gt.txt", "frame,stamp,x,y,z,score\n", "1,1,10,10,20,60,1\n2,1,10,10,20,60,1\n3,1,abc,10,20,60,1\n"),
     "settings": ("settings.yaml", "frame,stamp,x,y,z,score\n", "{section}:\n  {ok}\n  {bad}\n"),
     "topic-map": ("topics.yaml", "frame,stamp,x,y,z,score\n", "tf: [/tf]\nodom: [/odom]\npair_tolerance_ms: -1\n"),
     "transforms": ("tf.yaml", "frame,stamp,x,y,z,score\n", "- parent_frame: map\n  child_frame: head_optical\n"
@@ -110,11 +111,21 @@ COMMANDS: dict[str, tuple[str, Callable[[Path, Path], list[str]]]] = {
         "detect", str(tmp / "inputs" / "f0001.png"), "--service-config", str(bad)]),
     "embed --service-config": ("settings:embedder", lambda bad, tmp: [
         "embed", str(_good_jsonl(tmp)), "--service-config", str(bad)]),
+    "calibrate-localizer --detections": ("jsonl", lambda bad, tmp: [
+        "calibrate-localizer", "--detections", str(bad), "--ground-truth", str(_good_mot(tmp))]),
+    "calibrate-localizer --ground-truth": ("mot", lambda bad, tmp: [
+        "calibrate-localizer", "--detections", str(_good_jsonl(tmp)), "--ground-truth", str(bad)]),
 }
 
 #: A settings file per section: a good line 2 and a bad value on line 3.
 SETTINGS_LINES = {"tracker": ("n_init: 3", "frame_period_s: -5"), "detector": ("backend: hog", "camera: ''"),
                   "embedder": ("backend: colour", "camera: ''"), "simulator": ("fps: 15", "width: -3")}
+
+
+def _good_mot(tmp: Path) -> Path:
+    p = tmp / "good-gt.txt"
+    p.write_text("1,1,100,100,100,300,1\n")
+    return p
 
 
 def _good_track_csv(tmp: Path) -> Path:

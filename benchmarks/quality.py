@@ -111,6 +111,7 @@ if str(ROOT) not in sys.path:
 from benchmarks import pets_gt, quality_sim  # noqa: E402
 from common.runtime.progress import Bar, progress_bar  # noqa: E402
 from services.localizer.core import FloorHomography, foot_points  # noqa: E402
+from services.localizer.config import LocalizerConfig  # noqa: E402
 from services.tracker.config import TrackerConfig  # noqa: E402
 from services.tracker.core.types import IdDecision  # noqa: E402
 from services.tracker.core.view import FloorView  # noqa: E402
@@ -479,7 +480,7 @@ def pets_settings() -> tuple[object, object]:
 #: The code whose change invalidates the cached PETS detections, descriptors and ground positions.
 PETS_CODE = ("services/detector/core", "services/detector/config.py", "services/embedder/core",
              "services/embedder/config.py", "services/localizer/core/floor.py",
-             "services/localizer/core/homography.py")
+             "services/localizer/core/homography.py", "services/localizer/config.py")
 
 
 def pets_cache_key(root: Path) -> str:
@@ -501,11 +502,13 @@ def pets_cache_key(root: Path) -> str:
     return hashlib.sha256(json.dumps(desc, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def to_ground(H: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """(N, 2) ground-plane positions of the boxes' foot points (bottom centre) through ``H``:
-    the localizer's own foot point and floor homography (what ``perception localizer
-    --floor-homography`` does with a frame without depth, less its checks: no box is dropped)."""
-    pixels, _ = foot_points(boxes)
+def to_ground(H: np.ndarray, boxes: np.ndarray, detector: str = "hog") -> np.ndarray:
+    """(N, 2) ground-plane positions of the boxes' foot points (bottom centre, less the
+    ``detector``'s foot bias) through ``H``: the localizer's own foot point and floor homography
+    (what ``perception localizer --floor-homography`` does with a frame without depth, less its
+    checks: no box is dropped)."""
+    p = LocalizerConfig().floor_params(detector)
+    pixels, _ = foot_points(boxes, bias=(p.foot_bias_u, p.foot_bias_v))
     return FloorHomography(H).to_floor(pixels)[0]
 
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from common.runtime.cli_util import CliError, check_input_file
 from common.runtime.detections_file import read_detection_lines
+from services.localizer.config import DEFAULT_FOOT_BIAS
 from services.localizer.core.floor import FloorParams
 from services.localizer.core.foot_noise import FootNoise, fit_foot_noise, match_boxes
 
@@ -23,8 +24,9 @@ tracker how uncertain that is: a pixel plus a share of the box's height, across 
 (v) (foot_sigma_u_px, foot_sigma_share_u, ...). The shares depend on the detector. This
 command pairs your detector's boxes with ground-truth boxes of the same frames (IoU >= 0.5,
 one to one), fits sigma^2 = sigma_px^2 + (share * h)^2 to the foot points' errors, and prints
-the settings, the check per box height and the bias (the mean error, which the model has none
-of: a detector whose boxes reach below the feet).
+the settings, the check per box height and the bias: the mean error, which the localizer takes
+off the foot point of that detector's boxes (foot_bias; a detector whose boxes reach below the
+feet would put people a little too close).
 
 Inputs:
   --detections  JSON lines of 'perception detect' (the frame is the last number in each
@@ -50,6 +52,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default 1)")
     parser.add_argument("--min-iou", type=float, default=0.5, metavar="IOU",
                         help="a detection and a ground-truth box pair up at this IoU or more (default 0.5)")
+    parser.add_argument("--detector", default="hog", metavar="NAME",
+                        help="the detector the boxes came from, as its detections name it (hog, yolo-onnx, darknet, "
+                             "...): the settings' foot_bias entry (default hog)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
 
 
@@ -110,11 +115,12 @@ def read_detections(path: str) -> tuple[np.ndarray, np.ndarray]:
     return _mot_boxes(path, "det.txt", flag_column=False)
 
 
-def _report(noise: FootNoise, pairs: int, dets: int, gts: int) -> dict[str, object]:
+def _report(noise: FootNoise, pairs: int, dets: int, gts: int, detector: str) -> dict[str, object]:
     return {"detections": dets, "ground_truth": gts, "pairs": pairs, "used": noise.matched, "dropped": noise.dropped,
             "settings": {"foot_sigma_u_px": round(noise.sigma_u_px, 2), "foot_sigma_v_px": round(noise.sigma_v_px, 2),
                          "foot_sigma_share_u": round(noise.share_u, 4), "foot_sigma_share_v": round(noise.share_v, 4)},
             "bias_share": {"u": round(noise.bias_u, 4), "v": round(noise.bias_v, 4)},
+            "foot_bias": {detector: {"u": round(noise.bias_u, 3), "v": round(noise.bias_v, 3)}},
             "bins": [{"height_px": [round(b.lo, 1), round(b.hi, 1)], "n": b.n,
                       "rms_px": [round(b.rms_u_px, 2), round(b.rms_v_px, 2)],
                       "fit_px": [round(b.fit_u_px, 2), round(b.fit_v_px, 2)]} for b in noise.bins]}
@@ -140,7 +146,7 @@ def main(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise CliError(f"{exc} (over {len(common)} common frames at IoU >= {args.min_iou}; are the ground truth's "
                        "boxes in the detections' pixels? see --gt-scale)") from None
-    report = _report(noise, len(d), len(det_boxes), len(gt_boxes))
+    report = _report(noise, len(d), len(det_boxes), len(gt_boxes), args.detector)
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
@@ -153,9 +159,12 @@ def main(args: argparse.Namespace) -> int:
               f"{b.fit_v_px:6.2f}")
     print(f"bias (mean error, as a share of the height, + is right / down): across {noise.bias_u:+.4f}, "
           f"down {noise.bias_v:+.4f}")
+    known = DEFAULT_FOOT_BIAS.get(args.detector)
     print(f"the defaults now: {now.foot_sigma_u_px} / {now.foot_sigma_v_px} px, shares {now.foot_sigma_share_u} / "
-          f"{now.foot_sigma_share_v}")
+          f"{now.foot_sigma_share_v}; foot bias of {args.detector!r}: "
+          + (f"u {known['u']}, v {known['v']}" if known else "none"))
     s = report["settings"]
     assert isinstance(s, dict)
-    print("\nlocalizer:\n" + "".join(f"  {k}: {v}\n" for k, v in s.items()), end="")
+    print("\nlocalizer:\n" + "".join(f"  {k}: {v}\n" for k, v in s.items())
+          + f"  foot_bias:\n    {args.detector}: {{u: {round(noise.bias_u, 3)}, v: {round(noise.bias_v, 3)}}}")
     return 0

@@ -27,6 +27,7 @@ from services.localizer.core import (
     localize_on_floor,
     localize_on_floor_homography,
 )
+from services.localizer.config import DEFAULT_FOOT_BIAS
 from services.localizer.files import (
     parse_transform,
     read_camera_info,
@@ -161,6 +162,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"without --depth: the position is this far above the feet (default {f.centre_height_m:g})")
     parser.add_argument("--max-floor-range", type=float, default=f.max_floor_range_m, metavar="M",
                         help=f"without --depth: farthest feet kept, from the camera (default {f.max_floor_range_m:g})")
+    parser.add_argument("--detector", default="", metavar="NAME",
+                        help="without --depth: the detector the boxes came from (hog, yolo-onnx, ...), for its foot "
+                             "bias (the localizer's foot_bias; default none)")
     parser.add_argument("--output", "-o", type=Path, default=None, help="write here instead of stdout")
 
 
@@ -230,8 +234,10 @@ def _floor(args: argparse.Namespace, camera: PinholeCamera, camera_frame: str, t
            ) -> tuple[str, _Place]:
     """Without --depth: ``(frame, place)``, ``place(boxes)`` -> (the boxes on the floor, the camera's pose in frame)."""
     try:
+        bias = DEFAULT_FOOT_BIAS.get(args.detector, {})
         params = FloorParams(floor_z_m=args.floor_z, centre_height_m=args.centre_height,
-                             max_floor_range_m=args.max_floor_range)
+                             max_floor_range_m=args.max_floor_range, foot_bias_u=bias.get("u", 0.0),
+                             foot_bias_v=bias.get("v", 0.0))
     except ValueError as exc:
         raise CliError(str(exc)) from exc
     if args.floor_homography is None:

@@ -99,7 +99,8 @@ class LocalizerService(Node):
         super().__init__(transport, keys, counters)
         self.config = config
         self.params = config.params()
-        self.floor = config.floor_params()
+        self.floor = config.floor_params()  # boxes of a detector without a foot bias
+        self._floor_of = {name: config.floor_params(name) for name in config.foot_bias}
         if floor_homography is None and config.floor_homography is not None:
             floor_homography = read_floor_homography(config.floor_homography)
         self.homography = floor_homography
@@ -219,7 +220,7 @@ class LocalizerService(Node):
                   ) -> tuple[Localization, CameraView | None, FloorCameraView | None] | None:
         """The boxes on the floor (no depth image), in the target frame, and the camera's view; None when
         dropped. ``tf`` maps the camera frame (without a homography) or the homography's frame into the target."""
-        cam, target, p = frame.camera, self.config.target_frame, self.floor
+        cam, target, p = frame.camera, self.config.target_frame, self._floor_of.get(msg.detector, self.floor)
         floor: FloorCameraView | None = None
         if self._size_mismatch(msg, cam.width, cam.height, "the camera"):
             return None

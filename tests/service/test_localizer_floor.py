@@ -49,8 +49,8 @@ def foot_pixels(pose: RigidTransform, feet: np.ndarray) -> np.ndarray:
     return scene.camera().project(pose.inverse().apply(feet))
 
 
-def detections(f: RGBDFrame, boxes: list[tuple[float, float, float, float]]) -> Detections:
-    return Detections(header=f.header, image_width=640, image_height=480, detector="test",
+def detections(f: RGBDFrame, boxes: list[tuple[float, float, float, float]], detector: str = "test") -> Detections:
+    return Detections(header=f.header, image_width=640, image_height=480, detector=detector,
                       detections=[Detection(index=i, bbox_xyxy=b, score=0.9) for i, b in enumerate(boxes)])
 
 
@@ -108,6 +108,28 @@ def test_through_a_floor_homography_no_transform_is_needed(memory_bus: MemoryBus
     assert out.floor_view is not None and (out.floor_view.width, out.floor_view.height) == (640, 480)
     assert np.allclose(FloorHomography(out.floor_view.image_to_frame).to_floor(foot_pixels(FIXED, feet))[0],
                        feet[:, :2], atol=1e-6)
+
+
+def test_each_detectors_foot_bias_is_taken_off(memory_bus: MemoryBus, tmp_path: Path) -> None:
+    """Boxes that reach below the feet by a detector's known share of their height (``foot_bias``:
+    HOG's by default, another's from the settings) land on the feet; a detector without one is
+    taken as it comes."""
+    hom = homography_from_camera(scene.camera(), FIXED)
+    rig = Rig(memory_bus, foot_bias={"hog": {"v": 0.037}, "yolo-onnx": {"u": 0.02, "v": -0.01}},
+              floor_homography=homography_file(tmp_path, hom))
+    feet = on_floor(FIXED, [4.0, 8.0], side_m=-0.5)
+    exact = boxes_at(FIXED, feet)
+    for seq, (name, (bu, bv)) in enumerate({"hog": (0.0, 0.037), "yolo-onnx": (0.02, -0.01),
+                                            "depth": (0.0, 0.0)}.items(), 1):
+        f = scene.frame(seq, [], with_depth=False)
+        bottoms = [(y2 - bv * y1) / (1.0 - bv) for _, y1, _, y2 in exact]  # below the feet by bv of the new height
+        skewed = [(x1 + bu * (b - y1), y1, x2 + bu * (b - y1), b) for (x1, y1, x2, _), b in zip(exact, bottoms)]
+        rig.frames.put(f)
+        rig.dets.put(detections(f, skewed, detector=name))
+        [out] = rig.service.poll(time.monotonic())
+        assert np.allclose([d.position for d in out.detections], feet + [0.0, 0.0, 0.9], atol=1e-6), name
+        assert [d.bbox_xyxy for d in out.detections] == [tuple(b) for b in skewed]  # the boxes go on as they came
+    assert LocalizerConfig().foot_bias["hog"].v == pytest.approx(0.037)  # the default table has HOG's
 
 
 def test_a_homography_for_another_resolution_is_scaled(memory_bus: MemoryBus, tmp_path: Path) -> None:

@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 
 from perception.cli import main as perception
+from services.localizer.config import LocalizerConfig
+from services.localizer.core import REJECT_FOOT_OUTSIDE_IMAGE, FloorParams, foot_points
 from services.localizer.core.foot_noise import fit_foot_noise, match_boxes
 
 #: the noise put on the synthetic detections: a pixel, shares of the height, a bias down
@@ -114,10 +116,27 @@ def test_calibrate_localizer_prints_the_settings(tmp_path: Path, capsys: pytest.
         assert s["foot_sigma_share_u"] == pytest.approx(SHARE_U, rel=0.2)
         assert s["foot_sigma_share_v"] == pytest.approx(SHARE_V, rel=0.2)
         assert result["bias_share"]["v"] == pytest.approx(BIAS_V, abs=0.005)
+        assert result["foot_bias"]["hog"]["v"] == pytest.approx(BIAS_V, abs=0.005)  # --detector's default
     assert perception(["calibrate-localizer", "--detections", str(jsonl), "--ground-truth", str(gt),
-                       "--gt-scale", "0.5"]) == 0
+                       "--gt-scale", "0.5", "--detector", "yolo-onnx"]) == 0
     out = capsys.readouterr().out
-    assert "localizer:\n  foot_sigma_u_px:" in out and "foot_sigma_share_v:" in out and "bias" in out
+    assert "localizer:\n  foot_sigma_u_px:" in out and "foot_sigma_share_v:" in out
+    assert "  foot_bias:\n    yolo-onnx: {u: " in out and "foot bias of 'yolo-onnx': none" in out
+
+
+def test_the_floor_paths_take_a_detectors_bias_off_the_foot_point() -> None:
+    boxes = np.array([[10.0, 20.0, 30.0, 120.0], [0.0, 0.0, 10.0, 479.5]])
+    plain, reasons = foot_points(boxes, 640, 480)
+    moved, same = foot_points(boxes, 640, 480, bias=(0.01, 0.037))
+    assert np.allclose(moved, plain - np.array([[1.0, 3.7], [4.795, 17.7415]]))
+    assert same == reasons and reasons[1] == REJECT_FOOT_OUTSIDE_IMAGE  # cut off at the image's edge all the same
+    with pytest.raises(ValueError, match="foot_bias"):
+        FloorParams(foot_bias_v=0.5)
+    config = LocalizerConfig()
+    assert config.floor_params("hog").foot_bias_v == pytest.approx(0.037)
+    assert config.floor_params("yolo-onnx").foot_bias_v == 0.0 and config.floor_params().foot_bias_u == 0.0
+    with pytest.raises(ValueError):
+        LocalizerConfig(foot_bias={"hog": {"v": 0.6}})
 
 
 def test_calibrate_localizer_names_what_is_wrong(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -63,7 +63,9 @@ class FloorParams:
     the foot pixel's standard deviation across (u) and down (v) is
     ``sqrt(foot_sigma_u_px^2 + (foot_sigma_share_u * h)^2)`` for a box ``h`` pixels high (v alike):
     measured on PETS09's HOG boxes against its ground truth (about 0.043 h across, 0.022 to 0.032 h
-    down, for boxes 45 to 140 px high; services/localizer/README.md).
+    down, for boxes 45 to 140 px high; services/localizer/README.md). ``foot_bias_u``,
+    ``foot_bias_v``: the detector's mean foot error as a share of the box's height (+: right,
+    down; ``perception calibrate-localizer`` measures it), taken off the foot pixel.
     """
 
     floor_z_m: float = 0.0
@@ -74,6 +76,8 @@ class FloorParams:
     foot_sigma_v_px: float = 1.0
     foot_sigma_share_u: float = 0.05
     foot_sigma_share_v: float = 0.04
+    foot_bias_u: float = 0.0
+    foot_bias_v: float = 0.0
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.floor_z_m):
@@ -86,14 +90,17 @@ class FloorParams:
             raise ValueError("centre_height_sigma_m, foot_sigma_u_px and foot_sigma_v_px must be > 0")
         if not (0 <= self.foot_sigma_share_u < 1 and 0 <= self.foot_sigma_share_v < 1):
             raise ValueError("foot_sigma_share_u and foot_sigma_share_v must be in [0, 1)")
+        if not (abs(self.foot_bias_u) < 0.5 and abs(self.foot_bias_v) < 0.5):
+            raise ValueError(f"foot_bias_u and foot_bias_v must be in (-0.5, 0.5), got {self.foot_bias_u}, "
+                             f"{self.foot_bias_v}")
 
 
-def foot_points(boxes: np.ndarray, width: int | None = None, height: int | None = None
-                ) -> tuple[np.ndarray, list[str | None]]:
-    """Foot points (N, 2) ``((x1 + x2) / 2, y2)`` of boxes (N, 4) ``x1, y1, x2, y2``, and a
-    rejection reason or None per box.
+def foot_points(boxes: np.ndarray, width: int | None = None, height: int | None = None,
+                bias: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, list[str | None]]:
+    """Foot points (N, 2) ``((x1 + x2) / 2, y2)`` of boxes (N, 4) ``x1, y1, x2, y2``, less the
+    detector's ``bias`` (u, v) times the box's height, and a rejection reason or None per box.
 
-    With the image size given, a foot point must lie in ``[0, width] x [0, height - 1)``
+    With the image size given, a box's bottom centre must lie in ``[0, width] x [0, height - 1)``
     (detectors clip their boxes to ``[0, width] x [0, height]``): a box whose bottom
     reaches the image's lower edge has its feet cut off, and its bottom would put the
     person too far away.
@@ -110,6 +117,8 @@ def foot_points(boxes: np.ndarray, width: int | None = None, height: int | None 
             u, v = pixels[i]
             if not (0.0 <= u <= width and 0.0 <= v < height - 1.0):
                 reasons[i] = REJECT_FOOT_OUTSIDE_IMAGE
+    if bias[0] or bias[1]:
+        pixels -= np.asarray(bias, np.float64)[None, :] * (boxes[:, 3] - boxes[:, 1])[:, None]
     return pixels, reasons
 
 
@@ -184,7 +193,7 @@ def localize_on_floor(
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     n = len(boxes)
     idx = box_indices(indices, n)
-    pixels, reasons = foot_points(boxes, camera.width, camera.height)
+    pixels, reasons = foot_points(boxes, camera.width, camera.height, (params.foot_bias_u, params.foot_bias_v))
     feet, depth, jac = np.zeros((n, 3)), np.full(n, np.nan), np.zeros((n, 2, 2))
     feet[:, 2] = params.floor_z_m
     ok = np.flatnonzero([r is None for r in reasons])

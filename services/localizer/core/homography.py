@@ -177,7 +177,7 @@ def localize_on_floor_homography(
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     n = len(boxes)
     idx = box_indices(indices, n)
-    pixels, reasons = foot_points(boxes, width, height)
+    pixels, reasons = foot_points(boxes, width, height, (params.foot_bias_u, params.foot_bias_v))
     feet, depth, jac = np.zeros((n, 3)), np.full(n, np.nan), np.zeros((n, 2, 2))
     ok = np.flatnonzero([r is None for r in reasons])
     xy, w = hom.to_floor(pixels[ok])

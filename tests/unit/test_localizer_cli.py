@@ -199,6 +199,14 @@ def test_without_depth_through_a_homography(tmp_path: Path, capsys: pytest.Captu
     [d] = line["detections"]
     assert np.allclose(d["position"], feet[0] + [0.0, 0.0, 0.9], atol=1e-3)
     assert d["depth_m"] == pytest.approx(mount.inverse().apply(feet[0])[2], abs=1e-3)
+    # HOG's boxes reach 3.7 % of their height below the feet: --detector hog takes that off the foot
+    # point, 150 px boxes 5.55 px up, so the person lands farther from the camera (a box reaching below
+    # the feet puts them too near)
+    code, [line], _ = run(capsys, "localize", "--camera-info", str(cam_path), "--detections", str(dets),
+                          "--floor-homography", str(tmp_path / "h.json"), "--max-floor-range", "5", "--detector", "hog")
+    [e] = line["detections"]
+    assert e["pixel"][1] == pytest.approx(d["pixel"][1] - 0.037 * 150, abs=1e-6)
+    assert 0.03 < e["depth_m"] - d["depth_m"] < 0.5
     (tmp_path / "h.json").write_text(json.dumps({"H": hom.H.tolist(), "image_size": [640, 360]}))
     code, _, err = run(capsys, "localize", "--camera-info", str(cam_path), "--detections", str(dets),
                        "--floor-homography", str(tmp_path / "h.json"))

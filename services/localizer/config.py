@@ -86,6 +86,10 @@ class LocalizerConfig(BaseModel):
     occluder_max_gap_m: float = Field(
         default=_D.occluder_max_gap_m, ge=0.0, le=50.0,
         description="... and by at most this: farther behind a near person, a box shows the room past them")
+    body_half_depth_m: float = Field(
+        default=_D.body_half_depth_m, ge=0.0, le=0.5,
+        description="the depth camera sees the front of a body: its centre is this far farther along the line of "
+                    "sight (half a torso's depth); 0: the surface")
     depth_noise_a_m: float = Field(
         default=_D.noise.axial_a_m, ge=0.0, le=1.0, description="axial sigma = a + b z^2: a, m"
     )
@@ -202,5 +206,6 @@ class LocalizerConfig(BaseModel):
             depth_unit_m=self.depth_unit_m,
             occluder_gap_m=self.occluder_gap_m,
             occluder_max_gap_m=self.occluder_max_gap_m,
+            body_half_depth_m=self.body_half_depth_m,
             noise=DepthNoiseModel(self.depth_noise_a_m, self.depth_noise_b_per_m, self.pixel_sigma_px),
         )

@@ -119,6 +119,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"depth percentile inside each box (default {d.percentile:g})",
     )
     parser.add_argument(
+        "--body-half-depth",
+        type=float,
+        default=d.body_half_depth_m,
+        metavar="M",
+        help=f"the body's centre lies this far behind the surface seen (default {d.body_half_depth_m:g}; 0: the surface)",
+    )
+    parser.add_argument(
         "--min-depth",
         type=float,
         default=d.min_depth_m,
@@ -266,6 +273,7 @@ def main(args: argparse.Namespace) -> int:
             max_depth_m=args.max_depth,
             min_valid_pixels=args.min_valid_pixels,
             depth_unit_m=args.depth_unit,
+            body_half_depth_m=args.body_half_depth,
             noise=DepthNoiseModel(pixel_sigma_px=args.pixel_sigma),
         )
     except ValueError as exc:

@@ -21,8 +21,11 @@ class Rig:
     """A localizer on a memory bus, plus a client transport playing robot, camera and detector."""
 
     def __init__(self, bus: MemoryBus, **config: object) -> None:
+        """``config``: the localizer's settings; ``body_half_depth_m`` 0 unless given, for the
+        synthetic scenes' people are flat cut-outs at their centre's depth."""
         self.counters = Counters()
-        self.service = LocalizerService(bus.transport(), KEYS, LocalizerConfig(**config), self.counters)
+        settings = {"body_half_depth_m": 0.0, **config}
+        self.service = LocalizerService(bus.transport(), KEYS, LocalizerConfig(**settings), self.counters)
         self.client: Transport = bus.transport()
         self.frames = self.client.publisher(KEYS.frames("head"), RGBDFrame, RELIABLE)
         self.dets = self.client.publisher(KEYS.detections("head"), Detections, RELIABLE)

@@ -50,7 +50,8 @@ def test_localizer_process_over_router(
         ],
         stdout=log,
         stderr=subprocess.STDOUT,
-        env={**os.environ, "RUST_LOG": "error"},
+        env={**os.environ, "RUST_LOG": "error",
+             "PERCEPTION_LOCALIZER__BODY_HALF_DEPTH_M": "0"},  # the synthetic people are flat cut-outs
     )
     try:
         client = zenoh_client()

@@ -62,6 +62,8 @@ def test_camera_frame_positions(setup: dict[str, Path], capsys: pytest.CaptureFi
         str(setup["cam"]),
         "--detections",
         str(setup["dets"]),
+        "--body-half-depth",
+        "0",  # the synthetic people are flat cut-outs at their centre's depth
     )
     assert code == 0 and len(lines) == 2
     first = lines[0]
@@ -101,6 +103,8 @@ def test_transforms_to_a_target_frame(setup: dict[str, Path], capsys: pytest.Cap
         MOUNT.replace("camera", "head_optical"),
         "--transforms",
         str(tfile),
+        "--body-half-depth",
+        "0",
     )
     assert code == 0
     mount = RigidTransform.from_quat(np.array([0.1, 0, 1.2]), np.array([-0.5, 0.5, -0.5, 0.5]))

@@ -20,7 +20,8 @@ from tests.fixtures.localizer_synthetic import Person, person_box, render_depth
 
 K = np.array([[525.0, 0.0, 319.5], [0.0, 525.0, 239.5], [0.0, 0.0, 1.0]])
 PLUMB_BOB = np.array([-0.28, 0.09, 0.001, -0.0005, -0.01])
-PARAMS = LocalizerParams()
+#: the synthetic people are flat cut-outs at their centre's depth: the surface seen is their centre
+PARAMS = LocalizerParams(body_half_depth_m=0.0)
 
 # body centres (camera frame, y down) near the centre and near each corner of a 640x480 image
 PEOPLE = {
@@ -50,7 +51,7 @@ def test_person_position_within_1cm(cam: PinholeCamera, where: str) -> None:
     assert np.linalg.norm(loc.positions[0] - np.array(person.center)) < 0.01
     assert np.isclose(loc.depth_m[0], person.center[2], atol=1e-6)
     # the wall fills part of the box: a high percentile lands on it
-    high = localize(depth, cam, box[None], LocalizerParams(percentile=95.0))
+    high = localize(depth, cam, box[None], LocalizerParams(percentile=95.0, body_half_depth_m=0.0))
     assert np.isclose(high.positions[0, 2], 7.0)
 
 
@@ -75,7 +76,7 @@ def test_millimetre_and_metre_encodings_agree() -> None:
     assert np.allclose(a.positions, b.positions, atol=1e-6)
     assert np.allclose(b.positions[0], person.center, atol=0.01)
     # a depth camera reporting 0.1 mm units (depth_unit_m) gives the same position
-    c = localize((depth_mm.astype(np.uint32) * 10).astype(np.uint32), cam, box, LocalizerParams(depth_unit_m=1e-4))
+    c = localize((depth_mm.astype(np.uint32) * 10).astype(np.uint32), cam, box, LocalizerParams(depth_unit_m=1e-4, body_half_depth_m=0.0))
     assert np.allclose(c.positions, a.positions, atol=1e-6)
 
 
@@ -95,9 +96,9 @@ def test_out_of_range_depth_is_excluded() -> None:
     depth = render_depth(cam, [person], wall_m=7.0)
     box = person_box(cam, person)[None]
     # everything closer than 2.5 m is out of range: only the wall is left
-    loc = localize(depth, cam, box, LocalizerParams(min_depth_m=2.5))
+    loc = localize(depth, cam, box, LocalizerParams(min_depth_m=2.5, body_half_depth_m=0.0))
     assert np.isclose(loc.depth_m[0], 7.0)
-    assert localize(depth, cam, box, LocalizerParams(min_depth_m=2.5, max_depth_m=6.0)).rejected == {
+    assert localize(depth, cam, box, LocalizerParams(min_depth_m=2.5, max_depth_m=6.0, body_half_depth_m=0.0)).rejected == {
         0: REJECT_TOO_FEW_PIXELS
     }
 
@@ -154,7 +155,7 @@ def test_depth_and_camera_size_mismatch_raises() -> None:
 def test_covariance_axial_noise_grows_with_distance_squared() -> None:
     cam = PinholeCamera(K, 640, 480)
     noise = DepthNoiseModel(axial_a_m=0.0, axial_b_per_m=1.425e-3, pixel_sigma_px=2.0)
-    params = LocalizerParams(noise=noise)
+    params = LocalizerParams(noise=noise, body_half_depth_m=0.0)
     box = np.array([[309.5, 139.5, 329.5, 339.5]])  # centred on the principal point
     sig = []
     for z in (1.0, 2.0, 4.0):
@@ -254,3 +255,21 @@ def test_a_box_wholly_inside_a_nearer_persons_box_keeps_its_depth() -> None:
     assert not loc.measured.any() and loc.depth_m[1] == pytest.approx(1.5)
     with pytest.raises(ValueError, match="2 depths for 1 boxes|depths"):
         localize(depth, cam, outer[None], PARAMS, depths=np.array([1.5, 6.0]))
+
+
+@pytest.mark.parametrize("cam", cameras(), ids=["pinhole", "plumb_bob"])
+def test_the_centre_lies_half_a_torso_behind_the_surface_seen(cam: PinholeCamera) -> None:
+    """A depth camera sees the front of a body: by default the point goes on along the line of
+    sight by ``body_half_depth_m`` (0.11 m), at the image's centre as near its corners."""
+    for where in ("centre", "top_left"):
+        person = PEOPLE[where]
+        depth = render_depth(cam, [person], wall_m=7.0)
+        box = person_box(cam, person)[None]
+        surface = localize(depth, cam, box, PARAMS).positions[0]
+        deep = localize(depth, cam, box, LocalizerParams())
+        step = deep.positions[0] - surface
+        assert np.linalg.norm(step) == pytest.approx(0.11, abs=1e-9)
+        assert np.allclose(step / 0.11, surface / np.linalg.norm(surface), atol=1e-9)  # along the ray
+        assert deep.depth_m[0] == pytest.approx(deep.positions[0, 2])
+    with pytest.raises(ValueError, match="body_half_depth_m"):
+        LocalizerParams(body_half_depth_m=-0.1)

@@ -12,9 +12,9 @@ import numpy as np
 
 from common.runtime.cli_util import CliError, check_input_file
 from common.runtime.detections_file import read_detection_lines
-from services.localizer.config import DEFAULT_FOOT_BIAS
-from services.localizer.core.floor import FloorParams
+from services.localizer.config import LocalizerConfig
 from services.localizer.core.foot_noise import FootNoise, fit_foot_noise, match_boxes
+from services.localizer.files import boxes_of_line
 
 DESCRIPTION = """\
 Measure how far a detector's foot points stray, for a camera without depth.
@@ -97,14 +97,10 @@ def _jsonl_boxes(path: str) -> tuple[np.ndarray, np.ndarray]:
         if not numbers:
             raise CliError(f"{path}:{n}: no frame number in the image's name {line['image']!r} "
                            "(name the images after their frame, e.g. frame_0042.jpg)")
-        for i, det in enumerate(line.get("detections", [])):
-            box = det.get("bbox_xyxy") if isinstance(det, dict) else None
-            if not isinstance(box, list) or len(box) != 4 or not all(isinstance(v, (int, float)) for v in box):
-                raise CliError(f"{path}:{n}: detection {i} needs bbox_xyxy: [x0, y0, x1, y1], four numbers "
-                               f"(got {box!r})")
-            frames.append(int(numbers[-1]))
-            boxes.append(box)
-    return np.asarray(frames, np.int64), np.asarray(boxes, np.float64).reshape(-1, 4)
+        got, _ = boxes_of_line(line, f"{path}:{n}")
+        frames += [int(numbers[-1])] * len(got)
+        boxes.append(got)
+    return np.asarray(frames, np.int64), np.concatenate(boxes) if boxes else np.zeros((0, 4))
 
 
 def read_detections(path: str) -> tuple[np.ndarray, np.ndarray]:
@@ -150,7 +146,8 @@ def main(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
-    now = FloorParams()
+    config = LocalizerConfig()
+    now = config.floor_params(args.detector)
     print(f"{len(det_boxes)} detections, {len(gt_boxes)} ground-truth boxes, {len(common)} common frames: "
           f"{len(d)} pairs at IoU >= {args.min_iou}, {noise.dropped} of them left out as mismatches")
     print(f"{'box height (px)':>16} {'pairs':>6} {'error across':>13} {'fit':>6} {'error down':>11} {'fit':>6}")
@@ -159,12 +156,11 @@ def main(args: argparse.Namespace) -> int:
               f"{b.fit_v_px:6.2f}")
     print(f"bias (mean error, as a share of the height, + is right / down): across {noise.bias_u:+.4f}, "
           f"down {noise.bias_v:+.4f}")
-    known = DEFAULT_FOOT_BIAS.get(args.detector)
     print(f"the defaults now: {now.foot_sigma_u_px} / {now.foot_sigma_v_px} px, shares {now.foot_sigma_share_u} / "
           f"{now.foot_sigma_share_v}; foot bias of {args.detector!r}: "
-          + (f"u {known['u']}, v {known['v']}" if known else "none"))
-    s = report["settings"]
-    assert isinstance(s, dict)
+          + (f"u {now.foot_bias_u}, v {now.foot_bias_v}" if args.detector in config.foot_bias else "none"))
+    s, bias = report["settings"], report["foot_bias"]
+    assert isinstance(s, dict) and isinstance(bias, dict)
     print("\nlocalizer:\n" + "".join(f"  {k}: {v}\n" for k, v in s.items())
-          + f"  foot_bias:\n    {args.detector}: {{u: {round(noise.bias_u, 3)}, v: {round(noise.bias_v, 3)}}}")
+          + f"  foot_bias:\n    {args.detector}: {{u: {bias[args.detector]['u']}, v: {bias[args.detector]['v']}}}")
     return 0

@@ -19,9 +19,21 @@ from common.runtime.config import ConfigError, key_line, read_config_file
 from common.geometry.transforms import PinholeCamera, RigidTransform
 from services.localizer.core import FloorHomography
 
-__all__ = ["parse_transform", "read_camera_info", "read_depth", "read_floor_homography", "read_transforms"]
+__all__ = ["boxes_of_line", "parse_transform", "read_camera_info", "read_depth", "read_floor_homography",
+           "read_transforms"]
 
 _MODELS = ("plumb_bob", "rational_polynomial", "equidistant", "none")
+
+
+def boxes_of_line(item: dict[str, Any], where: str) -> tuple[np.ndarray, list[float]]:
+    """The (N, 4) xyxy boxes and the scores of a detection line (``perception detect``'s JSON);
+    CliError naming ``where`` when a detection has no four-number ``bbox_xyxy``."""
+    try:
+        boxes = np.array([d["bbox_xyxy"] for d in item.get("detections", [])], dtype=np.float64).reshape(-1, 4)
+        scores = [float(d.get("score", 1.0)) for d in item.get("detections", [])]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CliError(f"{where}: every detection needs 'bbox_xyxy': [x1, y1, x2, y2] ({exc})") from exc
+    return boxes, scores
 
 
 def read_depth(path: Path) -> np.ndarray:

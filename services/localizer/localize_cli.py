@@ -7,6 +7,7 @@ import argparse
 import json
 import logging
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -27,8 +28,9 @@ from services.localizer.core import (
     localize_on_floor,
     localize_on_floor_homography,
 )
-from services.localizer.config import DEFAULT_FOOT_BIAS
+from services.localizer.config import LocalizerConfig
 from services.localizer.files import (
+    boxes_of_line,
     parse_transform,
     read_camera_info,
     read_depth,
@@ -175,15 +177,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--output", "-o", type=Path, default=None, help="write here instead of stdout")
 
 
-def _boxes(item: dict[str, Any], where: str) -> tuple[np.ndarray, list[float]]:
-    try:
-        boxes = np.array([d["bbox_xyxy"] for d in item.get("detections", [])], dtype=np.float64).reshape(-1, 4)
-        scores = [float(d.get("score", 1.0)) for d in item.get("detections", [])]
-    except (KeyError, TypeError, ValueError) as exc:
-        raise CliError(f"{where}: every detection needs 'bbox_xyxy': [x1, y1, x2, y2] ({exc})") from exc
-    return boxes, scores
-
-
 def _depth_for(args: argparse.Namespace, item: dict[str, Any], where: str) -> Path:
     assert args.depth is not None
     if not args.depth.is_dir():
@@ -241,10 +234,8 @@ def _floor(args: argparse.Namespace, camera: PinholeCamera, camera_frame: str, t
            ) -> tuple[str, _Place]:
     """Without --depth: ``(frame, place)``, ``place(boxes)`` -> (the boxes on the floor, the camera's pose in frame)."""
     try:
-        bias = DEFAULT_FOOT_BIAS.get(args.detector, {})
-        params = FloorParams(floor_z_m=args.floor_z, centre_height_m=args.centre_height,
-                             max_floor_range_m=args.max_floor_range, foot_bias_u=bias.get("u", 0.0),
-                             foot_bias_v=bias.get("v", 0.0))
+        params = replace(LocalizerConfig().floor_params(args.detector), floor_z_m=args.floor_z,
+                         centre_height_m=args.centre_height, max_floor_range_m=args.max_floor_range)
     except ValueError as exc:
         raise CliError(str(exc)) from exc
     if args.floor_homography is None:
@@ -301,7 +292,7 @@ def main(args: argparse.Namespace) -> int:
     try:
         for n, item in read_detection_lines(args.detections):
             where = f"{args.detections}:{n}"
-            boxes, scores = _boxes(item, where)
+            boxes, scores = boxes_of_line(item, where)
             if on_floor:
                 _check_size(camera, None, item, where, None)
                 out, cam_to_frame = place(boxes)

@@ -204,7 +204,8 @@ def test_a_detection_that_looks_like_the_tracks_person_weighs_no_remembered_alte
     r = np.broadcast_to(np.diag([0.04, 0.04, 0.09]), (1, 3, 3))
     gated = np.zeros((1, len(trk.state.tracks)), bool)
     gated[0, row] = True
-    alternatives = [cues.memory_alternatives(trk.state, trk.params, positions, r, desc, np.array([True]), gated,
+    alternatives = [cues.memory_alternatives(trk.state, trk.params.appearance, trk.params.appearance_weight,
+                                             trk.params.recovery, positions, r, desc, np.array([True]), gated,
                                              np.full(gated.shape, sign)) for sign in (-1.0, 1.0)]
     # the comer's track is confirmed, PLAIN remembered and once seen with the comer: where the pair's
     # appearance says "unlike the track's person", PLAIN is the alternative; where it says "like", none

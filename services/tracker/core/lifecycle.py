@@ -15,10 +15,11 @@
   the open-set decision of core/recovery.py (:func:`identity`), else a new one. For
   ``recovery.probation_s`` a recovery is checked again and undone when the evidence turns
   (:func:`probation`).
-* **Learning.** A matched track's online classifier (Basso/Munaro) takes one step on the
-  frame's descriptors, its own detection against the others (:func:`train_classifiers`).
 * **Archive.** A deleted track's gallery and classifier go to the ID memory, where and when
   it was last detected to the recovery's departures.
+
+What a matched track learns (its gallery, classifier, stature, posture, where it was seen) is
+each cue's (core/cues/).
 
 Each step is a function of the tracker's state (:class:`RobustTrackerState`) and its
 settings. Pure numpy.
@@ -30,21 +31,21 @@ import math
 
 import numpy as np
 
-from services.tracker.core import classifier as clf
 from services.tracker.core import recovery as rec
 from services.tracker.core import recovery_evidence as rev
-from services.tracker.core import posture as pose
-from services.tracker.core import stature
+from services.tracker.core.cues.base import Cue, Pairing
+from services.tracker.core.cues.online_classifier import trained
+from services.tracker.core.cues.stature_cue import stature_of
 from services.tracker.core.id_decisions import explain
 from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.tracks import RobustTrackerState, TrackTable
-from services.tracker.core.types import FrameInput, FrameResult, HandOver, IdDecision, IdOutcome, TrackStatus
+from services.tracker.core.types import FrameResult, HandOver, IdDecision, IdOutcome, TrackStatus
 from services.tracker.core.view import View
 
 _TENTATIVE, _CONFIRMED, _COASTING = TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.COASTING
 
 __all__ = ["age", "archive", "birth", "births", "bayes", "confirm", "evidence", "handover", "identity", "kept_recovery",
-           "load_recovery", "observed", "probation", "train_classifiers"]
+           "load_recovery", "probation"]
 
 
 def bayes(p: float, q: float) -> float:
@@ -101,22 +102,17 @@ def archive(state: RobustTrackerState, j: int, view: View | None = None, horizon
         return
     if state.bank.size(t.slot[j]):
         state.memory.archive(t.id[j], state.bank.descriptors(t.slot[j]))
-    if t.clf_steps[j] and t.clf is not None:
-        state.classifiers[t.id[j]] = t.clf[j].copy()
+    weights = trained(t, j)
+    if weights is not None:
+        state.classifiers[t.id[j]] = weights
     if len(state.classifiers) > len(state.memory):  # follow the memory's evictions and forgetting
         state.classifiers = {i: w for i, w in state.classifiers.items() if i in state.memory}
     fix, r = t.fix[j], state.recovery
     if fix is not None and t.id[j] in state.memory:  # where and when they left, for reachability
         r.departures[t.id[j]] = rec.Departure(t.last_update[j], *fix, walked_out(t, j, view, horizon_s),
-                                              *_stature(t, j))
+                                              *stature_of(t, j))
     if len(r.departures) > len(state.memory) or len(r.together) > 2 * len(state.memory) + 64:
         r.forget(keep=set(state.memory.entries) | state.live_ids())
-
-
-def _stature(t: TrackTable, j: int) -> tuple[float, int]:
-    """Track ``j``'s stature and its count of measurements (0, 0: none), as a departure keeps them."""
-    n = int(t.stature_n[j])
-    return (float(t.stature[j]) if n else 0.0), n
 
 
 def walked_out(t: TrackTable, j: int, view: View | None, horizon_s: float) -> bool:
@@ -146,29 +142,18 @@ def births(free: list[int], matched: set[int], positions: np.ndarray, p_det: np.
     return sorted(out)
 
 
-def birth(state: RobustTrackerState, dets: list[int], positions: np.ndarray, descriptors: np.ndarray | None,
-          has_desc: np.ndarray, p_det: np.ndarray, stamp: float, camera: str, p0: np.ndarray,
-          statures: np.ndarray | None = None) -> None:
-    """A tentative track at rest (not turning) per detection of ``dets``, with its descriptor and
-    its stature (``statures``: the frame's, NaN where not measured)."""
+def birth(state: RobustTrackerState, pairing: Pairing, dets: list[int], cues: list[Cue], p0: np.ndarray) -> None:
+    """A tentative track at rest (not turning) per detection of ``dets``; each cue starts its own
+    state of it from the detection (a gallery, a stature)."""
     if not dets:
         return
     t = state.tracks
     d = np.asarray(dets)
-    mean = np.concatenate([positions[d], np.zeros((len(d), t.mean.shape[1] - 3))], axis=1)
+    mean = np.concatenate([pairing.positions[d], np.zeros((len(d), t.mean.shape[1] - 3))], axis=1)
     first = len(t)
-    t.append(mean, p0, stamp, [bayes(0.5, q) for q in p_det[d].tolist()], camera)
-    if statures is not None:  # the new rows' arrays are this frame's own (append made them)
-        h = statures[d]
-        known = np.flatnonzero(np.isfinite(h))
-        t.stature[first + known], t.stature_n[first + known] = h[known], 1
-    if descriptors is None:
-        return
-    rows = [first + k for k, det in enumerate(dets) if has_desc[det]]
-    if rows:
-        for j in rows:
-            t.slot[j] = state.bank.allocate(descriptors.shape[1])
-        state.bank.add_many(np.array([t.slot[j] for j in rows]), descriptors[d[has_desc[d]]], None)
+    t.append(mean, p0, pairing.stamp, [bayes(0.5, q) for q in pairing.p_det[d].tolist()], pairing.frame.camera)
+    for cue in cues:
+        cue.born(pairing, state, first, d)
 
 
 def confirm(state: RobustTrackerState, p: RobustParams, result: FrameResult) -> set[int]:
@@ -200,7 +185,7 @@ def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float |
     """Hand-over by motion: the track coasting out of view, last seen by another camera than the
     one track ``j`` was born in, whose prediction the newly confirmed ``j`` is nearest (squared
     Mahalanobis distance on (x, y) within ``gate``), which ``j`` replaces (it takes its gallery,
-    classifier and stature too; ``removed`` gets it): (its row, that distance), None when there is none.
+    what each cue learnt of the person too; ``removed`` gets it): (its row, that distance), None when there is none.
     A person leaving one camera's view and coming back into it is left to appearance."""
     if gate is None:
         return None
@@ -223,12 +208,8 @@ def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float |
         else:
             for desc in bank.descriptors(t.slot[best]):
                 bank.add(t.slot[j], desc)
-    if t.clf_steps[best] and t.clf_steps[j] == 0 and t.clf is not None:
-        t.clf[j], t.clf_steps[j] = t.clf[best], t.clf_steps[best]
-    n_old, n_new = int(t.stature_n[best]), int(t.stature_n[j])
-    if n_old:  # the stature too: the measurements of both, weighed by their counts
-        t.stature[j] = (t.stature[best] * n_old + t.stature[j] * n_new) / (n_old + n_new)
-        t.stature_n[j] = n_old + n_new
+    for cols in t.extra.values():  # what each cue learnt of the person too (a classifier, a stature)
+        cols.merge(j, best)
     removed.add(best)
     return best, best_d2
 
@@ -277,24 +258,11 @@ def evidence(state: RobustTrackerState, j: int, exclude: set[int], p: RobustPara
     model, t, bank = p.appearance, state.tracks, state.bank
     assert model is not None
     here = rev.Candidate(bank.descriptors(t.slot[j]), t.last_update[j], float(t.mean[j, 0]), float(t.mean[j, 1]),
-                         0.5 * float(t.cov[j, 0, 0] + t.cov[j, 1, 1]), float(t.stature[j]), int(t.stature_n[j]))
+                         0.5 * float(t.cov[j, 0, 0] + t.cov[j, 1, 1]), *stature_of(t, j))
     others = [bank.descriptors(t.slot[c]) for c in range(len(t)) if c != j and t.id[c] and bank.size(t.slot[c])]
     return rev.evidence(here, state.memory, exclude,
                         lambda d: p.appearance_weight * model.log_odds(model.from_euclidean(d)),
                         others, state.classifiers, p.classifier, state.recovery, p.recovery, p.stature)
-
-
-def observed(state: RobustTrackerState, rows: list[int], p: RobustParams) -> None:
-    """The tracks ``rows`` were detected in this frame: their fixes (where, for reachability) and
-    that they are different people (core/recovery.py's rivals). Position-only: nothing (no
-    recovery without appearance; a departure not known later makes a person reachable)."""
-    t = state.tracks
-    if not rows or p.appearance is None:
-        return
-    xy, var = t.mean[rows, :2].tolist(), (0.5 * (t.cov[rows, 0, 0] + t.cov[rows, 1, 1])).tolist()
-    for j, (x, y), v in zip(rows, xy, var):
-        t.fix[j] = (x, y, v)
-    state.recovery.seen_together([t.id[j] for j in rows if t.id[j]])
 
 
 def probation(state: RobustTrackerState, p: RobustParams, stamp: float, result: FrameResult) -> None:
@@ -320,61 +288,11 @@ def probation(state: RobustTrackerState, p: RobustParams, stamp: float, result: 
                 result.id_decisions.append(_explain(state, j, ev, p_new, t.id[j], "undone", rp.p_undo, k))
 
 
-def train_classifiers(state: RobustTrackerState, p: RobustParams, matches: list[tuple[int, int]], u: np.ndarray | None,
-                      has_desc: np.ndarray, confident: np.ndarray) -> None:
-    """One step of the online classifier (Basso/Munaro) of every track matched with a confident
-    descriptor while others are in view (``u``: the frame's unit descriptors, one row per
-    detection with ``has_desc``); a forgotten person's track learns nothing."""
-    cp, t = p.classifier, state.tracks
-    if cp is None or u is None or p.appearance is None or has_desc.sum() < 2:
-        return
-    row_of, sure = (np.cumsum(has_desc) - 1).tolist(), (has_desc & confident).tolist()  # detection -> its row of u
-    pairs = [(row_of[d], j) for d, j in matches if sure[d] and not t.forgotten[j]]
-    if not pairs:
-        return
-    dim = u.shape[1]
-    if t.clf is None or t.clf.shape[1] != dim + 1:
-        t.clf, t.clf_steps = np.zeros((len(t), dim + 1)), [0] * len(t)
-    rows = [j for _, j in pairs]
-    positive = np.array([r for r, _ in pairs])
-    if rows == list(range(len(t))):  # every track learns: new weights, no gather
-        t.clf = clf.train(t.clf, u, positive, cp)
-    else:
-        t.clf[rows] = clf.train(t.clf[rows], u, positive, cp)
-    steps = t.clf_steps
-    for j in rows:
-        steps[j] += 1
-
-
-def observe_body(state: RobustTrackerState, p: RobustParams, rows: np.ndarray, frame: FrameInput, moved: bool,
-                 confident: np.ndarray) -> None:
-    """The tracks matched in ``frame`` (``rows``: detections, tracks): TU Ilmenau's posture from
-    the body height and box shape, orientation from walking or, standing still, from the crop
-    classifier (:func:`posture.observe`; ``moved``: the arrays are this frame's own); and the
-    stature of each confident detection that has one (core/stature.py), none for a forgotten
-    person's track."""
-    t, pp = state.tracks, p.posture
-    if not rows.shape[1]:
-        return
-    d_idx, t_idx = rows
-    if pp is not None:
-        t.posture, t.orientation = pose.observe(
-            t.posture, t.orientation, t_idx, frame.positions[d_idx, 2],
-            None if frame.aspects is None else frame.aspects[d_idx], t.mean[t_idx, 3:5],
-            np.array([t.status[j] is TrackStatus.TENTATIVE for j in t_idx.tolist()]),
-            None if frame.orientations is None else frame.orientations[d_idx], pp, fresh=moved,
-            reported=None if frame.postures is None else frame.postures[d_idx])
-    if p.stature is not None and frame.statures is not None:
-        ok = confident[d_idx] & ~np.array([t.forgotten[j] for j in t_idx.tolist()], bool)
-        t.stature, t.stature_n = stature.observe(t.stature, t.stature_n, t_idx[ok], frame.statures[d_idx][ok],
-                                                 p.stature)
-
-
 def kept_recovery(state: RobustTrackerState) -> dict[str, np.ndarray]:
     """The recovery's state as arrays for the ID memory's file; a live track counts as having
     left where and when it was last detected (after a restart that is where the person is)."""
     t = state.tracks
-    live = {t.id[j]: rec.Departure(t.last_update[j], *t.fix[j], False, *_stature(t, j)) for j in range(len(t))
+    live = {t.id[j]: rec.Departure(t.last_update[j], *t.fix[j], False, *stature_of(t, j)) for j in range(len(t))
             if t.id[j] and t.fix[j] is not None and not t.forgotten[j]}
     return state.recovery.to_arrays(live)
 

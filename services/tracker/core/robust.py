@@ -52,15 +52,16 @@ import numpy as np
 
 from common.geometry.occupancy import ObstacleMap
 from services.tracker.core import classifier as clf
-from services.tracker.core import cues, kalman, lifecycle, stature, ukf
-from services.tracker.core import posture as pose
+from services.tracker.core import cues, kalman, lifecycle, ukf
+from services.tracker.core.cues import Cue, Pairing
+from services.tracker.core.cues.online_classifier import trained
 from services.tracker.core.association import match_log_odds
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.protocol import TrackerCore
 from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.bank import GalleryBank
-from services.tracker.core.tracks import RobustTrackerState, TrackRow, TrackTable, track_rows
-from services.tracker.core.tracks import row_view, track_view, track_views
+from services.tracker.core.reports import TrackRow, row_view, track_rows, track_view, track_views
+from services.tracker.core.tracks import RobustTrackerState, TrackTable
 from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, ScoreModel, TrackStatus, TrackView
 from services.tracker.core.view import View
 
@@ -73,8 +74,10 @@ class RobustTracker(TrackerCore):
     def __init__(self, params: RobustParams, memory: IdentityMemory | None = None) -> None:
         self.params = params
         self._ukf = params.motion == "ukf"
-        dim = ukf.DIM if self._ukf else 6
-        self.state = RobustTrackerState(TrackTable.empty(dim), GalleryBank(params.gallery_size),
+        self._set_cues()
+        columns = {c.name: cols for c in self.cues if (cols := c.columns()) is not None}
+        self.state = RobustTrackerState(TrackTable.empty(ukf.DIM if self._ukf else 6, columns),
+                                        GalleryBank(params.gallery_size),
                                         memory if memory is not None else IdentityMemory(params.memory_size))
         self._r = np.diag(np.asarray(params.sigma_r, float) ** 2)
         self._p0 = np.diag([params.sigma0_position ** 2] * 3 + [params.sigma0_velocity ** 2] * 2 + [0.0])
@@ -83,7 +86,16 @@ class RobustTracker(TrackerCore):
         self.bad_covariances = 0  #: detections whose covariance was unusable
         self._q_of: dict[float, np.ndarray] = {}  # process noise by step: a stream's steps take a few values
         self._r_n: dict[int, np.ndarray] = {}  # the fixed R broadcast to n detections
-        self._pose_dt, self._pose_m = -1.0, (np.eye(3), np.eye(pose.ORIENTATION_BINS))  # drift matrices of the last dt
+
+    def _set_cues(self) -> None:
+        """The cues of the settings, and which of them use each hook (a hook a cue leaves as
+        :class:`Cue`'s is not called)."""
+        self.cues = cues.build(self.params)
+        used = [c for c in self.cues]
+        self._predicting = [c for c in used if type(c).predict is not Cue.predict]
+        self._scoring = [c for c in used if type(c).log_odds is not Cue.log_odds]
+        self._learning = [c for c in used if type(c).learn is not Cue.learn]
+        self._born = [c for c in used if type(c).born is not Cue.born]
 
     # ------------------------------------------------------------ the state
     @property
@@ -106,6 +118,7 @@ class RobustTracker(TrackerCore):
     def set_appearance(self, model: AppearanceModel | None) -> None:
         """Set the embedding model's calibration (e.g. once its model card is known)."""
         self.params = replace(self.params, appearance=model)
+        self._set_cues()
 
     def set_obstacles(self, obstacles: ObstacleMap | None) -> None:  # a static map's, e.g. from ROS 2's /map
         self.params = replace(self.params, obstacles=obstacles)
@@ -127,17 +140,42 @@ class RobustTracker(TrackerCore):
         (None: ``params.scores``) reads this frame's detector's scores, when several detectors feed
         the tracker; ``frame.camera``: a hand-over by motion (``handover_gate_sq``) joins a track
         last seen by one camera to a new track born in another's view only."""
-        p, state = self.params, self.state
-        positions, descriptors = frame.positions, frame.descriptors
-        n = len(positions)
+        state = self.state
         if state.last_stamp is None and state.recovery.departures:
             state.recovery.settle(stamp)  # departures from the memory's file, or of the clock before
-        if n == 0 and not len(state.tracks) and (state.last_stamp is None or stamp >= state.last_stamp):
+        if not len(frame.positions) and not len(state.tracks) and (state.last_stamp is None
+                                                                   or stamp >= state.last_stamp):
             state.last_stamp = stamp  # nothing to track, nothing to predict
-            return FrameResult(stamp, descriptors is not None and p.appearance is not None and descriptors.shape[1] > 0)
+            return FrameResult(stamp, self._appearance(frame))
+        pairing = self._pairing(stamp, frame)
+        pairing.moved = self._predict(stamp)  # new state arrays: the views of the last frame keep theirs
+        previous, state.last_stamp = state.last_stamp, stamp
+        matches = self._associate(self._log_odds(pairing), pairing.confident)
+        rows = np.array(matches, np.int64).T if matches else np.zeros((2, 0), np.int64)  # (detections, tracks)
+        self._update_matched(pairing, rows)
+        for cue in self._learning:  # galleries, classifiers, statures, postures, where each was seen
+            cue.learn(pairing, state, rows)
+        result = FrameResult(stamp=stamp, appearance_available=pairing.descriptors is not None)
+        self._age(stamp, result, frame.view, previous)
+        self._births(pairing, set(rows[0].tolist()), result)
+        self._remove(lifecycle.confirm(state, self.params, result))
+        lifecycle.probation(state, self.params, stamp, result)  # recent recoveries checked again
+        result.matches = len(matches)
+        result.tracks = track_views(state, stamp, frame.view is not None, self._ukf)
+        return result
+
+    def _appearance(self, frame: FrameInput) -> bool:
+        """Whether ``frame``'s descriptors can be compared (there are some, and a calibration)."""
+        d = frame.descriptors
+        return d is not None and self.params.appearance is not None and d.shape[1] > 0
+
+    def _pairing(self, stamp: float, frame: FrameInput) -> Pairing:
+        """The frame's evidence as the cues read it (ValueError: a stamp older than the last
+        frame's, descriptors of another size than the galleries')."""
+        state, n = self.state, len(frame.positions)
         if state.last_stamp is not None and stamp < state.last_stamp:
             raise ValueError(f"stamp {stamp} is older than the last update {state.last_stamp}; apply frames in order")
-        appearance = descriptors is not None and p.appearance is not None and descriptors.shape[1] > 0
+        appearance, descriptors = self._appearance(frame), frame.descriptors
         has_desc = np.isfinite(descriptors).all(axis=1) if appearance else np.zeros(n, bool)  # type: ignore[union-attr]
         any_desc = appearance and bool(has_desc.any())
         if any_desc:
@@ -150,36 +188,10 @@ class RobustTracker(TrackerCore):
         else:
             r, bad = cues.measurement_covariance(frame.measurement_cov, frame.cov_usable, self._r, n)
         self.bad_covariances += bad
-        moved = self._predict(stamp)  # new state arrays: the views of the last frame keep theirs
-        previous, state.last_stamp = state.last_stamp, stamp
-        score_model = p.scores if frame.score_model is None else frame.score_model
-        p_det = score_model.probability(scores)
-        confident = score_model.confident(scores)
-        u = clf.normalise(descriptors[has_desc]) if any_desc else None  # type: ignore[index]
-        log_odds, pairs = self._pair_log_odds(positions, r, descriptors if appearance else None, has_desc, u, p_det,
-                                              frame.statures)
-        result = FrameResult(stamp=stamp, appearance_available=appearance)
-        matches = self._associate(log_odds, confident)
-        rows = np.array(matches, np.int64).T if matches else np.zeros((2, 0), np.int64)  # (detections, tracks)
-        self._update_matched(matches, rows, positions, r, descriptors, has_desc, p_det, confident, stamp,
-                             frame.camera, pairs, moved)
-        lifecycle.observe_body(state, p, rows, frame, moved, confident)  # posture, orientation, stature
-        lifecycle.train_classifiers(state, p, matches, u, has_desc, confident)
-        lifecycle.observed(state, [j for _, j in matches], p)  # fixes, who was seen with whom (recovery)
-        matched_d = {d for d, _ in matches}
-        self._age(stamp, result, frame.view, previous)
-        free = [d for d, c in enumerate(confident.tolist()) if c and d not in matched_d]
-        if p.obstacles is not None and free:  # no birth on the static map's obstacles (a wall end, a jamb)
-            on = p.obstacles.blocked(positions[free, :2], p.birth_clearance_m).tolist()
-            result.births_blocked, free = sum(on), [d for d, b in zip(free, on) if not b]
-        born = lifecycle.births(free, matched_d, positions, p_det, p.birth_separation_m)
-        lifecycle.birth(state, born, positions, descriptors, has_desc, p_det, stamp, frame.camera, self._p0,
-                        None if p.stature is None else frame.statures)
-        self._remove(lifecycle.confirm(state, p, result))
-        lifecycle.probation(state, p, stamp, result)  # recent recoveries checked again
-        result.matches = len(matches)
-        result.tracks = track_views(self.state, stamp, frame.view is not None, self._ukf, p.posture is not None)
-        return result
+        score_model = self.params.scores if frame.score_model is None else frame.score_model
+        return Pairing(stamp, frame, frame.positions, r, descriptors if appearance else None, has_desc,
+                       clf.normalise(descriptors[has_desc]) if any_desc else None,  # type: ignore[index]
+                       score_model.probability(scores), score_model.confident(scores), score_model)
 
     def _predict(self, stamp: float) -> bool:
         """Move every track to ``stamp``; whether their state is in new arrays."""
@@ -195,43 +207,22 @@ class RobustTracker(TrackerCore):
             t.mean, t.cov = kalman.predict(t.mean, t.cov, dt, self._q(dt))
         fade = math.exp(-dt / self.params.is_person_tau_s)  # IsPerson drifts back to "unknown"
         t.is_person = [0.5 + (q - 0.5) * fade for q in t.is_person]
-        pp = self.params.posture
-        if pp is not None:  # every track's posture and orientation drift in two products
-            step = round(dt, 3)  # to the millisecond: the matrices are rebuilt only when the rate changes
-            if step != self._pose_dt:
-                self._pose_dt = step
-                self._pose_m = (pose.transition(3, step, pp.posture_tau_s),
-                                pose.transition(pose.ORIENTATION_BINS, step, pp.orientation_tau_s, circular=True))
-            t.posture, t.orientation = t.posture @ self._pose_m[0], t.orientation @ self._pose_m[1]
+        for cue in self._predicting:  # posture and orientation drift
+            cue.predict(self.state, dt)
         return True
 
-    def _pair_log_odds(self, positions: np.ndarray, r: np.ndarray, descriptors: np.ndarray | None,
-                       has_desc: np.ndarray, u: np.ndarray | None, p_det: np.ndarray,
-                       statures: np.ndarray | None) -> tuple[np.ndarray, cues.PairDistances | None]:
-        """(N, T) combined log-odds that detection d is track t (``-inf`` outside the gate), and
-        the squared distances of the pairs compared by appearance."""
-        p, t = self.params, self.state.tracks
-        n, nt = len(positions), len(t)
+    def _log_odds(self, pairing: Pairing) -> np.ndarray:
+        """(N, T) the cues' log-odds added, in the cues' order, that detection d is track t
+        (``-inf`` outside the position cue's gate)."""
+        n, nt = len(pairing.positions), len(self.state.tracks)
         if n == 0 or nt == 0:
-            return np.zeros((n, nt)), None
-        total, d2 = cues.position_log_odds(positions, r, t.mean[:, :2], t.cov[:, :2, :2], p.new_density)
-        gated = d2 <= p.gate_sq
-        pairs, app = None, np.zeros(d2.shape)  # no appearance: no pair looks unlike its track
-        if descriptors is not None and u is not None and p.appearance is not None:
-            app, pairs = cues.appearance_log_odds(p.appearance, self.state.bank, t.slot, descriptors,
-                                                  has_desc[:, None] & gated)
-            total = total + p.appearance_weight * app
-            if p.classifier is not None and p.classifier.weight > 0:
-                total = total + p.classifier.weight * cues.classifier_log_odds(t.clf, t.clf_steps, u, has_desc,
-                                                                               p.classifier.clip)
-        total = total + cues.logit(p_det)[:, None]
-        body = None if p.stature is None or statures is None else stature.log_odds(statures, t.stature, t.stature_n,
-                                                                                     p.stature)
-        if body is not None:
-            total = total + body
-        if descriptors is not None and p.recovery.compete and len(self.state.memory):  # returning people compete
-            total = total - cues.memory_alternatives(self.state, p, positions, r, descriptors, has_desc, gated, app)
-        return np.where(gated, total, -np.inf), pairs
+            return np.zeros((n, nt))
+        total: np.ndarray | None = None
+        for cue in self._scoring:
+            lo = cue.log_odds(pairing, self.state)
+            if lo is not None:
+                total = lo if total is None else total + lo
+        return np.where(pairing.gated, total, -np.inf)  # type: ignore[arg-type]
 
     def _associate(self, log_odds: np.ndarray, confident: np.ndarray) -> list[tuple[int, int]]:
         """Stages: confident detections x established tracks, low-score detections x the
@@ -250,48 +241,47 @@ class RobustTracker(TrackerCore):
         matches += match_log_odds(log_odds, [d for d in high if d not in taken_d], birth)
         return matches
 
-    def _update_matched(self, matches: list[tuple[int, int]], rows: np.ndarray, positions: np.ndarray, r: np.ndarray,
-                        descriptors: np.ndarray | None, has_desc: np.ndarray, p_det: np.ndarray,
-                        confident: np.ndarray, stamp: float, camera: str, pairs: cues.PairDistances | None,
-                        moved: bool) -> None:
-        if not matches:
+    def _update_matched(self, pairing: Pairing, rows: np.ndarray) -> None:
+        """The Kalman update of the matched tracks (each detection's own R) and their
+        bookkeeping: seen now, by this camera, one hit more, IsPerson (the TU Ilmenau
+        framework's binary Bayes filter over the detections' confidences)."""
+        if not rows.shape[1]:
             return
         t = self.state.tracks
         d_idx, t_idx = rows
-        new_means, new_covs = kalman.update(t.mean[t_idx], t.cov[t_idx], positions[d_idx], r[d_idx])
-        if not moved:  # a view of the last frame keeps its arrays
+        new_means, new_covs = kalman.update(t.mean[t_idx], t.cov[t_idx], pairing.positions[d_idx], pairing.r[d_idx])
+        if not pairing.moved:  # a view of the last frame keeps its arrays
             t.mean, t.cov = t.mean.copy(), t.cov.copy()
         t.mean[t_idx], t.cov[t_idx] = new_means, new_covs
-        sure, p_true = confident.tolist(), p_det.tolist()
-        learn: list[tuple[int, int]] = []
-        with_desc = has_desc.tolist() if descriptors is not None else [False] * len(sure)
+        sure, p_true, stamp, camera = pairing.confident.tolist(), pairing.p_det.tolist(), pairing.stamp, \
+            pairing.frame.camera
         last, unseen, cams, hits, is_person = t.last_update, t.unseen_s, t.camera, t.total_hits, t.is_person
-        status, confident_hits, forgotten, bayes = t.status, t.confident_hits, t.forgotten, lifecycle.bayes
+        status, confident_hits, bayes = t.status, t.confident_hits, lifecycle.bayes
         coasting, confirmed = TrackStatus.COASTING, TrackStatus.CONFIRMED
-        for d, j in matches:
+        for d, j in zip(*rows.tolist()):
             last[j], unseen[j], cams[j] = stamp, 0.0, camera
             hits[j] += 1
             is_person[j] = bayes(is_person[j], p_true[d])
             confident_hits[j] += sure[d]
             if status[j] is coasting:
                 status[j] = confirmed
-            if with_desc[d] and sure[d] and not forgotten[j]:
-                learn.append((d, j))
-        if learn:
-            bank = self.state.bank
-            for _, j in learn:
-                if t.slot[j] < 0:
-                    t.slot[j] = bank.allocate(descriptors.shape[1])  # type: ignore[union-attr]
-            d_new, t_new = np.array([d for d, _ in learn]), np.array([j for _, j in learn])
-            d2 = pairs.get(d_new, t_new) if pairs is not None else None
-            bank.add_many(np.array([t.slot[j] for _, j in learn]), descriptors[d_new], d2)  # type: ignore[index]
+
+    def _births(self, pairing: Pairing, matched: set[int], result: FrameResult) -> None:
+        """A tentative track for each confident detection nobody explains (Ban et al.'s birth
+        candidates), none on the static map's obstacles (a wall end, a door jamb)."""
+        p = self.params
+        free = [d for d, c in enumerate(pairing.confident.tolist()) if c and d not in matched]
+        if p.obstacles is not None and free:
+            on = p.obstacles.blocked(pairing.positions[free, :2], p.birth_clearance_m).tolist()
+            result.births_blocked, free = sum(on), [d for d, b in zip(free, on) if not b]
+        born = lifecycle.births(free, matched, pairing.positions, pairing.p_det, p.birth_separation_m)
+        lifecycle.birth(self.state, pairing, born, self._born, self._p0)
 
     def _age(self, stamp: float, result: FrameResult, view: View | None, previous: float | None) -> None:
         """Coasting and deletion (:func:`lifecycle.age`); a deleted track's appearance is archived."""
         ended, keep = lifecycle.age(self.state, self.params, stamp, previous, view)
         for j in ended:
-            result.deleted.append(track_view(self.state, j, stamp, TrackStatus.DELETED, None, self._ukf,
-                                              self.params.posture is not None))
+            result.deleted.append(track_view(self.state, j, stamp, TrackStatus.DELETED, None, self._ukf))
             lifecycle.archive(self.state, j, view, self.params.recovery.exit_horizon_s)
         self._remove({j for j, k in enumerate(keep) if not k})
 
@@ -323,11 +313,10 @@ class RobustTracker(TrackerCore):
             removed += state.bank.size(t.slot[j])
             if t.slot[j] >= 0:
                 state.bank.release(t.slot[j])
-            had_classifier = had_classifier or t.clf_steps[j] > 0
-            if t.clf is not None:
-                t.clf[j] = 0.0
-            t.slot[j], t.clf_steps[j], t.forgotten[j] = -1, 0, True
-            t.stature_n[j] = 0
+            had_classifier = had_classifier or trained(t, j) is not None
+            for cols in t.extra.values():  # what each cue learnt of the person
+                cols.clear(j)
+            t.slot[j], t.forgotten[j] = -1, True
         return {"descriptors": removed, "classifier": had_classifier, "live_track": bool(rows)}
 
     def forget_all(self) -> list[int]:
@@ -377,9 +366,7 @@ class RobustTracker(TrackerCore):
     def live_classifiers(self) -> dict[int, np.ndarray]:
         """ID -> weights of every confirmed live track's trained classifier."""
         t = self.state.tracks
-        if t.clf is None:
-            return {}
-        return {i: t.clf[j].copy() for j, i in enumerate(t.id) if i and t.clf_steps[j]}
+        return {i: w for j, i in enumerate(t.id) if i and (w := trained(t, j)) is not None}
 
     def kept_classifiers(self) -> dict[int, np.ndarray]:
         """The classifiers to keep: the remembered people's and the live tracks'."""

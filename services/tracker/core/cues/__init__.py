@@ -1,0 +1,43 @@
+"""The robust tracker's cues, one module each (the TU Ilmenau framework's cue fusion: each gives
+every (detection, track) pair a log-odds that the pair is the same person, and the tracker adds
+them). :func:`build` lists the cues a tracker's settings turn on, in the order they are summed.
+
+Adding a cue is its module (a :class:`~services.tracker.core.cues.base.Cue`) and one line in
+:func:`build`.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from services.tracker.core.cues.appearance import AppearanceCue, PairDistances, appearance_log_odds
+from services.tracker.core.cues.base import Cue, Pairing
+from services.tracker.core.cues.confidence import ConfidenceCue, logit
+from services.tracker.core.cues.memory import MemoryCue, memory_alternatives
+from services.tracker.core.cues.online_classifier import OnlineClassifierCue, classifier_log_odds
+from services.tracker.core.cues.position import PositionCue, measurement_covariance, position_log_odds
+from services.tracker.core.cues.position import usable_covariances
+from services.tracker.core.cues.posture_cue import PostureCue
+from services.tracker.core.cues.stature_cue import StatureCue
+
+if TYPE_CHECKING:
+    from services.tracker.core.robust_params import RobustParams
+
+__all__ = ["AppearanceCue", "ConfidenceCue", "Cue", "MemoryCue", "OnlineClassifierCue", "PairDistances",
+           "Pairing", "PositionCue", "PostureCue", "StatureCue", "appearance_log_odds", "build", "classifier_log_odds",
+           "logit", "measurement_covariance", "memory_alternatives", "position_log_odds", "usable_covariances"]
+
+
+def build(p: RobustParams) -> list[Cue]:
+    """The cues of settings ``p``, in the order their log-odds are added (position first: its
+    gate decides which pairs the others compare)."""
+    model = p.appearance
+    return [c for c in (
+        PositionCue(p.new_density, p.gate_sq),
+        AppearanceCue(model, p.appearance_weight) if model is not None else None,
+        OnlineClassifierCue(p.classifier) if p.classifier is not None else None,
+        ConfidenceCue(),
+        StatureCue(p.stature) if p.stature is not None else None,
+        PostureCue(p.posture) if p.posture is not None else None,
+        MemoryCue(model, p.appearance_weight, p.recovery) if model is not None else None,
+    ) if c is not None]

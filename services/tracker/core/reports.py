@@ -1,0 +1,132 @@
+"""What the robust tracker shows of its tracks: :class:`~services.tracker.core.types.TrackView`
+per track for each frame's result, and :class:`TrackRow`, a full picture of a track for
+inspection and tests. Pure numpy."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from services.tracker.core import posture as pose
+from services.tracker.core.bank import GalleryBank
+from services.tracker.core.cues.online_classifier import trained
+from services.tracker.core.cues.stature_cue import stature_of
+from services.tracker.core.tracks import FIELDS, RobustTrackerState, TrackTable
+from services.tracker.core.types import TrackStatus, TrackView
+
+if TYPE_CHECKING:
+    from services.tracker.core.cues.posture_cue import PostureColumns
+    from services.tracker.core.cues.stature_cue import StatureColumns
+
+__all__ = ["TrackRow", "row_view", "track_rows", "track_view", "track_views"]
+
+
+@dataclass(frozen=True)
+class TrackRow:
+    """A read-only picture of one track of the table (for inspection and tests): its columns,
+    ``clf`` None while untrained and ``gallery`` None without one."""
+
+    id: int
+    status: TrackStatus
+    mean: np.ndarray
+    cov: np.ndarray
+    first_stamp: float
+    last_update: float
+    confident_hits: int
+    total_hits: int
+    is_person: float
+    ever_confirmed: bool
+    clf: np.ndarray | None
+    clf_steps: int
+    forgotten: bool
+    in_view: bool | None
+    unseen_s: float
+    camera: str
+    posture: np.ndarray
+    orientation: np.ndarray
+    stature: float
+    stature_n: int
+    gallery: _GalleryRow | None
+
+
+@dataclass(frozen=True)
+class _GalleryRow:
+    """A read-only picture of one track's gallery."""
+
+    descriptors: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.descriptors)
+
+
+def _posture(t: TrackTable) -> PostureColumns | None:
+    return t.extra.get("posture")  # type: ignore[return-value]
+
+
+def _statures(t: TrackTable) -> list[float | None]:
+    cols: StatureColumns | None = t.extra.get("stature")  # type: ignore[assignment]
+    if cols is None:
+        return [None] * len(t)
+    return [h if k else None for h, k in zip(cols.est.tolist(), cols.n.tolist())]
+
+
+def track_rows(table: TrackTable, bank: GalleryBank) -> list[TrackRow]:
+    """Every track of ``table`` as a :class:`TrackRow` (copies; a cue that is off shows as
+    "nothing known": uniform posture and orientation, no stature, no classifier)."""
+    out, poses = [], _posture(table)
+    for j in range(len(table)):
+        col = {name: getattr(table, name)[j] for name in FIELDS if name not in ("slot", "fix", "probation")}
+        col = {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in col.items()}
+        h, n = stature_of(table, j)
+        cols = table.extra.get("classifier")
+        steps = cols.steps[j] if cols is not None else 0  # type: ignore[attr-defined]
+        slot = table.slot[j]
+        out.append(TrackRow(**col, clf=trained(table, j), clf_steps=steps,
+                            posture=poses.posture[j].copy() if poses else pose.uniform(3),
+                            orientation=poses.orientation[j].copy() if poses else pose.uniform(pose.ORIENTATION_BINS),
+                            stature=h, stature_n=n,
+                            gallery=_GalleryRow(bank.descriptors(slot)) if slot >= 0 else None))
+    return out
+
+
+def row_view(t: TrackRow, stamp: float, ukf: bool, posture: bool) -> TrackView:
+    """A :class:`TrackRow` as :func:`track_view` reports its track."""
+    mean, cov = (t.mean[:6], t.cov[:6, :6]) if ukf else (t.mean, t.cov)
+    return TrackView(t.id, t.status, mean, cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp), t.last_update,
+                     len(t.gallery) if t.gallery is not None else 0, t.ever_confirmed,
+                     posture=t.posture if posture else None, orientation=t.orientation if posture else None,
+                     stature=t.stature if t.stature_n else None)
+
+
+def track_view(state: RobustTrackerState, j: int, stamp: float, status: TrackStatus, in_view: bool | None,
+               ukf: bool) -> TrackView:
+    """Track ``j`` as the tracker reports it at ``stamp`` (``ukf``: its state is the unscented
+    filter's, of which the view shows (x, y, z, vx, vy, vz)); posture and orientation when the
+    posture cue is on. The arrays are shared: the tracker never writes into a mean, cov, posture
+    or orientation array it has shown, every change makes new ones."""
+    t, poses = state.tracks, _posture(state.tracks)
+    mean, cov = (t.mean[j, :6], t.cov[j, :6, :6]) if ukf else (t.mean[j], t.cov[j])
+    h, n = stature_of(t, j)
+    return TrackView(t.id[j], status, mean, cov, t.total_hits[j], 0, max(0.0, stamp - t.first_stamp[j]),
+                     t.last_update[j], state.bank.size(t.slot[j]), t.ever_confirmed[j], in_view,
+                     posture=poses.posture[j] if poses else None, orientation=poses.orientation[j] if poses else None,
+                     stature=h if n else None)
+
+
+def track_views(state: RobustTrackerState, stamp: float, view_known: bool, ukf: bool) -> list[TrackView]:
+    """Every live track as :func:`track_view`; a coasting one says whether it is in view when
+    the frame had a view (``view_known``)."""
+    t = state.tracks
+    if not t.id:
+        return []
+    means, covs = (t.mean[:, :6], t.cov[:, :6, :6]) if ukf else (t.mean, t.cov)
+    cols = _posture(t)
+    poses = zip(cols.posture, cols.orientation) if cols else ((None, None) for _ in t.id)
+    coasting, make, sizes = TrackStatus.COASTING, TrackView.of_fields, state.bank.n.tolist()
+    return [make(i, s, m, c, h, 0, max(0.0, stamp - first), last, sizes[slot] if slot >= 0 else 0, ever,
+                 flag if view_known and s is coasting else None, pp, o, body)
+            for i, s, m, c, h, first, last, slot, ever, flag, (pp, o), body
+            in zip(t.id, t.status, means, covs, t.total_hits, t.first_stamp, t.last_update, t.slot, t.ever_confirmed,
+                   t.in_view, poses, _statures(t))]

@@ -262,8 +262,8 @@ def flag_help(model: type[BaseModel], name: str, text: str = "") -> str:
     return f"{head} (setting {name}: default {_limits(row)})".replace("%", "%%")
 
 
-def _wrap(text: str, width: int, indent: str) -> list[str]:
-    return textwrap.wrap(text, width, initial_indent=indent, subsequent_indent=indent + "    ",
+def _wrap(text: str, width: int, indent: str, hang: str = "") -> list[str]:
+    return textwrap.wrap(text, width, initial_indent=indent, subsequent_indent=indent + hang,
                          break_on_hyphens=False)
 
 
@@ -276,14 +276,14 @@ def settings_epilog(model: type[BaseModel], section: str, width: int = 79) -> st
     lines = textwrap.wrap(head, width)
     rows = list(setting_rows(model))
     for r in (r for r in rows if not r.advanced):
-        lines += _wrap(f"{r.name} = {_limits(r)}", width, "  ")
+        lines += _wrap(f"{r.name} = {_limits(r)}", width, "  ", "    ")
         if r.description:
             lines += _wrap(r.description, width, "      ")
     advanced = [r for r in rows if r.advanced]
     if advanced:
         lines.append("advanced settings (tuning):")
         for r in advanced:
-            lines += _wrap(f"{r.name} = {_limits(r)}", width, "  ")
+            lines += _wrap(f"{r.name} = {_limits(r)}", width, "  ", "    ")
     return "\n".join(lines)
 
 

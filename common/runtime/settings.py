@@ -288,7 +288,13 @@ def settings_epilog(model: type[BaseModel], section: str, width: int = 79) -> st
 
 
 def add_settings_epilog(parser: argparse.ArgumentParser, model: type[BaseModel], section: str) -> None:
-    """Put ``model``'s settings (:func:`settings_epilog`) at the end of ``parser``'s ``--help``."""
+    """Put ``model``'s settings (:func:`settings_epilog`) at the end of ``parser``'s ``--help``, and
+    give each flag whose destination is a setting's name that setting's name, default and range
+    (:func:`flag_help`) after its own text, unless its help already names its setting."""
     parser.epilog = settings_epilog(model, section)
+    rows = {r.name for r in setting_rows(model)}
+    for action in parser._actions:
+        if action.dest in rows and action.help != argparse.SUPPRESS and "(setting " not in (action.help or ""):
+            action.help = flag_help(model, action.dest, (action.help or "").replace("%%", "%"))
     if parser.formatter_class is argparse.HelpFormatter:
         parser.formatter_class = argparse.RawDescriptionHelpFormatter

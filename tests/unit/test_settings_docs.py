@@ -131,3 +131,16 @@ def test_a_bad_marker_is_an_error_naming_the_fix(tmp_path: Path, capsys: pytest.
     readme.write_text("<!-- settings: x:Y -->\nno end\n")
     assert settings_docs.main(["--check", "--root", str(tmp_path)]) == 2
     assert "has no '<!-- /settings -->'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command, flag_text", [
+    ("detector", "(setting hog.upsample: default 1.0; [0.25, 8])"),
+    ("localizer", "(setting min_depth_m: default 0.3 m; ≥ 0)"),
+    ("simulate", "(setting fps: default 15.0 Hz; (0, 120])"),
+])
+def test_a_commands_help_lists_its_settings_from_the_declaration(command: str, flag_text: str) -> None:
+    from perception.cli import build_parser
+
+    sub = next(a for a in build_parser(only=command)._actions if isinstance(a, argparse._SubParsersAction))
+    text = sub.choices[command].format_help()
+    assert " ".join(flag_text.split()) in " ".join(text.split()) and "settings (defaults; --service-config" in text

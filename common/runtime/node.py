@@ -44,6 +44,7 @@ from common.runtime.cli_util import CliError, add_key_arguments, keys_from_args
 from common.runtime.config import ConfigError, load_config
 from common.messages.keys import Delivery, Keys
 from common.runtime.service import Counters, ServiceRuntime, Shutdown
+from common.runtime.settings import add_settings_epilog
 from common.messages.schemas import Message
 from common.transport.base import (BasePublisher, BaseSubscription, Publisher, QueryHandler, RawPublisher,
                                    RawSubscription, Subscription, Transport, wait_any)
@@ -151,8 +152,11 @@ class Node:
             self.poll(clock())
 
 
-def add_node_arguments(parser: argparse.ArgumentParser, name: str) -> None:
-    """The flags every node has: its settings file, the key namespace and Zenoh's flags."""
+def add_node_arguments(parser: argparse.ArgumentParser, name: str, settings: type[BaseModel] | None = None) -> None:
+    """The flags every node has: its settings file, the key namespace and Zenoh's flags; with the
+    node's ``settings`` model, its settings listed at the end of ``--help``."""
+    if settings is not None:
+        add_settings_epilog(parser, settings, name)
     parser.add_argument("--service-config", type=Path, default=None, metavar="FILE",
                         help=f"YAML/JSON settings; its '{name}' section if it has one, else the whole file "
                              f"(env PERCEPTION_{name.upper()}__FIELD overrides it, flags override both)")

@@ -3,7 +3,9 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+
+from common.runtime.settings import setting
 
 from services.attention.core import ServoParams
 
@@ -28,48 +30,47 @@ class AttentionConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     # --- whom to look at
-    target: str = Field(default="none", description="at start: a track ID, 'nearest', 'lock' (the nearest person now, "
-                                                    "then their ID) or 'none' (change it with "
-                                                    "perception look or the attention query)")
-    hold_s: float = Field(default=2.0, ge=0.0, le=600.0, description="a lost target: hold still this long, then rest (s)")
-    switch_margin_m: float = Field(default=1.5, ge=0.0, description="'nearest': another person must be this much nearer")
-    reacquire_radius_m: float = Field(default=0.8, ge=0.0, description="'nearest': a person this near where the one "
-                                                                       "followed was last seen is taken as them")
-    aim_height_m: float | None = Field(
-        default=1.15, gt=0.0, le=3.0,
-        description="aim at this height in the tracking frame (a standing adult's torso) instead of the track's z, which follows the "
-                    "box centre and drifts when the box is clipped by the image; null: the track's z")
+    target: str = setting("none", "at start: a track ID, 'nearest', 'lock' (the nearest person now, then their ID) or "
+                          "'none' (change it with perception look or the attention query)")
+    hold_s: float = setting(2.0, "a lost target: hold still this long, then rest", unit="s", ge=0.0, le=600.0)
+    switch_margin_m: float = setting(1.5, "'nearest': another person must be this much nearer", unit="m", ge=0.0, advanced=True)
+    reacquire_radius_m: float = setting(0.8, "'nearest': a person this near where the one followed was last seen is "
+                                        "taken as them", unit="m", ge=0.0, advanced=True)
+    aim_height_m: float | None = setting(1.15, "aim at this height in the tracking frame (a standing adult's torso) "
+                                         "instead of the track's z, which follows the box centre and drifts when the "
+                                         "box is clipped by the image; null: the track's z", unit="m", gt=0.0, le=3.0)
     # --- the control law (Ban et al., Eq 19)
-    gain: float = Field(default=_S.gain, gt=0.0, le=20.0, description="1/s: the centring error decays as exp(-gain t)")
-    feedforward: float = Field(default=_S.feedforward, ge=0.0, le=2.0,
-                               description="weight of the target's own motion (its track velocity); 0: feedback only")
-    max_pan_rate: float = Field(default=_S.max_pan_rate, gt=0.0, le=10.0, description="rad/s")
-    max_tilt_rate: float = Field(default=_S.max_tilt_rate, gt=0.0, le=10.0, description="rad/s")
-    dead_zone_px: float = Field(default=_S.dead_zone_px, ge=0.0, description="no correction within this of the centre")
-    min_depth_m: float = Field(default=_S.min_depth_m, gt=0.0, description="nearer or behind: turn by bearing")
-    pan_limits: tuple[float, float] = Field(default=_S.pan_limits, description="rad (min, max)")
-    tilt_limits: tuple[float, float] = Field(default=_S.tilt_limits, description="rad (min, max), positive looks down")
-    rest_pan: float = Field(default=_S.rest_pan, description="rest pose's pan (rad)")
-    rest_tilt: float = Field(default=_S.rest_tilt, description="rest pose's tilt (rad)")
-    rest_gain: float = Field(default=_S.rest_gain, gt=0.0, le=20.0, description="1/s towards the rest pose")
-    max_predict_s: float = Field(default=0.5, ge=0.0, le=5.0,
-                                 description="targets are predicted to the newest transform, at most this far (s)")
+    gain: float = setting(_S.gain, "the centring error decays as exp(-gain t)", unit="1/s", gt=0.0, le=20.0)
+    feedforward: float = setting(_S.feedforward, "weight of the target's own motion (its track velocity); 0: feedback "
+                                 "only", ge=0.0, le=2.0, advanced=True)
+    max_pan_rate: float = setting(_S.max_pan_rate, "fastest pan", unit="rad/s", gt=0.0, le=10.0)
+    max_tilt_rate: float = setting(_S.max_tilt_rate, "fastest tilt", unit="rad/s", gt=0.0, le=10.0)
+    dead_zone_px: float = setting(_S.dead_zone_px, "no correction within this of the centre", unit="px", ge=0.0, advanced=True)
+    min_depth_m: float = setting(_S.min_depth_m, "nearer or behind: turn by bearing", unit="m", gt=0.0, advanced=True)
+    pan_limits: tuple[float, float] = setting(_S.pan_limits, "the pan's (min, max)", unit="rad")
+    tilt_limits: tuple[float, float] = setting(_S.tilt_limits, "the tilt's (min, max); positive looks down", unit="rad")
+    rest_pan: float = setting(_S.rest_pan, "the rest pose's pan", unit="rad")
+    rest_tilt: float = setting(_S.rest_tilt, "the rest pose's tilt", unit="rad")
+    rest_gain: float = setting(_S.rest_gain, "gain towards the rest pose", unit="1/s", gt=0.0, le=20.0, advanced=True)
+    max_predict_s: float = setting(0.5, "targets are predicted to the newest transform, at most this far",
+                                   unit="s", ge=0.0, le=5.0, advanced=True)
     # --- streams and frames
-    camera: str = Field(default="head", min_length=1, description="the camera on the head (its frames give camera info)")
-    base_frame: str = Field(default="base_link", min_length=1, description="frame whose z axis is the pan axis")
-    pan_frame: str = Field(default="head_link", min_length=1, description="frame on the pan axis (its origin is on it)")
-    tilt_frame: str = Field(default="head_link", min_length=1, description="frame whose y axis is the tilt axis")
-    camera_frame: str = Field(default="camera", min_length=1,
-                              description="the camera's optical frame when its camera info names none")
-    command_rate_hz: float = Field(default=10.0, gt=0.0, le=200.0,
-                                   description="commands at least this often, tracks or not (hold, rest, keep-alive)")
-    command_timeout_s: float = Field(default=0.5, gt=0.0, le=10.0,
-                                     description="the head stops if no newer command arrives within this (s)")
-    tracks_timeout_s: float = Field(default=1.0, gt=0.0, le=60.0,
-                                    description="no tracks for this long: the target counts as lost (s)")
-    camera_info_period_s: float = Field(default=1.0, gt=0.0, description="how often camera info is re-read (s)")
-    tf_history_s: float = Field(default=5.0, gt=0.0, le=600.0)
-    tf_tolerance_s: float = Field(default=0.1, ge=0.0, le=10.0)
+    camera: str = setting("head", "the camera on the head (its frames give camera info)", min_length=1)
+    base_frame: str = setting("base_link", "frame whose z axis is the pan axis", min_length=1)
+    pan_frame: str = setting("head_link", "frame on the pan axis (its origin is on it)", min_length=1)
+    tilt_frame: str = setting("head_link", "frame whose y axis is the tilt axis", min_length=1)
+    camera_frame: str = setting("camera", "the camera's optical frame when its camera info names none", min_length=1)
+    command_rate_hz: float = setting(10.0, "commands at least this often, tracks or not (hold, rest, keep-alive)",
+                                     unit="Hz", gt=0.0, le=200.0, advanced=True)
+    command_timeout_s: float = setting(0.5, "the head stops if no newer command arrives within this",
+                                       unit="s", gt=0.0, le=10.0, advanced=True)
+    tracks_timeout_s: float = setting(1.0, "no tracks for this long: the target counts as lost",
+                                      unit="s", gt=0.0, le=60.0, advanced=True)
+    camera_info_period_s: float = setting(1.0, "how often camera info is re-read", unit="s", gt=0.0, advanced=True)
+    tf_history_s: float = setting(5.0, "history kept per transform edge", unit="s", gt=0.0, le=600.0,
+                                  advanced=True)
+    tf_tolerance_s: float = setting(0.1, "a lookup this far outside an edge's history uses its end", unit="s",
+                                    ge=0.0, le=10.0, advanced=True)
 
     @field_validator("target")
     @classmethod

@@ -17,27 +17,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("source", nargs="?", default=None,
                    help="opencv: a device index (0) or path (/dev/video0), a video file, a folder of images or an "
                         "rtsp:// or http:// URL; realsense: a recording (.bag, .db3), or nothing for the camera")
-    g.add_argument("--backend", choices=("opencv", "realsense"), default=None, help="default opencv")
-    g.add_argument("--serial", default=None, help="realsense: the camera's serial number (default: the first)")
-    g.add_argument("--camera", default=None, help="this project's camera name: frames/CAMERA (default head)")
-    g.add_argument("--frame-id", dest="frame_id", default=None, help="the optical frame's name (default CAMERA_optical)")
-    g.add_argument("--width", type=int, default=None, metavar="PX", help="the width asked of a device (default 640)")
-    g.add_argument("--height", type=int, default=None, metavar="PX", help="the height asked of a device (default 480)")
-    g.add_argument("--fps", type=float, default=None, metavar="HZ", help="the rate asked of a device, and a folder's (default 30)")
+    g.add_argument("--backend", choices=("opencv", "realsense"), default=None, help="")
+    g.add_argument("--serial", default=None, help="realsense: the camera's serial number")
+    g.add_argument("--camera", default=None, help="this project's camera name: frames/CAMERA")
+    g.add_argument("--frame-id", dest="frame_id", default=None, help="the optical frame's name")
+    g.add_argument("--width", type=int, default=None, metavar="PX", help="the width asked of a device")
+    g.add_argument("--height", type=int, default=None, metavar="PX", help="the height asked of a device")
+    g.add_argument("--fps", type=float, default=None, metavar="HZ", help="the rate asked of a device, and a folder's")
     g.add_argument("--camera-info", dest="camera_info", type=Path, default=None, metavar="FILE.yaml",
                    help="the calibration: ROS camera_calibration YAML or OpenCV FileStorage YAML/XML")
     g.add_argument("--hfov", dest="hfov_deg", type=float, default=None, metavar="DEG",
-                   help="without a calibration: the horizontal field of view (default 69; rough, with a warning)")
+                   help="without a calibration: the horizontal field of view (rough intrinsics, with a warning)")
     pace = g.add_mutually_exclusive_group()
-    pace.add_argument("--rate", type=float, default=None, metavar="X", help="a file's speed relative to real time (default 1)")
+    pace.add_argument("--rate", type=float, default=None, metavar="X", help="a file's speed relative to real time")
     pace.add_argument("--max", dest="pace", action="store_const", const="max", default=None,
                       help="a file: each frame once the detector has answered the previous one")
     g.add_argument("--no-passthrough", dest="passthrough", action="store_const", const=False, default=None,
-                   help="decode JPEG files and MJPG videos here and send raw pixels (default: pass the JPEGs on)")
+                   help="decode JPEG files and MJPG videos here and send raw pixels")
     g.add_argument("--loop", action="store_const", const=True, default=None, help="a file starts again at its end")
     g.add_argument("--start-ns", dest="start_ns", type=int, default=None, metavar="NS",
-                   help="a file's first stamp in ns since the epoch (default: now); frame k is start + (k - 1) / fps")
-    add_node_arguments(parser, "camera")
+                   help="a file's first stamp in ns since the epoch; frame k is start + (k - 1) / fps")
+    add_node_arguments(parser, "camera", CameraConfig)
 
 
 def overrides(args: argparse.Namespace) -> dict[str, Any]:

@@ -7,6 +7,7 @@ from typing import Any
 
 from common.runtime.cli_util import CliError
 from common.runtime.node import add_node_arguments, load_node_config
+from common.runtime.settings import flag_help
 from services.detector.config import BACKENDS, DetectorConfig, build_detector
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
@@ -19,35 +20,40 @@ __all__ = ["add_arguments", "add_backend_arguments", "detector_from_args", "load
 def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
     """The backend flags (``perception detector`` and ``perception detect``)."""
     g = parser.add_argument_group("detector")
-    g.add_argument("--backend", choices=BACKENDS, default=None, help="detector backend (default hog)")
-    g.add_argument("--model", default=None, metavar="ONNX", help="yolo-onnx: path of the .onnx model (yolo.model)")
+    g.add_argument("--backend", choices=BACKENDS, default=None, help=flag_help(DetectorConfig, "backend"))
+    g.add_argument("--model", default=None, metavar="ONNX", help=flag_help(DetectorConfig, "yolo.model", "yolo-onnx: path of the .onnx model"))
     g.add_argument("--providers", default=None, metavar="P1,P2",
-                   help="yolo-onnx: onnxruntime providers in order, e.g. CUDAExecutionProvider,CPUExecutionProvider")
-    g.add_argument("--darknet-cfg", default=None, metavar="CFG", help="darknet: the .cfg file")
-    g.add_argument("--darknet-weights", default=None, metavar="WEIGHTS", help="darknet: the .weights file")
-    g.add_argument("--upsample", type=float, default=None, help="hog: image scale before detection, about 1.1 x 96 / the smallest "
-                   "person's height in px: 2.25 for ~50 px people (PETS-like 480x360), 1.0 (the default) when "
-                   "everyone is taller than ~105 px (a 640x480 RGB-D camera, people within ~8 m); cost grows with "
-                   "its square")
+                   help=flag_help(DetectorConfig, "yolo.providers", "yolo-onnx: onnxruntime providers in order, "
+                                  "comma-separated, e.g. CUDAExecutionProvider,CPUExecutionProvider"))
+    g.add_argument("--darknet-cfg", default=None, metavar="CFG", help=flag_help(DetectorConfig, "darknet.cfg", "darknet: the .cfg file"))
+    g.add_argument("--darknet-weights", default=None, metavar="WEIGHTS",
+                   help=flag_help(DetectorConfig, "darknet.weights", "darknet: the .weights file"))
+    g.add_argument("--upsample", type=float, default=None,
+                   help=flag_help(DetectorConfig, "hog.upsample", "hog: image scale before detection, about 1.1 x 96 "
+                                  "/ the smallest person's height in px: 2.25 for ~50 px people (PETS-like "
+                                  "480x360), 1.0 when everyone is taller than ~105 px (a 640x480 RGB-D camera, "
+                                  "people within ~8 m); cost grows with its square"))
     g.add_argument("--conf", type=float, default=None, metavar="P",
-                   help="yolo-onnx/darknet: confidence threshold, 0 to 1 (default 0.35)")
+                   help=flag_help(DetectorConfig, "yolo.conf_threshold", "yolo-onnx/darknet: confidence threshold "
+                                  "(sets darknet.conf_threshold too)"))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Every flag of ``perception detector``."""
-    parser.add_argument("--camera", default=None, help="camera name in the keys (default 'head')")
+    parser.add_argument("--camera", default=None, help=flag_help(DetectorConfig, "camera"))
     parser.add_argument("--stream", default=None, metavar="NAME",
-                        help="publish detections/NAME instead of detections/{camera}: a second detector on the same "
-                             "camera (e.g. a slow hog or yolo-onnx next to depth; its localizer takes --stream NAME too)")
+                        help=flag_help(DetectorConfig, "stream", "publish detections/NAME instead of "
+                                       "detections/{camera}: a second detector on the same camera (e.g. a slow hog "
+                                       "or yolo-onnx next to depth; its localizer takes --stream NAME too)"))
     parser.add_argument("--max-rate", type=float, default=None, metavar="HZ",
-                        help="process at most HZ frames per second of sensor time, skipping the others (a slow second "
-                             "detector: e.g. --max-rate 3)")
-    parser.add_argument("--no-depth", action="store_true", help="the camera publishes no depth (refuses backend depth)")
-    parser.add_argument("--floor-frame", default=None, metavar="FRAME",
-                        help="depth: the frame whose z = 0 plane is the floor, read from tf each frame (default "
-                             "base_link; '' to estimate the floor from the depth alone)")
+                        help=flag_help(DetectorConfig, "max_rate_hz", "process at most HZ frames per second of "
+                                       "sensor time, skipping the others (a slow second detector: e.g. --max-rate 3)"))
+    parser.add_argument("--no-depth", action="store_true",
+                        help=flag_help(DetectorConfig, "depth_available", "the camera publishes no depth (refuses "
+                                       "backend depth); sets it false"))
+    parser.add_argument("--floor-frame", default=None, metavar="FRAME", help=flag_help(DetectorConfig, "floor_frame"))
     add_backend_arguments(parser)
-    add_node_arguments(parser, "detector")
+    add_node_arguments(parser, "detector", DetectorConfig)
 
 
 def node_overrides(args: argparse.Namespace) -> dict[str, Any]:

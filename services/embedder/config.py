@@ -11,7 +11,9 @@ import json
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, model_validator
+
+from common.runtime.settings import setting
 
 from common.runtime.config import ConfigError
 from services.embedder.core.backend import Backend, EmbedderError
@@ -34,9 +36,9 @@ class ThresholdsConfig(BaseModel):
     """Tracker thresholds on the model's distance scale (from ``perception calibrate-embedder``)."""
 
     model_config = ConfigDict(extra="forbid")
-    t_lower: float = Field(ge=0.0)
-    t_upper: float = Field(gt=0.0)
-    t_recover: float = Field(gt=0.0)
+    t_lower: float = setting(..., "below this distance, appearance alone accepts an association", ge=0.0)
+    t_upper: float = setting(..., "at or above it, an association is refused; between, it needs spatial confirmation", gt=0.0)
+    t_recover: float = setting(..., "a remembered ID is re-used below this distance", gt=0.0)
 
     @model_validator(mode="after")
     def _ordered(self) -> ThresholdsConfig:
@@ -53,20 +55,19 @@ class OnnxConfig(BaseModel):
     by ``perception export-embedder``) supplies values not set here."""
 
     model_config = ConfigDict(extra="forbid")
-    path: str = Field(default="", description="the .onnx file")
-    name: str = Field(default=_D.name, description="model card name (default: the file name without .onnx)")
-    input_size: tuple[int, int] = Field(default=_D.input_size, description="(H, W) the crops are resized to")
-    channel_order: Literal["rgb", "bgr"] = _D.channel_order
-    scale: float = Field(default=_D.scale, gt=0.0, description="pixel scale before mean/std")
-    mean: tuple[float, float, float] = _D.mean
-    std: tuple[float, float, float] = _D.std
-    normalize: bool = Field(default=_D.normalize, description="L2-normalise the outputs")
-    metric: Literal["euclidean", "cosine"] = _D.metric
-    thresholds: ThresholdsConfig | None = None
-    providers: list[str] | None = Field(default=None, description="e.g. [CUDAExecutionProvider, CPUExecutionProvider]; "
-                                        "default: TensorRT, CUDA, CPU as available")
-    intra_op_threads: int = Field(default=_D.intra_op_threads, ge=0,
-                                  description="CPU threads (0 = onnxruntime's default)")
+    path: str = setting("", "the .onnx file")
+    name: str = setting(_D.name, "model card name (default: the file name without .onnx)")
+    input_size: tuple[int, int] = setting(_D.input_size, "(H, W) the crops are resized to")
+    channel_order: Literal["rgb", "bgr"] = setting(_D.channel_order, "the channel order the model takes")
+    scale: float = setting(_D.scale, "pixel scale before mean/std", gt=0.0)
+    mean: tuple[float, float, float] = setting(_D.mean, "per-channel mean: (pixel * scale - mean) / std")
+    std: tuple[float, float, float] = setting(_D.std, "per-channel standard deviation, positive")
+    normalize: bool = setting(_D.normalize, "L2-normalise the outputs")
+    metric: Literal["euclidean", "cosine"] = setting(_D.metric, "the distance the descriptors are compared with")
+    thresholds: ThresholdsConfig | None = setting(None, "the model's recommended thresholds on its distance scale")
+    providers: list[str] | None = setting(None, "e.g. [CUDAExecutionProvider, CPUExecutionProvider]; default: "
+                                          "TensorRT, CUDA, CPU as available")
+    intra_op_threads: int = setting(_D.intra_op_threads, "CPU threads (0 = onnxruntime's default)", ge=0, advanced=True)
 
     @model_validator(mode="after")
     def _sizes(self) -> OnnxConfig:
@@ -90,18 +91,17 @@ class DepthMaskConfig(BaseModel):
     (the localizer's percentile) before it is described, when the frame has depth."""
 
     model_config = ConfigDict(extra="forbid")
-    enabled: bool = Field(default=True, description="mask crops by depth when the frame carries depth")
-    percentile: float = Field(default=_M.percentile, ge=0.0, le=100.0,
-                              description="the person's depth: this percentile of the box's valid depth")
-    near_m: float = Field(default=_M.near_m, ge=0.0, description="keep pixels this much in front of it")
-    far_m: float = Field(default=_M.far_m, gt=0.0, description="and this much behind it")
-    unknown_weight: float = Field(default=_M.unknown_weight, ge=0.0, le=1.0,
-                                  description="weight of pixels without depth")
-    min_valid_pixels: int = Field(default=_M.min_valid_pixels, ge=1,
-                                  description="fewer valid depth pixels in a box: described unmasked")
-    min_kept_fraction: float = Field(default=_M.min_kept_fraction, ge=0.0, le=1.0,
-                                     description="a mask keeping less of its box is not used")
-    depth_unit_m: float = Field(default=_M.depth_unit_m, gt=0.0, description="metres per unit of integer depth")
+    enabled: bool = setting(True, "mask crops by depth when the frame carries depth")
+    percentile: float = setting(_M.percentile, "the person's depth: this percentile of the box's valid depth",
+                                ge=0.0, le=100.0, advanced=True)
+    near_m: float = setting(_M.near_m, "keep pixels this much in front of it", unit="m", ge=0.0, advanced=True)
+    far_m: float = setting(_M.far_m, "and this much behind it", unit="m", gt=0.0, advanced=True)
+    unknown_weight: float = setting(_M.unknown_weight, "weight of pixels without depth", ge=0.0, le=1.0, advanced=True)
+    min_valid_pixels: int = setting(_M.min_valid_pixels, "fewer valid depth pixels in a box: described unmasked",
+                                    ge=1, advanced=True)
+    min_kept_fraction: float = setting(_M.min_kept_fraction, "a mask keeping less of its box is not used",
+                                       ge=0.0, le=1.0, advanced=True)
+    depth_unit_m: float = setting(_M.depth_unit_m, "metres per unit of integer depth", unit="m", gt=0.0)
 
     def params(self) -> DepthMaskParams:
         """The core's parameters."""
@@ -114,10 +114,10 @@ class OrientationConfig(BaseModel):
     services/embedder/core/orientation.py)."""
 
     model_config = ConfigDict(extra="forbid")
-    path: str | None = Field(default=None, description="the ONNX model; null: no orientation classifier")
-    input_size: tuple[int, int] = Field(default=(128, 64), description="network input (H, W)")
-    channel_order: Literal["rgb", "bgr"] = "rgb"
-    outputs: Literal["logits", "probabilities"] = Field(default="logits", description="what the model outputs")
+    path: str | None = setting(None, "the ONNX model; null: no orientation classifier")
+    input_size: tuple[int, int] = setting((128, 64), "network input (H, W)")
+    channel_order: Literal["rgb", "bgr"] = setting("rgb", "the channel order the classifier takes")
+    outputs: Literal["logits", "probabilities"] = setting("logits", "what the model outputs")
 
     def params(self) -> OrientationParams | None:
         if not self.path:
@@ -130,17 +130,19 @@ class EmbedderConfig(BaseModel):
     """Settings of ``perception embedder``."""
 
     model_config = ConfigDict(extra="forbid")
-    backend: Literal["colour", "onnx"] = "colour"
-    camera: str = Field(default="head", min_length=1, description="camera whose frames and detections are embedded")
-    onnx: OnnxConfig = Field(default_factory=OnnxConfig)
-    thresholds: ThresholdsConfig | None = Field(default=None, description="override the model card's thresholds")
-    frame_buffer: int = Field(default=8, ge=1, le=256, description="recent frames kept to pair with detections")
-    max_lag_s: float = Field(default=0.5, gt=0.0, description="detections older than the newest frame by more "
-                             "than this are dropped as stale instead of being embedded late")
-    min_crop_px: int = Field(default=4, ge=1, description="crops narrower or lower than this are not described "
-                             "(counted as tiny_crops)")
-    depth_mask: DepthMaskConfig = Field(default_factory=DepthMaskConfig)
-    orientation: OrientationConfig = Field(default_factory=OrientationConfig)
+    backend: Literal["colour", "onnx"] = setting("colour", "colour (no model: colour histograms) or onnx (a Re-ID model, onnx.path)")
+    camera: str = setting("head", "camera whose frames and detections are embedded", min_length=1)
+    onnx: OnnxConfig = setting(description="the onnx backend's model", default_factory=OnnxConfig)
+    thresholds: ThresholdsConfig | None = setting(None, "override the model card's thresholds")
+    frame_buffer: int = setting(8, "recent frames kept to pair with detections", ge=1, le=256, advanced=True)
+    max_lag_s: float = setting(0.5, "detections older than the newest frame by more than this are dropped as stale "
+                               "instead of being embedded late", unit="s", gt=0.0, advanced=True)
+    min_crop_px: int = setting(4, "crops narrower or lower than this are not described (counted as tiny_crops)",
+                               unit="px", ge=1, advanced=True)
+    depth_mask: DepthMaskConfig = setting(description="crops masked to the person's depth",
+                                         default_factory=DepthMaskConfig)
+    orientation: OrientationConfig = setting(description="the optional orientation classifier",
+                                             default_factory=OrientationConfig)
 
     @model_validator(mode="after")
     def _onnx_path(self) -> EmbedderConfig:

@@ -10,6 +10,7 @@ from typing import Any
 from common.runtime.cli_util import CliError
 from common.runtime.config import ConfigError
 from common.runtime.node import add_node_arguments, load_node_config
+from common.runtime.settings import flag_help
 from services.embedder.config import EmbedderConfig, build_backend
 from services.embedder.core.backend import Backend, EmbedderError
 from services.embedder.core.orientation import OrientationClassifier
@@ -22,12 +23,13 @@ log = logging.getLogger(__name__)
 def add_backend_arguments(parser: argparse.ArgumentParser, *, service_config: bool = True) -> None:
     """Flags that pick and configure a backend (shared with the offline tools)."""
     g = parser.add_argument_group("backend")
-    g.add_argument("--backend", choices=["colour", "onnx"], default=None, help="descriptor backend (default colour)")
-    g.add_argument("--model", default=None, metavar="FILE.onnx", help="ONNX Re-ID model (backend onnx)")
+    g.add_argument("--backend", choices=["colour", "onnx"], default=None, help="descriptor backend")
+    g.add_argument("--model", default=None, metavar="FILE.onnx", help=flag_help(EmbedderConfig, "onnx.path", "ONNX Re-ID model (backend onnx)"))
     g.add_argument("--input-size", type=int, nargs=2, default=None, metavar=("H", "W"),
-                   help="model input size (default 256 128, or the model's .json)")
+                   help=flag_help(EmbedderConfig, "onnx.input_size", "model input size (else the model's .json)"))
     g.add_argument("--providers", default=None, metavar="P1,P2",
-                   help="onnxruntime execution providers in order, e.g. CUDAExecutionProvider,CPUExecutionProvider")
+                   help=flag_help(EmbedderConfig, "onnx.providers", "onnxruntime execution providers in order, e.g. "
+                                  "CUDAExecutionProvider,CPUExecutionProvider"))
     if service_config:
         g.add_argument("--service-config", default=None, metavar="FILE",
                        help="YAML/JSON settings; its 'embedder' section if it has one, else the whole file")
@@ -35,11 +37,12 @@ def add_backend_arguments(parser: argparse.ArgumentParser, *, service_config: bo
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Every flag of ``perception embedder``."""
-    parser.add_argument("--camera", default=None, help="camera name in the keys (default head)")
+    parser.add_argument("--camera", default=None, help="camera name in the keys")
     parser.add_argument("--orientation-model", default=None, metavar="FILE.onnx",
-                        help="optional upper-body orientation classifier on each crop ((N, 3, H, W) -> (N, 8))")
+                        help=flag_help(EmbedderConfig, "orientation.path", "optional upper-body orientation classifier on each "
+                                       "crop ((N, 3, H, W) -> (N, 8))"))
     add_backend_arguments(parser, service_config=False)
-    add_node_arguments(parser, "embedder")
+    add_node_arguments(parser, "embedder", EmbedderConfig)
 
 
 def overrides(args: argparse.Namespace, extra: dict[str, Any] | None = None) -> dict[str, Any]:

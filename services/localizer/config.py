@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+
+from common.runtime.settings import setting
 
 from common.messages.keys import validate_chunk
 from services.localizer.core import DepthNoiseModel, FloorParams, LocalizerParams
@@ -36,8 +38,9 @@ class FootBias(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    u: float = Field(default=0.0, gt=-0.5, lt=0.5)
-    v: float = Field(default=0.0, gt=-0.5, lt=0.5)
+    u: float = setting(0.0, "across, as a share of the box's height (+: right)", gt=-0.5, lt=0.5)
+    v: float = setting(0.0, "down, as a share of the box's height (+: the boxes reach below the feet)", gt=-0.5,
+                       lt=0.5)
 
 
 def _default_foot_bias() -> dict[str, FootBias]:
@@ -49,10 +52,11 @@ class StaticTransformConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    parent_frame: str = Field(min_length=1)
-    child_frame: str = Field(min_length=1)
+    parent_frame: str = setting(..., "the frame the transform is from", min_length=1)
+    child_frame: str = setting(..., "the frame it places in parent_frame", min_length=1)
     translation: tuple[float, float, float]
-    rotation_xyzw: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+    rotation_xyzw: tuple[float, float, float, float] = setting((0.0, 0.0, 0.0, 1.0), "the child's rotation, a "
+                                                              "quaternion (x, y, z, w)")
 
 
 class LocalizerConfig(BaseModel):
@@ -60,96 +64,70 @@ class LocalizerConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    camera: str = Field(default="head", description="camera name in the keys (frames/{camera}, detections/{camera})")
-    stream: str | None = Field(
-        default=None, description="a second detector's stream on this camera: reads detections/{stream} and publishes "
-                                  "localized/{stream} with header.source {stream}; None: the camera's name")
-    target_frame: str = Field(default="map", min_length=1, description="frame the positions are published in")
-    camera_frame: str = Field(
-        default="", description="camera frame id used when a frame's header and camera_info carry none"
-    )
-    percentile: float = Field(
-        default=_D.percentile, ge=0.0, le=100.0, description="depth percentile inside the box (Pinto's thesis: 25)"
-    )
-    min_depth_m: float = Field(default=_D.min_depth_m, ge=0.0, description="depth pixels nearer than this are invalid")
-    max_depth_m: float = Field(
-        default=_D.max_depth_m, gt=0.0, le=100.0, description="depth pixels farther than this are invalid"
-    )
-    min_valid_pixels: int = Field(
-        default=_D.min_valid_pixels, ge=1, description="fewer valid depth pixels in a box rejects it"
-    )
-    depth_unit_m: float = Field(default=_D.depth_unit_m, gt=0.0, description="metres per unit of integer (16UC1) depth")
-    occluder_gap_m: float = Field(
-        default=_D.occluder_gap_m, ge=0.0, le=5.0,
-        description="a detector's own depth of a person (the depth detector's) replaces the box's when farther by "
-                    "more than this: a nearer person in the box filled its low percentiles")
-    occluder_max_gap_m: float = Field(
-        default=_D.occluder_max_gap_m, ge=0.0, le=50.0,
-        description="... and by at most this: farther behind a near person, a box shows the room past them")
-    body_half_depth_m: float = Field(
-        default=_D.body_half_depth_m, ge=0.0, le=0.5,
-        description="the depth camera sees the front of a body: its centre is this far farther along the line of "
-                    "sight (half a torso's depth); 0: the surface")
-    depth_noise_a_m: float = Field(
-        default=_D.noise.axial_a_m, ge=0.0, le=1.0, description="axial sigma = a + b z^2: a, m"
-    )
-    depth_noise_b_per_m: float = Field(
-        default=_D.noise.axial_b_per_m,
-        ge=0.0,
-        le=1.0,
-        description="axial sigma = a + b z^2: b, 1/m (Khoshelham and Elberink 2012)",
-    )
-    pixel_sigma_px: float = Field(
-        default=_D.noise.pixel_sigma_px, ge=0.0, le=100.0, description="sigma of the box-centre pixel"
-    )
-    tf_history_s: float = Field(default=10.0, gt=0.0, le=3600.0, description="history kept per transform edge")
-    tf_tolerance_s: float = Field(
-        default=0.05, ge=0.0, le=10.0, description="a lookup this far outside an edge's history uses its end"
-    )
-    transform_wait_s: float = Field(
-        default=0.25, ge=0.0, le=10.0, description="how long detections wait for their transform before being dropped"
-    )
-    frame_wait_s: float = Field(
-        default=0.5, ge=0.0, le=10.0, description="how long detections wait for a depth frame not yet received"
-    )
-    frame_buffer: int = Field(default=15, ge=1, le=600, description="recent depth frames kept for pairing")
-    max_pending: int = Field(default=64, ge=1, le=10000, description="detections messages waiting at most")
-    floor_without_depth: bool = Field(
-        default=True, description="a frame without a depth image (an RGB-only camera): put each person on the floor "
-                                  "from the box's foot point (True), or drop the frame as frame_without_depth (False)")
-    floor_homography: Path | None = Field(
-        default=None, description='a JSON file {"H": 3x3, "image_size": [w, h]} mapping a foot pixel (u, v, 1) to the '
-                                  "floor (x, y, w) of floor_homography_frame (a fixed camera); None: the floor through "
-                                  "the camera's pose in target_frame")
-    floor_homography_frame: str = Field(
-        default="", description="the frame the homography's floor coordinates are in; empty: target_frame")
-    floor_z_m: float = Field(
-        default=_F.floor_z_m, ge=-100.0, le=100.0,
-        description="height of the floor plane in target_frame (in floor_homography_frame with a homography)")
-    centre_height_m: float = Field(
-        default=_F.centre_height_m, ge=0.0, le=3.0,
-        description="the floor paths report the point this far above the feet: the body centre, as the depth path")
-    centre_height_sigma_m: float = Field(
-        default=_F.centre_height_sigma_m, gt=0.0, le=2.0, description="standard deviation of that height (z variance)")
-    max_floor_range_m: float = Field(
-        default=_F.max_floor_range_m, gt=0.0, le=1000.0,
-        description="feet farther than this from the camera's point on the floor are rejected (beyond_floor_range)")
-    foot_sigma_u_px: float = Field(
-        default=_F.foot_sigma_u_px, gt=0.0, le=100.0, description="sigma of the foot point's column (box centre), px")
-    foot_sigma_v_px: float = Field(
-        default=_F.foot_sigma_v_px, gt=0.0, le=100.0, description="sigma of the foot point's row (box bottom), px")
-    foot_sigma_share_u: float = Field(
-        default=_F.foot_sigma_share_u, ge=0.0, lt=1.0,
-        description="and in proportion to the box: the column's sigma as a share of the box's height")
-    foot_sigma_share_v: float = Field(
-        default=_F.foot_sigma_share_v, ge=0.0, lt=1.0, description="the row's sigma as a share of the box's height")
-    foot_bias: dict[str, FootBias] = Field(
-        default_factory=_default_foot_bias,
-        description="per detector (the detections' `detector`: hog, yolo-onnx, ...): its boxes' mean foot error as a "
-                    "share of the box's height, {u, v}, taken off the foot point (perception calibrate-localizer)")
-    static_transforms: list[StaticTransformConfig] = Field(
-        default_factory=list, description="extra static transforms, e.g. the camera mount"
-    )
+    camera: str = setting("head", "camera name in the keys (frames/{camera}, detections/{camera})")
+    stream: str | None = setting(None, "a second detector's stream on this camera: reads detections/{stream} and "
+                                 "publishes localized/{stream} with header.source {stream}; None: the camera's name")
+    target_frame: str = setting("map", "frame the positions are published in", min_length=1)
+    camera_frame: str = setting("", "camera frame id used when a frame's header and camera_info carry none")
+    percentile: float = setting(_D.percentile, "depth percentile inside the box (Pinto's thesis: 25)",
+                                ge=0.0, le=100.0, advanced=True)
+    min_depth_m: float = setting(_D.min_depth_m, "depth pixels nearer than this are invalid", unit="m", ge=0.0)
+    max_depth_m: float = setting(_D.max_depth_m, "depth pixels farther than this are invalid",
+                                 unit="m", gt=0.0, le=100.0)
+    min_valid_pixels: int = setting(_D.min_valid_pixels, "fewer valid depth pixels in a box rejects it", ge=1, advanced=True)
+    depth_unit_m: float = setting(_D.depth_unit_m, "metres per unit of integer (16UC1) depth", unit="m", gt=0.0)
+    occluder_gap_m: float = setting(_D.occluder_gap_m, "a detector's own depth of a person (the depth detector's) "
+                                    "replaces the box's when farther by more than this: a nearer person in the box "
+                                    "filled its low percentiles", unit="m", ge=0.0, le=5.0, advanced=True)
+    occluder_max_gap_m: float = setting(_D.occluder_max_gap_m, "... and by at most this: farther behind a near "
+                                        "person, a box shows the room past them", unit="m", ge=0.0, le=50.0, advanced=True)
+    body_half_depth_m: float = setting(_D.body_half_depth_m, "the depth camera sees the front of a body: its centre "
+                                       "is this far farther along the line of sight (half a torso's depth); 0: the "
+                                       "surface", unit="m", ge=0.0, le=0.5, advanced=True)
+    depth_noise_a_m: float = setting(_D.noise.axial_a_m, "axial depth sigma a + b z^2: a", unit="m", ge=0.0, le=1.0, advanced=True)
+    depth_noise_b_per_m: float = setting(_D.noise.axial_b_per_m, "axial depth sigma a + b z^2: b (Khoshelham and "
+                                         "Elberink 2012)", unit="1/m", ge=0.0, le=1.0, advanced=True)
+    pixel_sigma_px: float = setting(_D.noise.pixel_sigma_px, "sigma of the box-centre pixel",
+                                    unit="px", ge=0.0, le=100.0, advanced=True)
+    tf_history_s: float = setting(10.0, "history kept per transform edge", unit="s", gt=0.0, le=3600.0, advanced=True)
+    tf_tolerance_s: float = setting(0.05, "a lookup this far outside an edge's history uses its end",
+                                    unit="s", ge=0.0, le=10.0, advanced=True)
+    transform_wait_s: float = setting(0.25, "how long detections wait for their transform before being dropped",
+                                      unit="s", ge=0.0, le=10.0, advanced=True)
+    frame_wait_s: float = setting(0.5, "how long detections wait for a depth frame not yet received",
+                                  unit="s", ge=0.0, le=10.0, advanced=True)
+    frame_buffer: int = setting(15, "recent depth frames kept for pairing", ge=1, le=600, advanced=True)
+    max_pending: int = setting(64, "detections messages waiting at most", ge=1, le=10000, advanced=True)
+    floor_without_depth: bool = setting(True, "a frame without a depth image (an RGB-only camera): put each person on "
+                                        "the floor from the box's foot point (True), or drop the frame as "
+                                        "frame_without_depth (False)")
+    floor_homography: Path | None = setting(None, "a JSON file {\"H\": 3x3, \"image_size\": [w, h]} mapping a foot pixel "
+                                            "(u, v, 1) to the floor (x, y, w) of floor_homography_frame (a fixed "
+                                            "camera); None: the floor through the camera's pose in target_frame")
+    floor_homography_frame: str = setting("", "the frame the homography's floor coordinates are in; empty: "
+                                          "target_frame")
+    floor_z_m: float = setting(_F.floor_z_m, "height of the floor plane in target_frame (in floor_homography_frame "
+                               "with a homography)", unit="m", ge=-100.0, le=100.0)
+    centre_height_m: float = setting(_F.centre_height_m, "the floor paths report the point this far above the feet: "
+                                     "the body centre, as the depth path", unit="m", ge=0.0, le=3.0)
+    centre_height_sigma_m: float = setting(_F.centre_height_sigma_m, "standard deviation of that height (z variance)",
+                                           unit="m", gt=0.0, le=2.0, advanced=True)
+    max_floor_range_m: float = setting(_F.max_floor_range_m, "feet farther than this from the camera's point on the "
+                                       "floor are rejected (beyond_floor_range)", unit="m", gt=0.0, le=1000.0)
+    foot_sigma_u_px: float = setting(_F.foot_sigma_u_px, "sigma of the foot point's column (box centre)",
+                                     unit="px", gt=0.0, le=100.0, advanced=True)
+    foot_sigma_v_px: float = setting(_F.foot_sigma_v_px, "sigma of the foot point's row (box bottom)",
+                                     unit="px", gt=0.0, le=100.0, advanced=True)
+    foot_sigma_share_u: float = setting(_F.foot_sigma_share_u, "and in proportion to the box: the column's sigma as a "
+                                        "share of the box's height", ge=0.0, lt=1.0, advanced=True)
+    foot_sigma_share_v: float = setting(_F.foot_sigma_share_v, "the row's sigma as a share of the box's height",
+                                        ge=0.0, lt=1.0, advanced=True)
+    foot_bias: dict[str, FootBias] = setting(description="per detector (the detections' `detector`: hog, yolo-onnx, "
+                                             "...): its boxes' mean foot error as a share of the box's height, {u, "
+                                             "v}, taken off the foot point (perception calibrate-localizer)",
+                                             default_factory=_default_foot_bias)
+    static_transforms: list[StaticTransformConfig] = setting(description="extra static transforms, e.g. the camera "
+                                                             "mount", default_factory=list)
 
     @field_validator("camera")
     @classmethod

@@ -14,23 +14,23 @@ __all__ = ["add_arguments", "overrides", "prepare"]
 
 #: flag -> (setting, type, metavar, help)
 _FLAGS: dict[str, tuple[str, type, str | None, str]] = {
-    "--camera": ("camera", str, None, "camera name in the keys (default head)"),
+    "--camera": ("camera", str, None, "camera name in the keys"),
     "--stream": ("stream", str, "NAME", "a second detector's stream on this camera: detections/NAME in, "
-                                        "localized/NAME out (default: the camera's name)"),
-    "--target-frame": ("target_frame", str, None, "frame to publish positions in (default map)"),
+                                        "localized/NAME out"),
+    "--target-frame": ("target_frame", str, None, "frame to publish positions in"),
     "--camera-frame": ("camera_frame", str, None, "camera frame id when the frames carry none"),
-    "--percentile": ("percentile", float, None, "depth percentile inside each box (default 25)"),
-    "--min-depth": ("min_depth_m", float, "M", "nearest valid depth (default 0.3)"),
-    "--max-depth": ("max_depth_m", float, "M", "farthest valid depth (default 10)"),
-    "--transform-wait": ("transform_wait_s", float, "S", "how long to wait for a transform before dropping (default 0.25)"),
+    "--percentile": ("percentile", float, None, "depth percentile inside each box"),
+    "--min-depth": ("min_depth_m", float, "M", "nearest valid depth"),
+    "--max-depth": ("max_depth_m", float, "M", "farthest valid depth"),
+    "--transform-wait": ("transform_wait_s", float, "S", "how long to wait for a transform before dropping"),
     "--floor-homography": ("floor_homography", Path, "FILE", 'frames without depth: place people on the floor through '
                            'this image-to-floor homography, JSON {"H": 3x3, "image_size": [w, h]} (a fixed camera; '
                            "default: through the camera's pose in the target frame)"),
     "--floor-homography-frame": ("floor_homography_frame", str, "FRAME",
-                                 "frame of the homography's floor coordinates (default: the target frame)"),
-    "--floor-z": ("floor_z_m", float, "M", "height of the floor plane (default 0)"),
+                                 "frame of the homography's floor coordinates"),
+    "--floor-z": ("floor_z_m", float, "M", "height of the floor plane"),
     "--max-floor-range": ("max_floor_range_m", float, "M",
-                          "frames without depth: farthest person kept, on the floor from the camera (default 10)"),
+                          "frames without depth: farthest person kept, on the floor from the camera"),
 }
 
 
@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("localizer")
     for flag, (dest, kind, metavar, help_text) in _FLAGS.items():
         g.add_argument(flag, dest=dest, type=kind, default=None, metavar=metavar, help=help_text)
-    add_node_arguments(parser, "localizer")
+    add_node_arguments(parser, "localizer", LocalizerConfig)
 
 
 def overrides(args: argparse.Namespace) -> dict[str, Any]:

@@ -6,7 +6,9 @@ from __future__ import annotations
 import os
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+
+from common.runtime.settings import setting
 
 from services.ros2.core.types import DISTROS
 
@@ -38,64 +40,57 @@ class Ros2Config(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     # --- the ROS 2 side
-    domain_id: int = Field(default_factory=_domain_from_env, ge=0, le=232,
-                           description="ROS_DOMAIN_ID of the robot (default: the environment's, else 0)")
-    distro: Literal["jazzy", "kilted", "rolling"] = Field(
-        default="jazzy", description="the robot's ROS 2 distribution: the message definitions and their hashes "
-                                     "(Humble's rmw_zenoh writes no hash and is not supported)")
-    node_name: str = Field(default="people_perception", pattern=r"^[A-Za-z_][A-Za-z0-9_]*$",
-                           description="the node's name in the ROS 2 graph (ros2 node list)")
-    namespace: str = Field(default="/", description="the node's namespace in the ROS 2 graph")
+    domain_id: int = setting(description="ROS_DOMAIN_ID of the robot", default_text="$ROS_DOMAIN_ID, else 0",
+                             default_factory=_domain_from_env, ge=0, le=232)
+    distro: Literal["jazzy", "kilted", "rolling"] = setting("jazzy", "the robot's ROS 2 distribution: the message "
+                                                            "definitions and their hashes (Humble's rmw_zenoh writes "
+                                                            "no hash and is not supported)")
+    node_name: str = setting("people_perception", "the node's name in the ROS 2 graph (ros2 node list)",
+                             pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
+    namespace: str = setting("/", "the node's namespace in the ROS 2 graph")
 
     # --- in: a ROS 2 camera becomes frames/{camera}
-    camera_in: bool = Field(default=True, description="read the ROS 2 camera topics and publish frames/{camera}")
-    camera: str = Field(default="head", min_length=1, description="this project's camera name (frames/{camera})")
-    colour_topic: str = Field(default="/camera/camera/color/image_raw",
-                              description="colour images: sensor_msgs/Image (rgb8, bgr8, mono8), or CompressedImage")
-    colour_compressed: bool = Field(default=False, description="the colour topic carries sensor_msgs/CompressedImage "
-                                                               "(jpeg or png), e.g. .../image_raw/compressed")
-    depth_topic: str = Field(default="/camera/camera/aligned_depth_to_color/image_raw",
-                             description="depth registered to the colour image: 16UC1 (mm) or 32FC1 (m); '' for an "
-                                         "RGB-only camera")
-    depth_compressed: bool = Field(default=False,
-                                   description="the depth topic carries CompressedImage (16-bit png, compressedDepth)")
-    camera_info_topic: str = Field(default="/camera/camera/color/camera_info",
-                                   description="the colour camera's sensor_msgs/CameraInfo")
-    slop_s: float = Field(default=0.05, gt=0.0, le=1.0,
-                          description="colour and depth pair when their stamps are this close (approximate time)")
-    pair_wait_s: float = Field(default=0.5, gt=0.0, le=10.0,
-                               description="a colour image waits this long for its depth image")
-    require_depth: bool = Field(default=True,
-                                description="drop a colour image with no depth image near it (else publish it alone)")
-    image_queue: int = Field(default=4, ge=1, le=64, description="ROS images kept per topic while the node is busy")
+    camera_in: bool = setting(True, "read the ROS 2 camera topics and publish frames/{camera}")
+    camera: str = setting("head", "this project's camera name (frames/{camera})", min_length=1)
+    colour_topic: str = setting("/camera/camera/color/image_raw", "colour images: sensor_msgs/Image (rgb8, bgr8, "
+                                "mono8), or CompressedImage")
+    colour_compressed: bool = setting(False, "the colour topic carries sensor_msgs/CompressedImage (jpeg or png), "
+                                      "e.g. .../image_raw/compressed")
+    depth_topic: str = setting("/camera/camera/aligned_depth_to_color/image_raw", "depth registered to the colour image: "
+                               "16UC1 (mm) or 32FC1 (m); '' for an RGB-only camera")
+    depth_compressed: bool = setting(False, "the depth topic carries CompressedImage (16-bit png, compressedDepth)")
+    camera_info_topic: str = setting("/camera/camera/color/camera_info", "the colour camera's sensor_msgs/CameraInfo")
+    slop_s: float = setting(0.05, "colour and depth pair when their stamps are this close (approximate time)",
+                            unit="s", gt=0.0, le=1.0, advanced=True)
+    pair_wait_s: float = setting(0.5, "a colour image waits this long for its depth image", unit="s", gt=0.0, le=10.0, advanced=True)
+    require_depth: bool = setting(True, "drop a colour image with no depth image near it (else publish it alone)")
+    image_queue: int = setting(4, "ROS images kept per topic while the node is busy", ge=1, le=64, advanced=True)
 
     # --- in: /tf and /tf_static become tf and tf_static
-    tf_in: bool = Field(default=True, description="read /tf and /tf_static (transient local: a late joiner gets "
-                                                  "the static transforms from rmw_zenoh's publisher cache)")
-    tf_topic: str = Field(default="/tf")
-    tf_static_topic: str = Field(default="/tf_static")
-    map_topic: str = Field(default="/map", description="the robot's map, nav_msgs/OccupancyGrid (transient local: Nav2's "
-                                                       "map_server, slam_toolbox) -> static_map, for the tracker; '' for none")
-    map_period_s: float = Field(default=5.0, gt=0.0, le=600.0,
-                                description="the map received is re-sent on static_map this often, for late joiners")
+    tf_in: bool = setting(True, "read /tf and /tf_static (transient local: a late joiner gets the static transforms "
+                          "from rmw_zenoh's publisher cache)")
+    tf_topic: str = setting("/tf", "the ROS 2 transforms, tf2_msgs/TFMessage")
+    tf_static_topic: str = setting("/tf_static", "the ROS 2 static transforms (transient local)")
+    map_topic: str = setting("/map", "the robot's map, nav_msgs/OccupancyGrid (transient local: Nav2's map_server, "
+                             "slam_toolbox) -> static_map, for the tracker; '' for none")
+    map_period_s: float = setting(5.0, "the map received is re-sent on static_map this often, for late joiners",
+                                  unit="s", gt=0.0, le=600.0, advanced=True)
 
     # --- out: the people as ROS 2 topics
-    people_out: bool = Field(default=True, description="publish the tracker's people as ROS4HRI topics, /tf frames "
-                                                       "and RViz markers")
-    humans_namespace: str = Field(default="/humans", description="ROS4HRI's root (REP 155)")
-    markers_topic: str = Field(default="/humans/markers")
-    body_prefix: str = Field(default="p", pattern=r"^[A-Za-z][A-Za-z0-9_]*$",
-                             description="a body's ID is this plus the track ID (ROS names cannot start with a digit)")
-    body_frames: bool = Field(default=True, description="a body_<id> frame per person on /tf")
-    static_period_s: float = Field(default=1.0, gt=0.0, le=60.0,
-                                   description="the static transforms received are re-sent on tf_static this often, for "
-                                               "this project's late joiners")
-    include_coasting: bool = Field(default=False,
-                                   description="also publish tracks coasting through a short occlusion (else confirmed only)")
-    marker_lifetime_s: float = Field(default=2.0, ge=0.0, le=60.0,
-                                     description="markers vanish after this if the node stops (0: never)")
-    queue: int = Field(default=256, ge=1, description="tracks kept while the node is busy")
-    log_every_s: float = Field(default=1.0, gt=0.0, description="a recurring input problem is logged at most this often")
+    people_out: bool = setting(True, "publish the tracker's people as ROS4HRI topics, /tf frames and RViz markers")
+    humans_namespace: str = setting("/humans", "ROS4HRI's root (REP 155)")
+    markers_topic: str = setting("/humans/markers", "RViz markers of the people, visualization_msgs/MarkerArray")
+    body_prefix: str = setting("p", "a body's ID is this plus the track ID (ROS names cannot start with a digit)",
+                               pattern=r"^[A-Za-z][A-Za-z0-9_]*$")
+    body_frames: bool = setting(True, "a body_<id> frame per person on /tf")
+    static_period_s: float = setting(1.0, "the static transforms received are re-sent on tf_static this often, for "
+                                     "this project's late joiners", unit="s", gt=0.0, le=60.0, advanced=True)
+    include_coasting: bool = setting(False, "also publish tracks coasting through a short occlusion (else confirmed "
+                                     "only)")
+    marker_lifetime_s: float = setting(2.0, "markers vanish after this if the node stops (0: never)",
+                                       unit="s", ge=0.0, le=60.0, advanced=True)
+    queue: int = setting(256, "tracks kept while the node is busy", ge=1, advanced=True)
+    log_every_s: float = setting(1.0, "a recurring input problem is logged at most this often", unit="s", gt=0.0, advanced=True)
 
     @field_validator("colour_topic", "depth_topic", "camera_info_topic", "tf_topic", "tf_static_topic", "map_topic",
                      "markers_topic", "humans_namespace")

@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from common.runtime.node import add_node_arguments
+from services.ros2.config import Ros2Config
 
 __all__ = ["add_arguments", "overrides"]
 
@@ -13,19 +14,19 @@ __all__ = ["add_arguments", "overrides"]
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("ROS 2")
     g.add_argument("--domain-id", dest="domain_id", type=int, default=None, metavar="N",
-                   help="ROS_DOMAIN_ID of the robot (default: $ROS_DOMAIN_ID, else 0)")
+                   help="ROS_DOMAIN_ID of the robot")
     g.add_argument("--distro", choices=("jazzy", "kilted", "rolling"), default=None,
-                   help="the robot's ROS 2 distribution (default jazzy; the three share every hash used here)")
-    g.add_argument("--node-name", dest="node_name", default=None, help="name in the ROS 2 graph (default people_perception)")
-    g.add_argument("--camera", default=None, help="this project's camera name: frames/CAMERA (default head)")
+                   help="the robot's ROS 2 distribution (the three share every hash used here)")
+    g.add_argument("--node-name", dest="node_name", default=None, help="name in the ROS 2 graph")
+    g.add_argument("--camera", default=None, help="this project's camera name: frames/CAMERA")
     g.add_argument("--colour-topic", dest="colour_topic", default=None, metavar="TOPIC",
-                   help="colour images (default /camera/camera/color/image_raw, the RealSense driver's)")
+                   help="colour images")
     g.add_argument("--compressed", dest="colour_compressed", action="store_const", const=True, default=None,
                    help="the colour topic is a sensor_msgs/CompressedImage one (jpeg or png)")
     g.add_argument("--depth-topic", dest="depth_topic", default=None, metavar="TOPIC",
-                   help="depth aligned to colour (default /camera/camera/aligned_depth_to_color/image_raw); '' for none")
+                   help="depth aligned to colour; '' for none")
     g.add_argument("--camera-info-topic", dest="camera_info_topic", default=None, metavar="TOPIC",
-                   help="the colour camera's CameraInfo (default /camera/camera/color/camera_info)")
+                   help="the colour camera's CameraInfo")
     g.add_argument("--no-camera", dest="camera_in", action="store_const", const=False, default=None,
                    help="do not read a ROS 2 camera (the frames come from elsewhere)")
     g.add_argument("--no-tf", dest="tf_in", action="store_const", const=False, default=None,
@@ -35,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "map_server's and slam_toolbox's); '' for none")
     g.add_argument("--no-people", dest="people_out", action="store_const", const=False, default=None,
                    help="do not publish the people as ROS 2 topics")
-    add_node_arguments(parser, "ros2")
+    add_node_arguments(parser, "ros2", Ros2Config)
 
 
 def overrides(args: argparse.Namespace) -> dict[str, Any]:

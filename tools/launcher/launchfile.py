@@ -23,6 +23,8 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from common.runtime.settings import setting
+
 from common.messages.keys import validate_chunk
 from common.transport.zenoh_config import ZenohOptions
 
@@ -67,10 +69,10 @@ class Backoff(_Strict):
     Back to ``initial_s`` once the child has run ``stable_after_s`` without exiting.
     """
 
-    initial_s: float = Field(default=0.5, gt=0.0, le=3600.0, description="first restart delay")
-    max_s: float = Field(default=30.0, gt=0.0, le=3600.0, description="longest restart delay")
-    stable_after_s: float = Field(default=10.0, ge=0.0, le=86400.0,
-                                  description="a run this long resets the delay to initial_s")
+    initial_s: float = setting(0.5, "first restart delay", unit="s", gt=0.0, le=3600.0)
+    max_s: float = setting(30.0, "longest restart delay", unit="s", gt=0.0, le=3600.0)
+    stable_after_s: float = setting(10.0, "a run this long resets the delay to initial_s",
+                                    unit="s", ge=0.0, le=86400.0)
 
     @model_validator(mode="after")
     def _ordered(self) -> Backoff:
@@ -82,18 +84,18 @@ class Backoff(_Strict):
 class RouterSpec(_Strict):
     """``perception router`` on this PC, started first and waited for until it accepts TCP."""
 
-    listen: Endpoints = Field(default_factory=lambda: ["tcp/127.0.0.1:7447"], min_length=1,
-                              description="endpoints this router listens on")
-    connect: Endpoints = Field(default_factory=list, description="other routers to connect to (the other PC's)")
-    config: Path | None = Field(default=None, description="Zenoh JSON5 file; listen/connect above override it")
-    credentials: Path | None = Field(default=None, description="USER:PASSWORD file (mode 0600) the router presents "
-                                     "to the other PC's router")
-    args: list[Arg] = Field(default_factory=list, description="extra flags for perception router")
-    env: dict[str, EnvValue] = Field(default_factory=dict)
-    ready_timeout_s: float = Field(default=20.0, gt=0.0, le=600.0,
-                                   description="how long to wait for the router to accept connections")
-    stop_timeout_s: float = Field(default=5.0, gt=0.0, le=600.0)
-    backoff: Backoff = Field(default_factory=Backoff)
+    listen: Endpoints = setting(description="endpoints this router listens on",
+                                default_factory=lambda: ["tcp/127.0.0.1:7447"], min_length=1)
+    connect: Endpoints = setting(description="other routers to connect to (the other PC's)", default_factory=list)
+    config: Path | None = setting(None, "Zenoh JSON5 file; listen/connect above override it")
+    credentials: Path | None = setting(None, "USER:PASSWORD file (mode 0600) the router presents to the other PC's "
+                                       "router")
+    args: list[Arg] = setting(description="extra flags for perception router", default_factory=list)
+    env: dict[str, EnvValue] = setting(description="environment of the router's process", default_factory=dict)
+    ready_timeout_s: float = setting(20.0, "how long to wait for the router to accept connections",
+                                     unit="s", gt=0.0, le=600.0)
+    stop_timeout_s: float = setting(5.0, "SIGTERM, then SIGKILL after this long", unit="s", gt=0.0, le=600.0)
+    backoff: Backoff = setting(description="restart delays after a crash", default_factory=Backoff)
 
     @field_validator("listen", "connect")
     @classmethod
@@ -104,11 +106,11 @@ class RouterSpec(_Strict):
 class ZenohDefaults(_Strict):
     """Zenoh settings passed to every ``command:`` service (and as environment to ``exec:`` ones)."""
 
-    connect: Endpoints | None = Field(default=None, description="router endpoints; default: the router's first "
-                                      "listen endpoint, else the services' own default (tcp/127.0.0.1:7447)")
-    config: Path | None = Field(default=None, description="Zenoh JSON5 file passed as --config")
-    credentials: Path | None = Field(default=None, description="USER:PASSWORD file (mode 0600) of the launcher's own "
-                                     "session (it reports services that stopped for good)")
+    connect: Endpoints | None = setting(None, "router endpoints; default: the router's first listen endpoint, else "
+                                        "the services' own default (tcp/127.0.0.1:7447)")
+    config: Path | None = setting(None, "Zenoh JSON5 file passed as --config")
+    credentials: Path | None = setting(None, "USER:PASSWORD file (mode 0600) of the launcher's own session (it "
+                                       "reports services that stopped for good)")
 
     @field_validator("connect")
     @classmethod
@@ -119,31 +121,31 @@ class ZenohDefaults(_Strict):
 class ServiceSpec(_Strict):
     """One supervised child: a ``perception`` sub-command or any program (``exec``)."""
 
-    name: str = Field(pattern=_NAME, max_length=40, description="unique; prefixes the child's output")
-    command: str | None = Field(default=None, pattern=_NAME, description="perception sub-command, e.g. tracker")
-    exec_: list[Arg] | None = Field(default=None, alias="exec", min_length=1,
-                                    description="argv of a program to run instead of a perception sub-command")
-    args: list[Arg] = Field(default_factory=list, description="extra arguments, appended last")
-    config: dict[str, Any] | Path | None = Field(
-        default=None, description="inline mapping (written to a temp YAML under the section named config_section) "
-        "or a file path relative to the launch file; passed with config_flag")
-    config_flag: str = Field(default="--service-config", pattern=r"^--?[A-Za-z0-9][A-Za-z0-9-]*$",
-                             description="the flag that takes the service's YAML config file")
-    config_section: str | None = Field(default=None, description="top-level key an inline config is written under "
-                                       "(default: the command's name; '' writes it as the whole file)")
-    connect: Endpoints | None = Field(default=None, description="overrides zenoh.connect for this service")
-    credentials: Path | None = Field(default=None, description="this service's USER:PASSWORD file (mode 0600), "
-                                     "passed as --credentials (as PERCEPTION_ZENOH_CREDENTIALS to exec: programs)")
-    common_flags: bool = Field(default=True, description="pass --robot/--connect/--config (Zenoh) to the command")
-    env: dict[str, EnvValue] = Field(default_factory=dict)
-    restart: Literal["always", "on-failure", "never"] = "on-failure"
-    restart_prevent_exit_status: list[Annotated[int, Field(ge=1, le=255)]] = Field(
-        default_factory=lambda: [2], description="exit statuses never restarted, whatever restart says (systemd's "
-        "RestartPreventExitStatus); 2 is a perception command's configuration or start-up error")
-    backoff: Backoff = Field(default_factory=Backoff)
-    stop_timeout_s: float = Field(default=10.0, gt=0.0, le=600.0,
-                                  description="SIGTERM, then SIGKILL after this many seconds")
-    enabled: bool = True
+    name: str = setting(..., "unique; prefixes the child's output", pattern=_NAME, max_length=40)
+    command: str | None = setting(None, "perception sub-command, e.g. tracker", pattern=_NAME)
+    exec_: list[Arg] | None = setting(None, "argv of a program to run instead of a perception sub-command",
+                                      alias="exec", min_length=1)
+    args: list[Arg] = setting(description="extra arguments, appended last", default_factory=list)
+    config: dict[str, Any] | Path | None = setting(None, "inline mapping (written to a temp YAML under the section "
+                                                   "named config_section) or a file path relative to the launch file; "
+                                                   "passed with config_flag")
+    config_flag: str = setting("--service-config", "the flag that takes the service's YAML config file",
+                               pattern=r"^--?[A-Za-z0-9][A-Za-z0-9-]*$")
+    config_section: str | None = setting(None, "top-level key an inline config is written under (default: the "
+                                         "command's name; '' writes it as the whole file)")
+    connect: Endpoints | None = setting(None, "overrides zenoh.connect for this service")
+    credentials: Path | None = setting(None, "this service's USER:PASSWORD file (mode 0600), passed as --credentials "
+                                       "(as PERCEPTION_ZENOH_CREDENTIALS to exec: programs)")
+    common_flags: bool = setting(True, "pass --robot/--connect/--config (Zenoh) to the command")
+    env: dict[str, EnvValue] = setting(description="environment of this child, over the file's env", default_factory=dict)
+    restart: Literal["always", "on-failure", "never"] = setting("on-failure", "when to restart the child once it exits "
+                                                                "(on-failure: a non-zero status)")
+    restart_prevent_exit_status: list[Annotated[int, Field(ge=1, le=255)]] = setting(
+        description="exit statuses never restarted, whatever restart says (systemd's RestartPreventExitStatus); 2 is "
+                    "a perception command's configuration or start-up error", default_factory=lambda: [2])
+    backoff: Backoff = setting(description="restart delays after a crash", default_factory=Backoff)
+    stop_timeout_s: float = setting(10.0, "SIGTERM, then SIGKILL after this many seconds", unit="s", gt=0.0, le=600.0)
+    enabled: bool = setting(True, "false: the service is in the file but not started")
 
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
 
@@ -168,12 +170,13 @@ class ServiceSpec(_Strict):
 class LaunchFile(_Strict):
     """The whole launch file."""
 
-    robot: str | None = Field(default=None, description="robot name in every key (--robot)")
-    key_prefix: str | None = Field(default=None, description="first key segment(s) (--key-prefix env)")
-    env: dict[str, EnvValue] = Field(default_factory=dict, description="environment for every child")
-    router: RouterSpec | None = None
-    zenoh: ZenohDefaults = Field(default_factory=ZenohDefaults)
-    services: list[ServiceSpec] = Field(default_factory=list)
+    robot: str | None = setting(None, "robot name in every key (--robot)")
+    key_prefix: str | None = setting(None, "first key segment(s) (--key-prefix env)")
+    env: dict[str, EnvValue] = setting(description="environment for every child", default_factory=dict)
+    router: RouterSpec | None = setting(None, "a router to start on this PC first; none: no router")
+    zenoh: ZenohDefaults = setting(description="Zenoh settings of every service", default_factory=ZenohDefaults)
+    services: list[ServiceSpec] = setting(description="the supervised children, started in this order",
+                                          default_factory=list)
 
     @field_validator("robot")
     @classmethod

@@ -22,7 +22,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, field_validator
+
+from common.runtime.settings import setting
 
 from common.runtime.config import load_config
 from common.messages.keys import validate_chunk
@@ -39,9 +41,9 @@ def _topic(v: str | None) -> str | None:
 class CameraTopics(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    rgb: str | None = Field(default=None, description="sensor_msgs/Image or CompressedImage colour topic")
-    depth: str | None = Field(default=None, description="sensor_msgs/Image depth topic (16UC1 mm or 32FC1 m)")
-    camera_info: str | None = Field(default=None, description="sensor_msgs/CameraInfo of the colour camera")
+    rgb: str | None = setting(None, "sensor_msgs/Image or CompressedImage colour topic")
+    depth: str | None = setting(None, "sensor_msgs/Image depth topic (16UC1 mm or 32FC1 m)")
+    camera_info: str | None = setting(None, "sensor_msgs/CameraInfo of the colour camera")
 
     @field_validator("rgb", "depth", "camera_info")
     @classmethod
@@ -52,12 +54,14 @@ class CameraTopics(BaseModel):
 class TopicMapConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    cameras: dict[str, CameraTopics] = Field(default_factory=dict)
-    tf: list[str] | None = None
-    tf_static: list[str] | None = None
-    odom: list[str] | None = None
-    pair_tolerance_ms: float = Field(default=20.0, gt=0.0, le=1000.0,
-                                     description="largest stamp difference of paired colour and depth images")
+    cameras: dict[str, CameraTopics] = setting(description="per camera name (frames/{name}): its rgb, depth and "
+                                               "camera_info topics", default_factory=dict)
+    tf: list[str] | None = setting(None, "tf2_msgs/TFMessage topics replayed on tf; none: the default topics")
+    tf_static: list[str] | None = setting(None, "topics replayed on tf_static; none: the default topics")
+    odom: list[str] | None = setting(None, "nav_msgs/Odometry topics replayed on tf as odom -> base_link; none: the "
+                                     "default topics")
+    pair_tolerance_ms: float = setting(20.0, "largest stamp difference of paired colour and depth images",
+                                       unit="ms", gt=0.0, le=1000.0)
 
     @field_validator("cameras")
     @classmethod

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+
+from common.runtime.settings import setting
 
 from common.messages.keys import validate_chunk
 from tools.simulator.core.cameras import back_camera
@@ -19,32 +21,32 @@ class SimulatorConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    scenario: str = "still"
-    seed: int = Field(default=0, ge=0)
-    fps: float = Field(default=15.0, gt=0.0, le=120.0, description="camera frames per simulated second")
-    width: int = Field(default=640, ge=16, le=4096)
-    height: int = Field(default=480, ge=16, le=4096)
-    camera: str = Field(default="head", min_length=1, description="camera name in the frames key and header.source")
-    back_camera: str | None = Field(
-        default=None,
-        description="name of a second camera, fixed on the base looking backwards (0.95 m up, yaw 180 deg, the head "
-                    "camera's intrinsics), published on frames/{name} with frame id {name}_optical; None = none",
-    )
-    rate: float = Field(default=1.0, gt=0.0, le=100.0, description="speed relative to real time")
-    max_speed: bool = Field(default=False, description="as fast as the detector keeps up instead of --rate")
-    max_wait_s: float = Field(default=1.0, gt=0.0, description="--max: longest wait for the detector per frame")
-    duration_s: float | None = Field(default=None, ge=0.0)
-    alike: bool = Field(default=False, description="dress the first two people the same")
-    min_visible: float = Field(default=MIN_VISIBLE, ge=0.0, le=1.0, description="GT rule: visible share of the body")
-    depth_noise: bool = True
-    start_ns: int | None = Field(default=None, ge=0, description="stamp of frame 0 (default: the wall clock at start)")
-    static_period_s: float = Field(default=1.0, gt=0.0, description="how often tf_static is re-sent for late joiners")
-    head_control: bool = Field(default=False, description="the head obeys HeadCommand on head/command (the attention "
-                                                          "node's) instead of the scenario's head motion")
-    ros2: bool = Field(default=False, description="publish the head camera and the transforms as a ROS 2 robot does "
-                                                  "(rmw_zenoh, the RealSense driver's topics), for perception ros2")
-    ros2_domain_id: int = Field(default=0, ge=0, le=232, description="the ROS 2 domain of --ros2")
-    faults: list[str] = Field(default_factory=list, description="setup mistakes to make on purpose (tools/simulator/faults.py)")
+    scenario: str = setting("still", "the scenario to play (perception simulate --list)")
+    seed: int = setting(0, "same seed, same run: people, clothes, odometry errors, noise", ge=0)
+    fps: float = setting(15.0, "camera frames per simulated second", unit="Hz", gt=0.0, le=120.0)
+    width: int = setting(640, "image width", unit="px", ge=16, le=4096)
+    height: int = setting(480, "image height", unit="px", ge=16, le=4096)
+    camera: str = setting("head", "camera name in the frames key and header.source", min_length=1)
+    back_camera: str | None = setting(None, "name of a second camera, fixed on the base looking backwards (0.95 m up, "
+                                      "yaw 180 deg, the head camera's intrinsics), published on frames/{name} with "
+                                      "frame id {name}_optical; None = none")
+    rate: float = setting(1.0, "speed relative to real time", gt=0.0, le=100.0)
+    max_speed: bool = setting(False, "as fast as the detector keeps up instead of --rate")
+    max_wait_s: float = setting(1.0, "--max: longest wait for the detector per frame", unit="s", gt=0.0, advanced=True)
+    duration_s: float | None = setting(None, "simulated time to run; none: the scenario's length, 0: until stopped",
+                                       unit="s", ge=0.0)
+    alike: bool = setting(False, "dress the first two people the same")
+    min_visible: float = setting(MIN_VISIBLE, "GT rule: visible share of the body", ge=0.0, le=1.0, advanced=True)
+    depth_noise: bool = setting(True, "add the depth sensor's noise; false: exact depth (for debugging)")
+    start_ns: int | None = setting(None, "stamp of frame 0 (default: the wall clock at start)", unit="ns", ge=0)
+    static_period_s: float = setting(1.0, "how often tf_static is re-sent for late joiners", unit="s", gt=0.0, advanced=True)
+    head_control: bool = setting(False, "the head obeys HeadCommand on head/command (the attention node's) instead of "
+                                 "the scenario's head motion")
+    ros2: bool = setting(False, "publish the head camera and the transforms as a ROS 2 robot does (rmw_zenoh, the "
+                         "RealSense driver's topics), for perception ros2")
+    ros2_domain_id: int = setting(0, "the ROS 2 domain of --ros2", ge=0, le=232)
+    faults: list[str] = setting(description="setup mistakes to make on purpose (tools/simulator/faults.py)",
+                                default_factory=list)
 
     @field_validator("faults")
     @classmethod

@@ -10,6 +10,7 @@ from common.runtime.cli_util import CliError, add_key_arguments, keys_from_args
 from common.runtime.config import ConfigError, load_config
 from common.runtime.progress import progress
 from common.runtime.service import Counters, ServiceRuntime, Shutdown, package_version
+from common.runtime.settings import add_settings_epilog, flag_help
 from common.transport.zenoh_config import add_zenoh_arguments, options_from_args
 from common.transport.zenoh import TransportError, open_transport
 from tools.replay.recorder import McapRecorder
@@ -43,29 +44,29 @@ RGB + registered depth (16UC1 mm) frames with camera info, transforms map->odom-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--list", action="store_true", help="list the scenarios and exit")
-    parser.add_argument("--scenario", default=None, help="scenario name (default still; see --list)")
-    parser.add_argument("--seed", type=int, default=None, help="random seed (default 0): same seed, same run")
+    parser.add_argument("--scenario", default=None, help="scenario name")
+    parser.add_argument("--seed", type=int, default=None, help="random seed: same seed, same run")
     parser.add_argument(
         "--duration",
         type=float,
         default=None,
         metavar="S",
-        help="simulated seconds (default: the scenario's length; 0 = until Ctrl-C)",
+        help=flag_help(SimulatorConfig, "duration_s", "simulated seconds"),
     )
-    parser.add_argument("--fps", type=float, default=None, metavar="HZ", help="frames per simulated second (default 15)")
-    parser.add_argument("--width", type=int, default=None, metavar="PX", help="image width (default 640)")
-    parser.add_argument("--height", type=int, default=None, metavar="PX", help="image height (default 480)")
-    parser.add_argument("--camera", default=None, help="camera name in keys and headers (default head)")
+    parser.add_argument("--fps", type=float, default=None, metavar="HZ", help="frames per simulated second")
+    parser.add_argument("--width", type=int, default=None, metavar="PX", help="image width")
+    parser.add_argument("--height", type=int, default=None, metavar="PX", help="image height")
+    parser.add_argument("--camera", default=None, help="camera name in keys and headers")
     parser.add_argument(
         "--back-camera",
         default=None,
         metavar="NAME",
         help="also publish a camera fixed on the base looking backwards (0.95 m up, yaw 180 deg, the head "
              "camera's size and intrinsics) as frames/NAME, frame id NAME_optical, its mount "
-             "base_link->NAME_link->NAME_optical on tf_static (default: none)",
+             "base_link->NAME_link->NAME_optical on tf_static",
     )
     speed = parser.add_mutually_exclusive_group()
-    speed.add_argument("--rate", type=float, default=None, metavar="X", help="speed relative to real time (default 1)")
+    speed.add_argument("--rate", type=float, default=None, metavar="X", help="speed relative to real time")
     speed.add_argument(
         "--max",
         dest="max_speed",
@@ -79,13 +80,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         metavar="F",
-        help="ground-truth rule: share of the body that must be seen (default 0.25)",
+        help="ground-truth rule: share of the body that must be seen",
     )
     parser.add_argument(
         "--no-depth-noise", dest="depth_noise", action="store_false", default=None, help="exact depth (for debugging)"
     )
     parser.add_argument("--start-ns", type=int, default=None, metavar="NS",
-                        help="stamp of frame 0 in ns since the epoch (default: now)")
+                        help="stamp of frame 0 in ns since the epoch")
     parser.add_argument("--head-control", action="store_true", default=None,
                         help="the head obeys HeadCommand (perception attention) instead of the scenario's motion")
     parser.add_argument("--fault", dest="faults", action="append", default=None, choices=sorted(FAULTS),
@@ -115,6 +116,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     out.add_argument("--snapshot-time", type=float, default=5.0, metavar="S", help="time of the snapshot (default 5)")
     add_key_arguments(parser)
     add_zenoh_arguments(parser)
+    add_settings_epilog(parser, SimulatorConfig, "simulator")
 
 
 def _config(args: argparse.Namespace) -> SimulatorConfig:

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
+from pydantic import BaseModel, ConfigDict, PrivateAttr, model_validator
+
+from common.runtime.settings import setting
 
 from common.geometry.map_file import MapFileError, OccupancyGrid, read_map
 
@@ -16,19 +18,18 @@ class ViewerConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    camera: str = Field(default="head", description="camera name in the keys")
-    host: str = Field(default="127.0.0.1", description="address the page and the Foxglove server bind to")
-    port: int | None = Field(default=8080, ge=0, le=65535, description="the page's HTTP port (0: a free one; None: no page)")
-    foxglove_port: int | None = Field(default=None, ge=0, le=65535,
-                                      description="Foxglove WebSocket port (None: no Foxglove server)")
-    map_frame: str = Field(default="map", min_length=1, description="the frame of the map and the tracks")
-    base_frame: str = Field(default="base_link", min_length=1, description="the robot's body frame")
-    trail_s: float = Field(default=5.0, gt=0.0, le=120.0, description="how long a track's trail is (s)")
-    state_hz: float = Field(default=10.0, gt=0.0, le=60.0, description="most page states per second")
-    image_hz: float = Field(default=10.0, gt=0.0, le=60.0, description="most camera images encoded per second")
-    jpeg_quality: int = Field(default=75, ge=10, le=100)
-    static_map: Path | None = Field(default=None, description="the robot's map (a ROS map YAML file, in map_frame) to "
-                                                             "draw; without it the static_map stream's (perception ros2)")
+    camera: str = setting("head", "camera name in the keys")
+    host: str = setting("127.0.0.1", "address the page and the Foxglove server bind to")
+    port: int | None = setting(8080, "the page's HTTP port (0: a free one; None: no page)", ge=0, le=65535)
+    foxglove_port: int | None = setting(None, "Foxglove WebSocket port (None: no Foxglove server)", ge=0, le=65535)
+    map_frame: str = setting("map", "the frame of the map and the tracks", min_length=1)
+    base_frame: str = setting("base_link", "the robot's body frame", min_length=1)
+    trail_s: float = setting(5.0, "how long a track's trail is", unit="s", gt=0.0, le=120.0)
+    state_hz: float = setting(10.0, "most page states per second", unit="Hz", gt=0.0, le=60.0, advanced=True)
+    image_hz: float = setting(10.0, "most camera images encoded per second", unit="Hz", gt=0.0, le=60.0, advanced=True)
+    jpeg_quality: int = setting(75, "JPEG quality of the camera images sent to the page", ge=10, le=100, advanced=True)
+    static_map: Path | None = setting(None, "the robot's map (a ROS map YAML file, in map_frame) to draw; without it "
+                                      "the static_map stream's (perception ros2)")
     _grid: OccupancyGrid | None = PrivateAttr(default=None)
 
     @model_validator(mode="after")

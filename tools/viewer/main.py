@@ -38,13 +38,13 @@ examples:
 
 #: flag -> (setting, type, metavar, help)
 _FLAGS: dict[str, tuple[str, type, str | None, str]] = {
-    "--camera": ("camera", str, None, "camera name in the keys (default head)"),
-    "--port": ("port", int, "PORT", "the page's HTTP port (default 8080; 0 picks a free one)"),
-    "--host": ("host", str, "ADDR", "address to serve on (default 127.0.0.1, this machine only)"),
+    "--camera": ("camera", str, None, "camera name in the keys"),
+    "--port": ("port", int, "PORT", "the page's HTTP port"),
+    "--host": ("host", str, "ADDR", "address to serve on (127.0.0.1: this machine only)"),
     "--foxglove-port": ("foxglove_port", int, "PORT", "also serve Foxglove's WebSocket protocol on PORT"),
-    "--map-frame": ("map_frame", str, None, "frame of the map and the tracks (default map)"),
-    "--base-frame": ("base_frame", str, None, "the robot's body frame (default base_link)"),
-    "--trail": ("trail_s", float, "S", "length of the tracks' trails (default 5 s)"),
+    "--map-frame": ("map_frame", str, None, "frame of the map and the tracks"),
+    "--base-frame": ("base_frame", str, None, "the robot's body frame"),
+    "--trail": ("trail_s", float, "S", "length of the tracks' trails"),
     "--static-map": ("static_map", Path, "MAP.yaml", "the robot's map (a ROS map YAML file) drawn under the tracks "
                                                      "(default: the one perception ros2 passes on from /map)"),
 }
@@ -55,7 +55,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     for flag, (dest, kind, metavar, help_text) in _FLAGS.items():
         g.add_argument(flag, dest=dest, type=kind, default=None, metavar=metavar, help=help_text)
     g.add_argument("--no-page", action="store_true", help="serve no page (only Foxglove)")
-    add_node_arguments(parser, "viewer")
+    add_node_arguments(parser, "viewer", ViewerConfig)
 
 
 def _prepare(config: ViewerConfig) -> Mapping[str, Any]:

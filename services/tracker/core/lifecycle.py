@@ -60,6 +60,31 @@ def age(state: RobustTrackerState, p: RobustParams, stamp: float, previous: floa
     last frame's stamp). Returns the rows to delete (in order) and the rows to keep (neither:
     tentative tracks that did not go on, clutter)."""
     t = state.tracks
+    coasting = _coast(t, stamp)
+    if view is not None and coasting:
+        seen = view.contains(t.mean[coasting, :3], p.view_margin)
+        before = previous if previous is not None else stamp
+        for j, s in zip(coasting, seen.tolist()):
+            if t.in_view[j] is False:  # out of view since the last frame
+                t.unseen_s[j] += max(0.0, stamp - max(before, t.last_update[j]))
+            t.in_view[j] = s
+    var = (t.cov[:, 0, 0] + t.cov[:, 1, 1]).tolist()
+    ended, keep = [], []
+    for j, last in enumerate(t.last_update):
+        gap = stamp - last
+        if t.status[j] is _TENTATIVE:
+            keep.append(not gap > p.tentative_timeout_s)  # a birth candidate that did not go on: clutter
+        elif _lost(p, gap, t.unseen_s[j], t.in_view[j], var[j]):
+            ended.append(j)
+            keep.append(False)
+        else:
+            keep.append(True)
+    return ended, keep
+
+
+def _coast(t: TrackTable, stamp: float) -> list[int]:
+    """Confirmed tracks not detected at ``stamp`` coast; returns the coasting rows (the others
+    forget whether they were in view)."""
     coasting = []
     for j, last in enumerate(t.last_update):
         if stamp - last > 0 and t.status[j] is _CONFIRMED:
@@ -68,29 +93,16 @@ def age(state: RobustTrackerState, p: RobustParams, stamp: float, previous: floa
             coasting.append(j)
         else:
             t.in_view[j] = None
-    if view is not None and coasting:
-        seen = view.contains(t.mean[coasting, :3], p.view_margin)
-        before = previous if previous is not None else stamp
-        for j, s in zip(coasting, seen.tolist()):
-            if t.in_view[j] is False:  # out of view since the last frame
-                t.unseen_s[j] += max(0.0, stamp - max(before, t.last_update[j]))
-            t.in_view[j] = s
-    # in view, a track is dropped on the usual limits; the time out of every view does not count
-    # towards max_coast_s, and a track that has been out of view has the wider variance bound
-    # (it may come back into a view far from its prediction)
-    var = (t.cov[:, 0, 0] + t.cov[:, 1, 1]).tolist()
-    ended, keep = [], []
-    for j, last in enumerate(t.last_update):
-        gap, unseen = stamp - last, t.unseen_s[j]
-        if t.status[j] is _TENTATIVE:
-            keep.append(not gap > p.tentative_timeout_s)  # a birth candidate that did not go on: clutter
-        elif (gap - unseen > p.max_coast_s or gap > p.max_coast_unseen_s or var[j] > p.max_position_var_unseen
-              or (unseen == 0.0 and t.in_view[j] is not False and var[j] > p.max_position_var)):
-            ended.append(j)
-            keep.append(False)
-        else:
-            keep.append(True)
-    return ended, keep
+    return coasting
+
+
+def _lost(p: RobustParams, gap: float, unseen: float, in_view: bool | None, var: float) -> bool:
+    """Whether a confirmed track ``gap`` s since its last detection, ``unseen`` s of them out of
+    every view, is lost. In view, a track is dropped on the usual limits; the time out of every view
+    does not count towards max_coast_s, and a track that has been out of view has the wider
+    variance bound (it may come back into a view far from its prediction)."""
+    return (gap - unseen > p.max_coast_s or gap > p.max_coast_unseen_s or var > p.max_position_var_unseen
+            or (unseen == 0.0 and in_view is not False and var > p.max_position_var))
 
 
 def archive(state: RobustTrackerState, j: int, view: View | None = None, horizon_s: float = 0.0) -> None:
@@ -191,9 +203,8 @@ def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float |
         return None
     t, bank = state.tracks, state.bank
     best, best_d2 = -1, gate
-    for c, status in enumerate(t.status):
-        if (status is not _COASTING or t.in_view[c] is not False or not t.id[c] or t.forgotten[c] or c in removed
-                or not t.camera[c] or t.camera[c] == t.camera[j]):  # the same camera: re-identification's job
+    for c in range(len(t)):
+        if not _left_another_view(t, c, j, removed):
             continue
         s = t.cov[c, :2, :2] + t.cov[j, :2, :2]
         diff = t.mean[j, :2] - t.mean[c, :2]
@@ -212,6 +223,13 @@ def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float |
         cols.merge(j, best)
     removed.add(best)
     return best, best_d2
+
+
+def _left_another_view(t: TrackTable, c: int, j: int, removed: set[int]) -> bool:
+    """Whether track ``c`` is a person who walked out of another camera's view than the one track
+    ``j`` was born in (coasting out of view, with an ID, not forgotten nor handed over already)."""
+    return (t.status[c] is _COASTING and t.in_view[c] is False and bool(t.id[c]) and not t.forgotten[c]
+            and c not in removed and bool(t.camera[c]) and t.camera[c] != t.camera[j])  # the same camera: Re-ID's
 
 
 def handed_over(t: TrackTable, j: int, row: int, d2: float, gate: float) -> IdDecision:

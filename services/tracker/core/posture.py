@@ -192,16 +192,27 @@ def observe(posture: np.ndarray, orientation: np.ndarray, rows: np.ndarray, heig
         posture[rows] = updates(posture[rows], lik)
     old = [k for k, y in enumerate(young.tolist()) if not y]
     if len(old) <= _FEW:  # a few tracks: one at a time is quicker than the arrays
-        own, v = fresh, velocity_xy.tolist()
-        for k in old:
-            lik = orientation_evidence(v[k], params)
-            if lik is None and classified is not None and np.all(np.isfinite(classified[k])):
-                lik = np.asarray(classified[k], float) + 1e-3
-            if lik is not None:
-                orientation, own = (orientation if own else orientation.copy()), True
-                orientation[rows[k]] = update(orientation[rows[k]], lik)
-        return posture, orientation
-    old = np.array(old)
+        return posture, _orient_few(orientation, rows, old, velocity_xy, classified, params, fresh)
+    return posture, _orient_many(orientation, rows, np.array(old), velocity_xy, classified, params, fresh)
+
+
+def _orient_few(orientation: np.ndarray, rows: np.ndarray, old: list[int], velocity_xy: np.ndarray,
+                classified: np.ndarray | None, params: PostureParams, fresh: bool) -> np.ndarray:
+    """:func:`observe`'s orientation update of the tracks ``rows[old]``, one at a time."""
+    own, v = fresh, velocity_xy.tolist()
+    for k in old:
+        lik = orientation_evidence(v[k], params)
+        if lik is None and classified is not None and np.all(np.isfinite(classified[k])):
+            lik = np.asarray(classified[k], float) + 1e-3
+        if lik is not None:
+            orientation, own = (orientation if own else orientation.copy()), True
+            orientation[rows[k]] = update(orientation[rows[k]], lik)
+    return orientation
+
+
+def _orient_many(orientation: np.ndarray, rows: np.ndarray, old: np.ndarray, velocity_xy: np.ndarray,
+                 classified: np.ndarray | None, params: PostureParams, fresh: bool) -> np.ndarray:
+    """:func:`observe`'s orientation update of the tracks ``rows[old]``, in arrays."""
     rows, velocity_xy = rows[old], velocity_xy[old]
     lik, use = orientation_evidences(velocity_xy, params)
     if classified is not None:
@@ -212,7 +223,7 @@ def observe(posture: np.ndarray, orientation: np.ndarray, rows: np.ndarray, heig
     if use.any():
         orientation = orientation if fresh else orientation.copy()
         orientation[rows[use]] = updates(orientation[rows[use]], lik[use])
-    return posture, orientation
+    return orientation
 
 
 #: up to this many tracks, :func:`observe` updates orientations one at a time

@@ -173,28 +173,11 @@ class RecoveryState:
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> RecoveryState:
         """The state :meth:`to_arrays` wrote (keys it lacks: empty); ``ValueError`` saying which
         block is inconsistent."""
-        def get(key: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
-            return np.asarray(arrays.get(key, np.zeros(shape, dtype)))
-
-        ids, deps = get("recovery_departure_ids", (0,), np.int64), get("recovery_departures", (0, 7), np.float64)
-        if (deps.ndim != 2 or deps.shape[1] not in (4, 5, 7) or len(deps) != len(ids) or not np.all(np.isfinite(deps))
-                or (deps.shape[1] == 7 and np.any(deps[:, 6] < 0))):
-            raise ValueError(f"recovery departures: {len(ids)} ids, values of shape {deps.shape} "
-                             "(need finite (K, 7), or (K, 4) or (K, 5) from an older file)")
-        groups, counts = get("recovery_together_ids", (0,), np.int64), get("recovery_together_counts", (0,), np.int64)
-        others = get("recovery_together_with", (0,), np.int64)
-        if len(groups) != len(counts) or np.any(counts < 0) or int(counts.sum()) != len(others):
-            raise ValueError(f"recovery groups: {len(groups)} ids, {len(counts)} counts, {len(others)} members")
-        rates = get("recovery_counts", (2,), np.float64).reshape(-1)
+        departures, groups = _departures_of(arrays), _groups_of(arrays)
+        rates = _array(arrays, "recovery_counts", (2,), np.float64).reshape(-1)
         if rates.shape != (2,) or not np.all(np.isfinite(rates)) or np.any(rates < 0):
             raise ValueError(f"recovery counts: {rates.tolist()} (need two non-negative numbers)")
-        bounds = np.concatenate([[0], np.cumsum(counts)]).tolist()
-        members = others.tolist()
-        return cls({int(i): Departure(*row[:4], bool(row[4]) if len(row) > 4 else False,
-                                      *((row[5], int(row[6])) if len(row) > 6 else ()))
-                    for i, row in zip(ids.tolist(), deps.tolist())},
-                   {int(i): frozenset(members[a:b]) for i, a, b in zip(groups.tolist(), bounds, bounds[1:])},
-                   float(rates[0]), float(rates[1]))
+        return cls(departures, groups, float(rates[0]), float(rates[1]))
 
     def settle(self, stamp: float) -> None:
         """The first frame after a start at ``stamp``: departures stamped later are of another
@@ -326,3 +309,32 @@ def decide(llr: np.ndarray, reach: np.ndarray, p_new: float, params: RecoveryPar
     best = int(np.argmax(post))
     p = support(post_new, post, best, None if rivals is None else rivals(best))
     return Decision(best if p >= params.p_recover else None, p, post_new, True)
+
+
+def _array(arrays: dict[str, np.ndarray], key: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
+    return np.asarray(arrays.get(key, np.zeros(shape, dtype)))
+
+
+def _departures_of(arrays: dict[str, np.ndarray]) -> dict[int, Departure]:
+    """The departures :meth:`RecoveryState.to_arrays` wrote (older files: 4 or 5 values a row)."""
+    ids, deps = _array(arrays, "recovery_departure_ids", (0,), np.int64), _array(arrays, "recovery_departures",
+                                                                                 (0, 7), np.float64)
+    if (deps.ndim != 2 or deps.shape[1] not in (4, 5, 7) or len(deps) != len(ids) or not np.all(np.isfinite(deps))
+            or (deps.shape[1] == 7 and np.any(deps[:, 6] < 0))):
+        raise ValueError(f"recovery departures: {len(ids)} ids, values of shape {deps.shape} "
+                         "(need finite (K, 7), or (K, 4) or (K, 5) from an older file)")
+    return {int(i): Departure(*row[:4], bool(row[4]) if len(row) > 4 else False,
+                              *((row[5], int(row[6])) if len(row) > 6 else ()))
+            for i, row in zip(ids.tolist(), deps.tolist())}
+
+
+def _groups_of(arrays: dict[str, np.ndarray]) -> dict[int, frozenset[int]]:
+    """Who was seen with whom, as :meth:`RecoveryState.to_arrays` wrote it."""
+    groups = _array(arrays, "recovery_together_ids", (0,), np.int64)
+    counts = _array(arrays, "recovery_together_counts", (0,), np.int64)
+    others = _array(arrays, "recovery_together_with", (0,), np.int64)
+    if len(groups) != len(counts) or np.any(counts < 0) or int(counts.sum()) != len(others):
+        raise ValueError(f"recovery groups: {len(groups)} ids, {len(counts)} counts, {len(others)} members")
+    bounds = np.concatenate([[0], np.cumsum(counts)]).tolist()
+    members = others.tolist()
+    return {int(i): frozenset(members[a:b]) for i, a, b in zip(groups.tolist(), bounds, bounds[1:])}

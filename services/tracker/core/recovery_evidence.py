@@ -18,7 +18,7 @@ from services.tracker.core import classifier as clf
 from services.tracker.core import stature as body
 from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.identity import IdentityMemory
-from services.tracker.core.recovery import (RecoveryParams, RecoveryState, posterior, reachable, stranger_llr,
+from services.tracker.core.recovery import (Departure, RecoveryParams, RecoveryState, posterior, reachable, stranger_llr,
                                             support)
 from services.tracker.core.stature import StatureParams
 
@@ -83,23 +83,39 @@ def evidence(track: Candidate, memory: IdentityMemory, exclude: set[int], pair_l
     llr = np.asarray(pair_llr(dist), float).copy()
     cohort = np.array([min_distance(mean, g) for g in others if len(g)])
     new_llr = stranger_llr(pair_llr(cohort)) if len(cohort) else 0.0
-    if classifier is not None and classifier.weight > 0 and ids:
-        u = clf.normalise(np.asarray(track.views, np.float32))
-        cols = [i for i, k in enumerate(ids) if len(classifiers.get(k, ())) == u.shape[1] + 1]
-        if cols:
-            w = np.stack([classifiers[ids[i]] for i in cols])
-            llr[cols] += classifier.weight * clf.scores(w, u, classifier.clip).mean(axis=0)
     departures = [state.departures.get(k) for k in ids]
-    if stature is not None and ids and track.stature_n:  # a young track's few measurements, a learnt memory
-        known = [(d.stature, d.stature_n) if d is not None else (0.0, 0) for d in departures]
-        lo = body.log_odds(np.array([track.stature]), np.array([h for h, _ in known]),
-                           np.array([n for _, n in known], np.int64), stature)
-        if lo is not None:
-            llr += lo[0]
-    if params.left_weight < 1 and ids:  # who walked out seldom comes straight back
-        llr += math.log(params.left_weight) * np.array([d is not None and d.left for d in departures])
+    if ids:
+        _add_classifiers(llr, track, ids, classifiers, classifier)
+        _add_statures(llr, track, departures, stature)
+        if params.left_weight < 1:  # who walked out seldom comes straight back
+            llr += math.log(params.left_weight) * np.array([d is not None and d.left for d in departures])
     reach = reachable(track.stamp, track.x, track.y, track.var, departures, params)
     return Evidence(ids, llr, reach, new_llr, state.together)
+
+
+def _add_classifiers(llr: np.ndarray, track: Candidate, ids: list[int], classifiers: dict[int, np.ndarray],
+                     classifier: ClassifierParams | None) -> None:
+    """``llr`` (K,) plus each remembered person's classifier's weighted mean log-odds over the
+    track's views, where they have one of the views' size."""
+    if classifier is None or not classifier.weight > 0:
+        return
+    u = clf.normalise(np.asarray(track.views, np.float32))
+    cols = [i for i, k in enumerate(ids) if len(classifiers.get(k, ())) == u.shape[1] + 1]
+    if cols:
+        w = np.stack([classifiers[ids[i]] for i in cols])
+        llr[cols] += classifier.weight * clf.scores(w, u, classifier.clip).mean(axis=0)
+
+
+def _add_statures(llr: np.ndarray, track: Candidate, departures: list[Departure | None],
+                  stature: StatureParams | None) -> None:
+    """``llr`` (K,) plus the track's stature's log-odds against each remembered person's."""
+    if stature is None or not track.stature_n:  # a young track's few measurements, a learnt memory
+        return
+    known = [(d.stature, d.stature_n) if d is not None else (0.0, 0) for d in departures]
+    lo = body.log_odds(np.array([track.stature]), np.array([h for h, _ in known]),
+                       np.array([n for _, n in known], np.int64), stature)
+    if lo is not None:
+        llr += lo[0]
 
 
 def keeps(ev: Evidence, k: int, p_new: float, params: RecoveryParams) -> bool:

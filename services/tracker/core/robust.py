@@ -229,12 +229,8 @@ class RobustTracker(TrackerCore):
         established tracks left, remaining confident detections x tentative tracks."""
         if not log_odds.size:
             return []
-        status = self.state.tracks.status
-        established = [j for j, s in enumerate(status) if s is not TrackStatus.TENTATIVE]
-        birth = [j for j, s in enumerate(status) if s is TrackStatus.TENTATIVE]
-        sure = confident.tolist()
-        high = [d for d, c in enumerate(sure) if c]
-        low = [d for d, c in enumerate(sure) if not c]
+        birth, established = _split([s is TrackStatus.TENTATIVE for s in self.state.tracks.status])
+        high, low = _split(confident.tolist())
         matches = match_log_odds(log_odds, high, established)
         taken_d, taken_t = {d for d, _ in matches}, {j for _, j in matches}
         matches += match_log_odds(log_odds, low, [j for j in established if j not in taken_t])
@@ -385,3 +381,10 @@ class RobustTracker(TrackerCore):
     def live_galleries(self) -> list[tuple[int, np.ndarray]]:
         t, bank = self.state.tracks, self.state.bank
         return [(i, bank.descriptors(t.slot[j])) for j, i in enumerate(t.id) if i and bank.size(t.slot[j])]
+
+
+def _split(flags: list[bool]) -> tuple[list[int], list[int]]:
+    """The indices where ``flags`` hold, and the others."""
+    yes = [k for k, f in enumerate(flags) if f]
+    no = [k for k, f in enumerate(flags) if not f]
+    return yes, no

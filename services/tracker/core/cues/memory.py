@@ -93,21 +93,27 @@ def memory_alternatives(state: RobustTrackerState, model: AppearanceModel, weigh
         return out
     weigh = _Weigh(state, model, weight)
     for d, tracks in enumerate(tracks_of):
-        if not tracks:
-            continue
-        ids = sorted(set().union(*(rivals_of[j] for j in tracks)))
-        llr_of = _reachable_llr(state, rp, weigh, ids, descriptors[d], (float(positions[d, 0]), float(positions[d, 1])),
-                                0.5 * float(r[d, 0, 0] + r[d, 1, 1]))
-        cohort: list[float] | None = None
-        for j in tracks:
-            best = max((llr_of[k] for k in rivals_of[j] if k in llr_of), default=0.0)
-            if best <= 0.0:  # no rival outweighs "no alternative": the stranger cannot change that
-                continue
-            if cohort is None:  # the detection against every live gallery, once
-                cohort = weigh.cohort(descriptors[d])
-            others = [v for (i, _), v in zip(weigh.live, cohort) if i != t.id[j]]
-            out[d, j] = max(0.0, best - (rec.stranger_llr(np.array(others)) if others else 0.0))
+        if tracks:
+            ids = sorted(set().union(*(rivals_of[j] for j in tracks)))
+            llr_of = _reachable_llr(state, rp, weigh, ids, descriptors[d],
+                                    (float(positions[d, 0]), float(positions[d, 1])), 0.5 * float(r[d, 0, 0] + r[d, 1, 1]))
+            _weigh_rivals(out[d], t.id, tracks, rivals_of, llr_of, weigh, descriptors[d])
     return out
+
+
+def _weigh_rivals(out: np.ndarray, track_ids: list[int], tracks: list[int], rivals_of: list[frozenset[int]],
+                  llr_of: dict[int, float], weigh: _Weigh, x: np.ndarray) -> None:
+    """One detection's row ``out`` (T,) of :func:`memory_alternatives`: for each of its compared
+    ``tracks``, the best reachable rival's log-odds (``llr_of``) less the stranger's level."""
+    cohort: list[float] | None = None
+    for j in tracks:
+        best = max((llr_of[k] for k in rivals_of[j] if k in llr_of), default=0.0)
+        if best <= 0.0:  # no rival outweighs "no alternative": the stranger cannot change that
+            continue
+        if cohort is None:  # the detection against every live gallery, once
+            cohort = weigh.cohort(x)
+        others = [v for (i, _), v in zip(weigh.live, cohort) if i != track_ids[j]]
+        out[j] = max(0.0, best - (rec.stranger_llr(np.array(others)) if others else 0.0))
 
 
 class MemoryCue(Cue):

@@ -44,6 +44,7 @@ from services.tracker.config import TrackerConfig
 from services.tracker.convert import descriptors_for, positions_of
 from services.tracker.core.types import FrameResult
 from services.tracker.core.view import FieldOfView
+from services.tracker.core.types import FrameInput  # noqa: E402
 from services.tracker.intake import R_EPS
 from services.tracker.offline import Detections, Row
 from tools.evaluation.evaluate import evaluate_tables
@@ -306,8 +307,8 @@ def replay(cap: Capture, config: TrackerConfig,
         stamp = (int(cap.stamp_ns[k]) - epoch) / 1e9
         covs = cap.covs[a:b] + R_EPS if use_cov else None  # as the service converts them
         try:
-            result = tracker.update(stamp, cap.positions[a:b], desc, covs, cap.scores[a:b], view=cap.view(k),
-                                    statures=cap.statures[a:b])
+            result = tracker.step(stamp, FrameInput.of(cap.positions[a:b], desc, covs, cap.scores[a:b], view=cap.view(k),
+                                                       statures=cap.statures[a:b]))
         except (ValueError, np.linalg.LinAlgError) as exc:  # the service counts and skips such a frame
             log.error("frame %d could not be tracked: %s", seq, exc)
             continue

@@ -51,6 +51,7 @@ from benchmarks.quality import SHARED  # noqa: E402
 from common.runtime.progress import Bar, progress_bar  # noqa: E402
 from services.tracker.config import PROFILES, TrackerConfig  # noqa: E402
 from services.tracker.offline import frame_stamps, read_detections, track, write_tracks  # noqa: E402
+from services.tracker.core.types import FrameInput  # noqa: E402
 
 DIM = 128
 FPS = 30.0
@@ -82,13 +83,13 @@ def bench_update(people: int, gallery: int, reps: int, config: TrackerConfig) ->
     t = 0.0
     # confirm every person, then fill every gallery to capacity with views of its person
     for _ in range(sized.profile_config.n_init + gallery):
-        tracker.update(t, *observe(looks, pos, rng))
+        tracker.step(t, FrameInput.of(*observe(looks, pos, rng)))
         t += 1 / FPS
     times = []
     for _ in range(reps):
         frame = observe(looks, pos, rng)
         start = time.perf_counter()
-        tracker.update(t, *frame)
+        tracker.step(t, FrameInput.of(*frame))
         times.append(time.perf_counter() - start)
         t += 1 / FPS
     assert len(tracker.live_ids()) == people, "benchmark scenario lost tracks"

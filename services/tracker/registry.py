@@ -124,9 +124,9 @@ class IdRegistry:
         if not (changed or periodic or (force and self._dirty)):
             return
         try:
-            save_memory(path, memory, self._model(), extra=self.tracker.live_galleries(),
-                        classifiers=self.tracker.kept_classifiers(), last_seen=self._seen,
-                        recovery=self._on_sensor_clock(self.tracker.kept_recovery()))
+            kept = self.tracker.export_memory()
+            save_memory(path, memory, self._model(), extra=kept.live_galleries, classifiers=kept.classifiers,
+                        last_seen=self._seen, recovery=self._on_sensor_clock(kept.recovery or {}))
         except (OSError, ValueError) as exc:
             self.counters.count("memory_save_errors")
             log.error("could not write the ID memory to %s: %s", path, exc)

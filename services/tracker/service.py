@@ -36,6 +36,7 @@ from typing import Callable
 import numpy as np
 
 from common.geometry.messages import obstacles_from_map
+from common.geometry.occupancy import ObstacleMap
 from common.messages.keys import MAPS, RELIABLE, Keys
 from common.messages.schemas import Embeddings, ForgetReply, Header, IdDecisions, LocalizedDetections, StaticMap, Tracks
 from common.runtime.node import Node
@@ -45,6 +46,7 @@ from common.transport.base import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import id_decisions_message, tracks_message
 from services.tracker.core import FrameResult, TrackView
+from services.tracker.core.types import KeptMemory
 from services.tracker.core.view import FieldOfView, Views
 from services.tracker.intake import Frame, Intake
 from services.tracker.memory_file import descriptor_dim, load_memory, read_classifiers, read_recovery, shift_recovery
@@ -80,12 +82,12 @@ class TrackerService(Node):
         if config.memory_path is not None and config.memory_path.exists():
             # the remembered classifiers, for a profile that has them (a bad block costs them, not the memory)
             try:
-                self.tracker.load_classifiers(read_classifiers(config.memory_path))
+                self.tracker.import_memory(KeptMemory(classifiers=read_classifiers(config.memory_path)))
             except ValueError as exc:
                 log.warning("%s; starting without remembered classifiers", exc)
             try:  # where and when each person was last seen, who with whom (the open-set recovery)
                 recovery = read_recovery(config.memory_path)
-                self.tracker.load_recovery(recovery)  # checked now, put on the tracker's clock at the first frame
+                self.tracker.import_memory(KeptMemory(recovery=recovery))  # checked now, on its clock at the first frame
                 self._recovery_file = recovery
             except ValueError as exc:
                 log.warning("%s: %s; starting without the recovery's state", config.memory_path, exc)
@@ -102,6 +104,7 @@ class TrackerService(Node):
         sm = config.robust.static_map
         self.map_sub = self.io.subscribe(keys.static_map(), StaticMap, MAPS) if sm.path is None and sm.topic else None
         self._map_seen: tuple[object, ...] | None = None
+        self._obstacles: ObstacleMap | None = None  # the static_map stream's, once one came
         self.loc_sub = self.io.subscribe(keys.localized(config.camera), LocalizedDetections, RELIABLE)
         self.emb_sub = self.io.subscribe(keys.embeddings(config.camera), Embeddings, RELIABLE)
         self.publisher = self.io.publisher(keys.tracks(), Tracks, RELIABLE)
@@ -154,7 +157,7 @@ class TrackerService(Node):
                               "(publish the map in the tracking frame, or set frame_id)", grid.header.frame_id,
                               self.config.frame_id)
             return
-        self.tracker.set_obstacles(obstacles_from_map(grid, self.config.robust.static_map.min_obstacle_m))
+        self._obstacles = obstacles_from_map(grid, self.config.robust.static_map.min_obstacle_m)  # with every frame
         self.counters.count("static_maps")
         log.info("static map from %s: %d x %d cells of %g m; no track is born on its obstacles", grid.header.source,
                  grid.width, grid.height, grid.resolution)
@@ -226,9 +229,10 @@ class TrackerService(Node):
         if self._epoch_ns is None:
             self._epoch_ns = stamp_ns
             if self._recovery_file:  # the file's departures, from the sensors' clock to the tracker's
-                self.tracker.load_recovery(shift_recovery(self._recovery_file, -stamp_ns / 1e9))
+                self.tracker.import_memory(KeptMemory(recovery=shift_recovery(self._recovery_file, -stamp_ns / 1e9)))
                 self._recovery_file = {}
-        result = self.tracker.step((stamp_ns - self._epoch_ns) / 1e9, frame.input)
+        given = frame.input if self._obstacles is None else frame.input._replace(obstacles=self._obstacles)
+        result = self.tracker.step((stamp_ns - self._epoch_ns) / 1e9, given)
         self.counters.count("updates")
         if not result.appearance_available and frame.loc.detections:
             self.counters.count("position_only_frames")

@@ -15,6 +15,7 @@ from services.embedder.core.backend import EmbedderError
 from services.embedder.core.orientation import OrientationClassifier, OrientationParams
 from services.tracker.convert import orientations_for
 from services.tracker.core.robust import RobustParams, RobustTracker
+from services.tracker.core.types import FrameInput
 from tests.fixtures.embedder_onnx_models import projection_model
 from tests.fixtures.embedder_scene import BOX_GREEN, BOX_RED, detections, frame
 from tests.helpers.embedder_rig import Rig
@@ -77,5 +78,5 @@ def test_a_person_standing_still_takes_the_classifiers_orientation() -> None:
     evidence = np.full((1, 8), 0.02)
     evidence[0, 6] = 0.86
     for t in np.arange(0.0, 2.0, 0.1):
-        trk.update(float(t), np.array([[3.0, 0.0, 1.1]]), aspects=np.array([2.7]), orientations=evidence)
+        trk.step(float(t), FrameInput.of(np.array([[3.0, 0.0, 1.1]]), aspects=np.array([2.7]), orientations=evidence))
     assert int(np.argmax(trk.tracks[0].orientation)) == 6 and trk.tracks[0].orientation[6] > 0.9

@@ -11,6 +11,7 @@ from services.tracker.core import classifier as clf
 from services.tracker.core.classifier import ClassifierParams
 from services.tracker.core.recovery import RecoveryParams
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
+from services.tracker.core.types import FrameInput
 
 COLOUR = AppearanceModel(0.35, 0.85, 0.40)
 
@@ -53,7 +54,7 @@ def _frames(trk: RobustTracker, t0: float, t1: float, people: list[tuple[np.ndar
     while t < t1:
         pos = np.array([[x, 0.0, 1.0] for _, x in people]).reshape(-1, 3)
         d = np.stack([v for v, _ in people]) if people else None
-        trk.update(t, pos, d)
+        trk.step(t, FrameInput.of(pos, d))
         t = round(t + 0.1, 6)
     return t
 
@@ -96,12 +97,12 @@ def test_a_forgotten_person_live_track_learns_no_classifier_and_none_is_kept() -
     trk = RobustTracker(RobustParams(appearance=COLOUR, max_coast_s=1.0))
     t = _frames(trk, 0.0, 3.0, [(A, 0.0), (B, 3.0)])
     a_id, b_id = _id_at(trk, 0.0), _id_at(trk, 3.0)
-    assert a_id in trk.kept_classifiers()
+    assert a_id in trk.export_memory().classifiers
     done = trk.forget(a_id)
     assert done["live_track"] and done["classifier"]
     t = _frames(trk, t, t + 3.0, [(A, 0.0), (B, 3.0)])  # A stays in view beside B
     assert a_id in trk.live_ids() and _id_at(trk, 0.0) == a_id
-    assert a_id not in trk.kept_classifiers() and b_id in trk.kept_classifiers()
+    assert a_id not in trk.export_memory().classifiers and b_id in trk.export_memory().classifiers
     _frames(trk, t, t + 2.0, [(B, 3.0)])  # A leaves: nothing of them is remembered
     assert a_id not in trk.classifiers and a_id not in trk.memory
 

@@ -16,6 +16,7 @@ from common.messages.schemas import (CameraView, Embeddings, FloorCameraView, He
 from services.tracker.config import ScoreConfig, TrackerConfig
 from services.tracker.core.robust import RobustParams, RobustTracker, ScoreModel
 from services.tracker.core.view import FieldOfView, FloorView, Views
+from services.tracker.core.types import FrameInput
 from services.tracker.service import TrackerService
 
 KEYS = Keys(robot="fuse")
@@ -51,10 +52,10 @@ def test_a_frames_own_score_model_decides_its_detections_confidence() -> None:
     tracker = RobustTracker(RobustParams(n_init=2))
     # a score of 0.5 is a confident person under the default model, clutter under the strict one
     for k in range(6):
-        tracker.update(k * 0.1, np.array([[3.0, 0.0, 1.0]]), scores=np.array([0.5]), score_model=strict)
+        tracker.step(k * 0.1, FrameInput.of(np.array([[3.0, 0.0, 1.0]]), scores=np.array([0.5]), score_model=strict))
     assert not tracker.tracks  # never born: below the strict model's birth score
     for k in range(6, 12):
-        result = tracker.update(k * 0.1, np.array([[3.0, 0.0, 1.0]]), scores=np.array([0.5]))
+        result = tracker.step(k * 0.1, FrameInput.of(np.array([[3.0, 0.0, 1.0]]), scores=np.array([0.5])))
     assert [v.status.name for v in result.tracks] == ["CONFIRMED"]
 
 

@@ -11,6 +11,7 @@ from services.tracker.convert import track_state
 from services.tracker.core import posture as pose
 from services.tracker.core.robust import RobustParams, RobustTracker
 from services.tracker.core.tracker import Tracker, TrackerParams
+from services.tracker.core.types import FrameInput
 
 
 def test_each_posture_is_the_most_likely_for_its_own_height_and_box() -> None:
@@ -34,7 +35,7 @@ def _frames(trk: RobustTracker, t0: float, t1: float, start: tuple[float, float]
             height: float, aspect: float) -> None:
     for t in np.arange(t0, t1, 0.1):
         x, y = start[0] + velocity[0] * (t - t0), start[1] + velocity[1] * (t - t0)
-        trk.update(float(t), np.array([[x, y, height]]), aspects=np.array([aspect]))
+        trk.step(float(t), FrameInput.of(np.array([[x, y, height]]), aspects=np.array([aspect])))
 
 
 def test_a_person_walks_then_sits_down_facing_the_way_they_walked() -> None:
@@ -53,10 +54,10 @@ def test_a_person_walks_then_sits_down_facing_the_way_they_walked() -> None:
 def test_without_boxes_or_with_the_thesis_the_posture_stays_unknown() -> None:
     trk = RobustTracker(RobustParams())
     for t in np.arange(0.0, 1.0, 0.1):
-        trk.update(float(t), np.array([[0.0, 0.0, 1.1]]))
+        trk.step(float(t), FrameInput.of(np.array([[0.0, 0.0, 1.1]])))
     np.testing.assert_allclose(trk.tracks[0].posture, pose.uniform(3))
     thesis = Tracker(TrackerParams())
-    r = thesis.update(0.0, np.array([[0.0, 0.0, 1.1]]), aspects=np.array([2.7]))
+    r = thesis.step(0.0, FrameInput.of(np.array([[0.0, 0.0, 1.1]]), aspects=np.array([2.7])))
     assert r.tracks[0].posture is None
     state = track_state(r.tracks[0], False)
     assert state.posture == [1 / 3] * 3 and state.orientation == [1 / 8] * 8  # uniform: unknown
@@ -84,9 +85,9 @@ def test_a_detectors_posture_report_decides_where_height_and_box_do_not() -> Non
     ambiguous = (0.9, 2.1)
     alone, told = RobustTracker(RobustParams()), RobustTracker(RobustParams())
     for t in np.arange(0.0, 2.0, 0.1):
-        alone.update(float(t), np.array([[0.0, 0.0, ambiguous[0]]]), aspects=np.array([ambiguous[1]]))
-        told.update(float(t), np.array([[0.0, 0.0, ambiguous[0]]]), aspects=np.array([ambiguous[1]]),
-                    postures=np.array([1]))
+        alone.step(float(t), FrameInput.of(np.array([[0.0, 0.0, ambiguous[0]]]), aspects=np.array([ambiguous[1]])))
+        told.step(float(t), FrameInput.of(np.array([[0.0, 0.0, ambiguous[0]]]), aspects=np.array([ambiguous[1]]),
+                    postures=np.array([1])))
     assert alone.tracks[0].posture[1] < 0.8 < told.tracks[0].posture[1]
     assert int(np.argmax(told.tracks[0].posture)) == 1
 

@@ -16,6 +16,7 @@ from common.geometry.occupancy import ObstacleMap
 from perception.cli import main
 from services.tracker.config import TrackerConfig
 from services.tracker.core.robust import RobustParams, RobustTracker, ScoreModel
+from services.tracker.core.types import FrameInput
 from tools.simulator.core.apartment import default_apartment
 from tools.simulator.core.laser_map import laser_map
 
@@ -190,15 +191,15 @@ def test_no_track_is_born_on_the_maps_obstacles_but_a_track_walks_past_them() ->
     for k in range(30):  # a jamb at the wall's face, and a person walking along the wall 0.4 m from it
         t = k / 10
         pos = np.array([[1.97, 1.0, 1.0], [1.6, 0.2 + 0.05 * k, 1.0]])
-        result = tracker.update(t, pos, None, None, np.ones(2))
+        result = tracker.step(t, FrameInput.of(pos, None, None, np.ones(2)))
         blocked += result.births_blocked
         confirmed |= {(v.id, round(float(v.mean[0]), 1)) for v in result.confirmed}
     assert blocked == 30  # every frame's detection on the wall, counted
     assert {x for _, x in confirmed} == {1.6}
     # a person already tracked keeps their track where a detection strays onto the wall's face
     for k in range(30, 40):
-        result = tracker.update(k / 10, np.array([[1.6 + (0.35 if k == 35 else 0.0), 0.2 + 0.05 * k, 1.0]]),
-                                None, None, np.ones(1))
+        result = tracker.step(k / 10, FrameInput.of(np.array([[1.6 + (0.35 if k == 35 else 0.0), 0.2 + 0.05 * k, 1.0]]),
+                                None, None, np.ones(1)))
         assert [v.id for v in result.confirmed] == [1]
     assert result.births_blocked == 0
 

@@ -12,6 +12,7 @@ import pytest
 from common.runtime.config import ConfigError, load_config
 from services.tracker.config import ThesisConfig, TrackerConfig
 from services.tracker.core import RobustTracker, Tracker, TrackerCore
+from services.tracker.core.types import FrameInput, KeptMemory
 
 
 def test_each_profile_has_its_section_and_each_setting_is_written_once() -> None:
@@ -54,15 +55,15 @@ def test_both_profiles_are_one_interface(profile: str, cls: type) -> None:
     cfg.apply_thresholds(tracker, cfg.appearance["colour"])
     look = np.ones((1, 4), np.float32) / 2.0
     for k in range(4):
-        result = tracker.update(0.1 * k, np.array([[1.0, 2.0, 1.0]]), look, scores=np.array([0.9]))
+        result = tracker.step(0.1 * k, FrameInput.of(np.array([[1.0, 2.0, 1.0]]), look, scores=np.array([0.9])))
     assert [v.id for v in tracker.reported(result)] == [1] and tracker.live_ids() == {1}
-    assert [i for i, _ in tracker.live_galleries()] == [1]
+    assert [i for i, _ in tracker.export_memory().live_galleries] == [1]
     state = tracker.snapshot()
     assert tracker.restart_clock() == [1] and tracker.live_ids() == set() and 1 in tracker.memory
     tracker.restore(state)
     assert tracker.live_ids() == {1}
     ahead = tracker.predict_views(tracker.reported(result), 0.5)
     assert ahead[0].position[0] == pytest.approx(result.tracks[0].position[0] + 0.5 * result.tracks[0].velocity[0])
-    tracker.load_classifiers({})
-    assert isinstance(tracker.kept_classifiers(), dict)
-    assert tracker.forget(1)["live_track"] and tracker.forget_all() == [1]
+    tracker.import_memory(KeptMemory(classifiers={}, recovery=None))
+    assert isinstance(tracker.export_memory().classifiers, dict)
+    assert tracker.forget(1)["live_track"] and not tracker.export_memory().live_galleries

@@ -12,6 +12,7 @@ from services.tracker.core import lifecycle
 from services.tracker.core.recovery import Departure, RecoveryParams, RecoveryState
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
 from services.tracker.core.view import FloorView, Views
+from services.tracker.core.types import FrameInput
 
 DIM = 8
 COLOUR = AppearanceModel(0.35, 0.85, 0.40)
@@ -55,12 +56,13 @@ def test_the_departure_says_whether_they_walked_out() -> None:
     for k, (x, vx) in enumerate(walks.values()):
         for f in range(10):
             pos = np.array([[x + vx * 0.1 * f, 1.0 + k, 1.0]])
-            trk.update(10.0 * k + 0.1 * f, pos, PERSON[None].astype(np.float32), view=VIEW)
+            trk.step(10.0 * k + 0.1 * f, FrameInput.of(pos, PERSON[None].astype(np.float32), view=VIEW))
         t = trk.state.tracks
         j = len(t) - 1
         assert lifecycle.walked_out(t, j, VIEW, 1.0) is (k == 0)  # only the one walking out of the image
         assert not lifecycle.walked_out(t, j, None, 1.0) and not lifecycle.walked_out(t, j, VIEW, 0.0)
-        trk.forget_all()
+        for i in sorted(set(trk.memory.entries) | trk.live_ids()):
+            trk.forget(i)
 
 
 def test_the_departure_kind_is_kept_in_the_memory_file_and_old_files_still_read() -> None:
@@ -82,11 +84,11 @@ def run(trk: RobustTracker, t0: float, t1: float, look: np.ndarray | None, x0: f
     rng = np.random.default_rng(int(t0 * 10))
     for t in np.arange(t0, t1 - 1e-9, 0.1):
         if look is None:
-            trk.update(float(t), np.zeros((0, 3)), np.zeros((0, DIM), np.float32), view=VIEW)
+            trk.step(float(t), FrameInput.of(np.zeros((0, 3)), np.zeros((0, DIM), np.float32), view=VIEW))
             continue
         d = look + rng.normal(scale=0.005, size=DIM)
-        trk.update(float(t), np.array([[x0 + vx * (t - t0), y, 1.0]]), (d / np.linalg.norm(d))[None].astype(np.float32),
-                   view=VIEW)
+        trk.step(float(t), FrameInput.of(np.array([[x0 + vx * (t - t0), y, 1.0]]), (d / np.linalg.norm(d))[None].astype(np.float32),
+                   view=VIEW))
     return t1
 
 

@@ -42,7 +42,7 @@ class Scene:
         pos = np.array([[x, y, 1.0] for _, (x, y) in people]).reshape(-1, 3)
         views = [b + self.rng.normal(scale=0.005, size=DIM) for b, _ in people]
         d = np.stack([v / np.linalg.norm(v) for v in views]).astype(np.float32) if people else np.zeros((0, DIM))
-        self.decisions += self.trk.update(t, pos, d).id_decisions
+        self.decisions += self.trk.step(t, FrameInput.of(pos, d)).id_decisions
 
     def id_at(self, x: float, y: float) -> int:
         return next(t.id for t in self.trk.tracks if t.id and np.hypot(t.mean[0] - x, t.mean[1] - y) < 0.5)

@@ -142,6 +142,6 @@ def test_nothing_of_a_frame_stays_on_the_tracker() -> None:
     before = set(vars(trk))
     looks = _unit(2, 8)
     for k in range(6):
-        trk.update(0.1 * k, np.array([[0.0, 0.0, 1.0], [2.0, 0.0, 1.0]]), looks)
+        trk.step(0.1 * k, FrameInput.of(np.array([[0.0, 0.0, 1.0], [2.0, 0.0, 1.0]]), looks))
     assert set(vars(trk)) == before
     assert len(trk.live_ids()) == 2 and all(len(t.gallery) for t in trk.tracks)  # type: ignore[arg-type]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from services.tracker.core import AppearanceGate, Tracker, TrackerParams
+from services.tracker.core.types import FrameInput
 from services.tracker.reorder import ReorderBuffer
 
 MS = 1_000_000
@@ -110,7 +111,8 @@ def test_tracker_result_equals_in_order_processing() -> None:
 
     def run(order: list[int]) -> Tracker:
         tr = Tracker(params)
-        buf = ReorderBuffer(apply=lambda f: tr.update(f[0] / 1e9, f[1], f[2]), snapshot=tr.snapshot, restore=tr.restore)
+        buf = ReorderBuffer(apply=lambda f: tr.step(f[0] / 1e9, FrameInput.of(f[1], f[2])), snapshot=tr.snapshot,
+                            restore=tr.restore)
         for k in order:
             buf.push((frames[k][0], "head", k), frames[k])
         return tr

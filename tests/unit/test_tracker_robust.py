@@ -10,6 +10,7 @@ from services.tracker.config import TrackerConfig
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker, ScoreModel
 from services.tracker.core.tracker import Tracker, TrackStatus
 from services.tracker.core.view import FieldOfView
+from services.tracker.core.types import FrameInput
 from tests.helpers.views import camera_looking_along_x, turned_round
 
 DIM = 8
@@ -32,7 +33,7 @@ def walk(tracker: RobustTracker, people: dict[int, tuple[float, float]], t0: flo
         pos = np.array([[x, y, 1.0] for x, y in people.values()]).reshape(-1, 3)
         d = np.stack([desc(w) for w in people]) if descriptors and people else None
         s = None if scores is None else np.full(len(people), scores)
-        out.append(tracker.update(float(t), pos, d, None, s))
+        out.append(tracker.step(float(t), FrameInput.of(pos, d, None, s)))
     return out
 
 
@@ -55,7 +56,7 @@ def test_life_cycle_is_in_seconds_whatever_the_rate(hz: float) -> None:
     last_seen = trk.tracks[0].last_update
     # the person is missed: reported as coasting up to 0.3 s, kept unreported up to 1.0 s, then deleted
     for t in np.arange(last_seen + 1.0 / hz, last_seen + 1.5, 1.0 / hz):
-        r = trk.update(float(t), np.zeros((0, 3)))
+        r = trk.step(float(t), FrameInput.of(np.zeros((0, 3))))
         gap = float(t) - last_seen
         if abs(gap - 0.3) > 1e-6:
             assert [v.status for v in trk.reported(r)] == ([TrackStatus.COASTING] if gap < 0.3 else [])
@@ -88,7 +89,7 @@ def test_a_second_report_of_a_tracked_person_does_not_start_a_track_with_birth_s
         trk = RobustTracker(RobustParams(birth_separation_m=sep))
         walk(trk, {0: (1.0, 0.0)}, 0.0, 1.0, 10.0, descriptors=False)
         # a split cluster: the person reported twice, 15 cm apart, for a second; two people 0.6 m apart
-        r = [trk.update(float(t), np.array([[1.0, 0.0, 1.0], [1.15, 0.05, 1.0], [3.0, 0.0, 1.0], [3.6, 0.0, 1.0]]))
+        r = [trk.step(float(t), FrameInput.of(np.array([[1.0, 0.0, 1.0], [1.15, 0.05, 1.0], [3.0, 0.0, 1.0], [3.6, 0.0, 1.0]])))
              for t in np.arange(1.0, 2.0, 0.1)]
         return set(ids(trk, r[-1]))
 
@@ -98,7 +99,7 @@ def test_a_second_report_of_a_tracked_person_does_not_start_a_track_with_birth_s
 
 def test_two_reports_of_a_new_person_start_one_track_with_birth_separation() -> None:
     trk = RobustTracker(RobustParams(birth_separation_m=0.3, scores=ScoreModel(center=0.5, scale=0.1)))
-    r = [trk.update(float(t), np.array([[2.0, 1.0, 1.0], [2.1, 1.1, 1.0]]), None, None, np.array([0.9, 0.6]))
+    r = [trk.step(float(t), FrameInput.of(np.array([[2.0, 1.0, 1.0], [2.1, 1.1, 1.0]]), None, None, np.array([0.9, 0.6])))
          for t in np.arange(0.0, 1.0, 0.1)]
     assert len(trk.tracks) == 1 and ids(trk, r[-1]) == {1: (2.0, 1.0)}  # the likelier report started it
 
@@ -125,10 +126,10 @@ def test_appearance_decides_when_position_cannot() -> None:
     trk = RobustTracker(RobustParams(appearance=COLOUR))
     walk(trk, {0: (0.0, 0.0), 1: (0.6, 0.0)}, 0.0, 1.0, 10.0)
     # one detection half-way between the two: position says nothing, the descriptor says person 1
-    r = trk.update(1.0, np.array([[0.3, 0.0, 1.0]]), desc(1)[None])
+    r = trk.step(1.0, FrameInput.of(np.array([[0.3, 0.0, 1.0]]), desc(1)[None]))
     updated = {v.id for v in r.tracks if v.last_update == 1.0}
     assert updated == {2}
-    r = trk.update(1.1, np.array([[0.3, 0.0, 1.0]]), desc(0)[None])
+    r = trk.step(1.1, FrameInput.of(np.array([[0.3, 0.0, 1.0]]), desc(0)[None]))
     assert {v.id for v in r.tracks if v.last_update == 1.1} == {1}
 
 
@@ -158,7 +159,7 @@ def test_bad_covariances_are_replaced_and_counted() -> None:
     good = np.eye(3) * 0.01
     for k, bad in enumerate([np.full((3, 3), np.nan), -np.eye(3), np.array([[1, 2, 0], [0, 1, 0], [0, 0, 1.0]])]):
         covs = np.stack([good, bad])
-        r = trk.update(0.1 * k, np.array([[1.0, 0.0, 1.0], [3.0, 0.0, 1.0]]), None, covs)
+        r = trk.step(0.1 * k, FrameInput.of(np.array([[1.0, 0.0, 1.0], [3.0, 0.0, 1.0]]), None, covs))
         assert all(np.all(np.isfinite(v.mean)) for v in r.tracks)
     assert trk.bad_covariances == 3
 
@@ -195,7 +196,7 @@ def _circle(trk: RobustTracker, t0: float, t1: float, seen: bool = True) -> list
     for t in np.arange(t0, t1, 0.1):
         a = 1.2 / 3.0 * t
         pos = np.array([[3 * np.cos(a), 3 * np.sin(a), 1.0]]) if seen else np.zeros((0, 3))
-        out.append(trk.update(float(t), pos))
+        out.append(trk.step(float(t), FrameInput.of(pos)))
     return out
 
 
@@ -237,12 +238,12 @@ def test_a_coasting_person_out_of_view_is_kept_but_not_reported() -> None:
                                                          [-np.sin(0.45), 0, np.cos(0.45), 0], [0, 0, 0, 1.0]]),
                          fov.K, 640, 480, 8.0)
     assert turned.contains(np.array([[3.0, 0.0, 1.0], [3.0, 1.0, 1.0]])).tolist() == [True, False]
-    r = trk.update(1.0, np.zeros((0, 3)), view=turned)
+    r = trk.step(1.0, FrameInput.of(np.zeros((0, 3)), view=turned))
     assert {v.id: v.in_view for v in r.tracks} == {1: True, 2: False}
     assert [v.id for v in trk.reported(r)] == [1]  # in view and missed: reported as coasting
-    r = trk.update(1.1, np.zeros((0, 3)))  # no view known: both reported, as before
+    r = trk.step(1.1, FrameInput.of(np.zeros((0, 3))))  # no view known: both reported, as before
     assert sorted(v.id for v in trk.reported(r)) == [1, 2]
-    r = trk.update(1.2, np.array([[3.0, 1.0, 1.0]]), view=fov)  # person 2 seen again: the same ID
+    r = trk.step(1.2, FrameInput.of(np.array([[3.0, 1.0, 1.0]]), view=fov))  # person 2 seen again: the same ID
     assert [v.id for v in trk.reported(r) if v.status is TrackStatus.CONFIRMED] == [2]
 
 
@@ -269,8 +270,8 @@ def _walk_past(params: RobustParams) -> list[int]:
         p = np.array([[4.0 - t, 0.6, 0.0]])
         for name, cam in (("front", front), ("back", back)):
             inside = bool(cam.contains(p, margin=0.1)[0])
-            r = trk.update(t + (0.0 if name == "front" else 0.001), p if inside else np.zeros((0, 3)),
-                           view=Views((cam, back if name == "front" else front)), camera=name)
+            r = trk.step(t + (0.0 if name == "front" else 0.001), FrameInput.of(p if inside else np.zeros((0, 3)),
+                           view=Views((cam, back if name == "front" else front)), camera=name))
             seen += [v.id for v in trk.reported(r) if v.status is TrackStatus.CONFIRMED]
     return sorted(set(seen))
 
@@ -288,12 +289,12 @@ def test_out_of_view_time_does_not_count_towards_max_coast_and_the_same_camera_d
     params = RobustParams(max_coast_unseen_s=6.0, max_position_var_unseen=100.0, handover_gate_sq=13.8)
     trk = RobustTracker(params)
     for k in range(10):
-        trk.update(k * 0.1, np.array([[3.0, 0.0, 1.0]]), view=fov, camera="head")
+        trk.step(k * 0.1, FrameInput.of(np.array([[3.0, 0.0, 1.0]]), view=fov, camera="head"))
     for k in range(10, 40):  # 3 s out of view: kept (the default limits end it at 2.9 s), never reported
-        r = trk.update(k * 0.1, np.zeros((0, 3)), view=away, camera="head")
+        r = trk.step(k * 0.1, FrameInput.of(np.zeros((0, 3)), view=away, camera="head"))
         assert [v.id for v in r.tracks] == [1] and not trk.reported(r)
     for k in range(40, 75):  # back in view and missed: deleted within max_coast_s (2 s) in view
-        r = trk.update(k * 0.1, np.zeros((0, 3)), view=fov, camera="head")
+        r = trk.step(k * 0.1, FrameInput.of(np.zeros((0, 3)), view=fov, camera="head"))
         if r.deleted:
             break
     assert r.deleted and 4.0 < k * 0.1 <= 6.05
@@ -302,12 +303,12 @@ def test_out_of_view_time_does_not_count_towards_max_coast_and_the_same_camera_d
     for camera, expected in (("back", [1]), ("head", [2])):
         trk = RobustTracker(params)
         for k in range(10):
-            trk.update(k * 0.1, np.array([[3.0, 0.0, 1.0]]), view=fov, camera="head")
+            trk.step(k * 0.1, FrameInput.of(np.array([[3.0, 0.0, 1.0]]), view=fov, camera="head"))
         for k in range(10, 40):
-            trk.update(k * 0.1, np.zeros((0, 3)), view=away, camera="head")
+            trk.step(k * 0.1, FrameInput.of(np.zeros((0, 3)), view=away, camera="head"))
         decisions = []
         for k in range(40, 45):
-            r = trk.update(k * 0.1, np.array([[3.0, 0.3, 1.0]]), view=away, camera=camera)
+            r = trk.step(k * 0.1, FrameInput.of(np.array([[3.0, 0.3, 1.0]]), view=away, camera=camera))
             decisions += r.id_decisions
         assert sorted(v.id for v in r.tracks if v.status is TrackStatus.CONFIRMED) == expected, camera
         if camera == "back":  # the hand-over says why

@@ -14,6 +14,7 @@ import pytest
 
 from services.tracker.core.recovery import RecoveryParams
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
+from services.tracker.core.types import FrameInput
 
 DIM = 8
 COLOUR = AppearanceModel(0.35, 0.85, 0.40)
@@ -38,7 +39,7 @@ def view(base: np.ndarray, noise: float = 0.005) -> np.ndarray:
 def step(trk: RobustTracker, t: float, people: list[tuple[np.ndarray, tuple[float, float]]]):  # type: ignore[no-untyped-def]
     pos = np.array([[x, y, 1.0] for _, (x, y) in people]).reshape(-1, 3)
     d = np.stack([view(b) for b, _ in people]) if people else np.zeros((0, DIM), np.float32)
-    return trk.update(t, pos, d)
+    return trk.step(t, FrameInput.of(pos, d))
 
 
 def run(trk: RobustTracker, t0: float, t1: float, people: list[tuple[np.ndarray, tuple[float, float]]]) -> list:

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from services.tracker.core import AppearanceGate, Tracker, TrackerParams, TrackStatus
+from services.tracker.core.types import FrameInput
 from services.tracker.memory_file import read_memory, save_memory
 
 FPS = 30.0
@@ -40,7 +41,7 @@ def run_single(tracker: Tracker, people: People, frames: list[bool], start: floa
     results = []
     for k, seen in enumerate(frames):
         pos, desc = people.observe([0] if seen else [], [(2.0, 0.0, 1.0)] if seen else [])
-        results.append(tracker.update(start + k / FPS, pos, desc))
+        results.append(tracker.step(start + k / FPS, FrameInput.of(pos, desc)))
     return results
 
 
@@ -72,7 +73,7 @@ def test_false_positive_never_confirmed() -> None:
         if k == 4:  # a single spurious detection of someone else
             who, where = [0, 1], [(2.0, 0.0, 1.0), (5.0, 3.0, 1.0)]
         pos, desc = people.observe(who, where)
-        outputs.append({t.id for t in tr.update(k / FPS, pos, desc).confirmed})
+        outputs.append({t.id for t in tr.step(k / FPS, FrameInput.of(pos, desc)).confirmed})
     assert all(ids <= {1} for ids in outputs)
 
 
@@ -103,14 +104,14 @@ def test_same_person_returns_with_old_id_different_person_does_not() -> None:
         out = []
         for _ in range(n):
             pos, desc = people.observe([who], [where])
-            out.append(tr.update(t, pos, desc))
+            out.append(tr.step(t, FrameInput.of(pos, desc)))
             t += 1 / FPS
         return out
 
     def absent(n: int) -> None:
         nonlocal t
         for _ in range(n):
-            tr.update(t, np.zeros((0, 3)), np.zeros((0, 32), np.float32))
+            tr.step(t, FrameInput.of(np.zeros((0, 3)), np.zeros((0, 32), np.float32)))
             t += 1 / FPS
 
     a = show(0, 10, (1.0, 1.0, 1.0))
@@ -132,7 +133,7 @@ def test_two_people_crossing_keep_their_ids(time_step: str) -> None:
     for k in range(n):
         x = -1.5 + 3.0 * k / (n - 1)  # 1.5 m/s toward each other, meeting at x = 0
         pos, desc = people.observe([0, 1], [(x, 0.05, 1.0), (-x, -0.05, 1.0)])
-        res = tr.update(k / FPS, pos, desc)
+        res = tr.step(k / FPS, FrameInput.of(pos, desc))
         for view in res.confirmed:
             person = 0 if np.sign(view.position[0]) == np.sign(x) or abs(x) < 0.1 else 1
             if abs(x) > 0.3:
@@ -144,50 +145,50 @@ def test_position_only_mode_tracks_and_leaves_memory_untouched() -> None:
     tr, people = Tracker(params()), People(2)
     for k in range(5):
         pos, desc = people.observe([0], [(2.0 + 0.03 * k, 0.0, 1.0)])
-        tr.update(k / FPS, pos, desc)
+        tr.step(k / FPS, FrameInput.of(pos, desc))
     entries_before = {i: g.descriptors.copy() for i, g in tr.memory.entries.items()}
     gallery_before = len(tr.tracks[0].gallery)  # type: ignore[arg-type]
     res = None
     for k in range(5, 12):
         pos, _ = people.observe([0], [(2.0 + 0.03 * k, 0.0, 1.0)])
-        res = tr.update(k / FPS, pos, None)
+        res = tr.step(k / FPS, FrameInput.of(pos, None))
         assert not res.appearance_available
     assert res is not None and [t.id for t in res.confirmed] == [1]
     assert len(tr.tracks[0].gallery) == gallery_before  # type: ignore[arg-type]
     # a far detection is outside the chi-square gate: a new track, with a fresh ID
     pos, _ = people.observe([0, 1], [(2.0 + 0.03 * 12, 0.0, 1.0), (8.0, 8.0, 1.0)])
-    res = tr.update(12 / FPS, pos, None)
+    res = tr.step(12 / FPS, FrameInput.of(pos, None))
     assert res.new_ids == [2] and res.recovered_ids == []
     # person 0 vanishes in position-only frames: its gallery is archived only once appearance returns
     for k in range(13, 19):
         pos, _ = people.observe([1], [(8.0, 8.0, 1.0)])
-        res = tr.update(k / FPS, pos, None)
+        res = tr.step(k / FPS, FrameInput.of(pos, None))
     assert 1 not in tr.live_ids() and tr.memory.entries.keys() == entries_before.keys()
     pos, desc = people.observe([1], [(8.0, 8.0, 1.0)])
-    tr.update(19 / FPS, pos, desc)
+    tr.step(19 / FPS, FrameInput.of(pos, desc))
     assert 1 in tr.memory
 
 
 def test_without_thresholds_every_frame_is_position_only() -> None:
     tr, people = Tracker(params(gate=None)), People(1)
     pos, desc = people.observe([0], [(0.0, 0.0, 1.0)])
-    assert not tr.update(0.0, pos, desc).appearance_available
+    assert not tr.step(0.0, FrameInput.of(pos, desc)).appearance_available
 
 
 def test_time_mode_counts_dropped_frames_as_elapsed_misses() -> None:
     tr, people = Tracker(params()), People(1)
     run_single(tr, people, [True] * 3)
     t0 = 2 / FPS
-    res = tr.update(t0 + 3 / FPS, np.zeros((0, 3)), np.zeros((0, 32), np.float32))  # frames dropped upstream
+    res = tr.step(t0 + 3 / FPS, FrameInput.of(np.zeros((0, 3)), np.zeros((0, 32), np.float32)))  # frames dropped upstream
     assert res.tracks[0].misses == 3
-    res = tr.update(t0 + 5 / FPS, np.zeros((0, 3)), np.zeros((0, 32), np.float32))
+    res = tr.step(t0 + 5 / FPS, FrameInput.of(np.zeros((0, 3)), np.zeros((0, 32), np.float32)))
     assert res.tracks == [] and [t.id for t in res.deleted] == [1]  # 5 frame periods without association
 
 
 def test_frame_mode_ignores_gaps() -> None:
     tr, people = Tracker(params(time_step="frame")), People(1)
     run_single(tr, people, [True] * 3)
-    res = tr.update(10.0, np.zeros((0, 3)), np.zeros((0, 32), np.float32))
+    res = tr.step(10.0, FrameInput.of(np.zeros((0, 3)), np.zeros((0, 32), np.float32)))
     assert res.tracks[0].misses == 1
 
 
@@ -195,19 +196,19 @@ def test_time_mode_process_noise_grows_with_gap() -> None:
     a, b = Tracker(params()), Tracker(params())
     people = People(1)
     pos, desc = people.observe([0], [(0.0, 0.0, 1.0)])
-    a.update(0.0, pos, desc)
-    b.update(0.0, pos, desc)
-    a.update(1 / FPS, np.zeros((0, 3)), np.zeros((0, 32), np.float32))
-    b.update(4 / FPS, np.zeros((0, 3)), np.zeros((0, 32), np.float32))
+    a.step(0.0, FrameInput.of(pos, desc))
+    b.step(0.0, FrameInput.of(pos, desc))
+    a.step(1 / FPS, FrameInput.of(np.zeros((0, 3)), np.zeros((0, 32), np.float32)))
+    b.step(4 / FPS, FrameInput.of(np.zeros((0, 3)), np.zeros((0, 32), np.float32)))
     assert b.tracks[0].cov[2, 2] == pytest.approx(0.04 + 4 * 0.04)
     assert a.tracks[0].cov[2, 2] == pytest.approx(0.04 + 0.04)
 
 
 def test_out_of_order_stamp_is_refused() -> None:
     tr = Tracker(params())
-    tr.update(1.0, np.zeros((0, 3)))
+    tr.step(1.0, FrameInput.of(np.zeros((0, 3))))
     with pytest.raises(ValueError, match="in order"):
-        tr.update(0.5, np.zeros((0, 3)))
+        tr.step(0.5, FrameInput.of(np.zeros((0, 3))))
 
 
 def test_snapshot_restore_replays_identically() -> None:
@@ -215,11 +216,11 @@ def test_snapshot_restore_replays_identically() -> None:
     frames = [people.observe([0, 1], [(0.1 * k, 0.0, 1.0), (3.0, 0.1 * k, 1.0)]) for k in range(40)]
     tr = Tracker(params(gallery_size=10))
     for k in range(20):
-        tr.update(k / FPS, *frames[k])
+        tr.step(k / FPS, FrameInput.of(*frames[k]))
     snap = tr.snapshot()
-    first = [tr.update(k / FPS, *frames[k]) for k in range(20, 40)]
+    first = [tr.step(k / FPS, FrameInput.of(*frames[k])) for k in range(20, 40)]
     tr.restore(snap)
-    second = [tr.update(k / FPS, *frames[k]) for k in range(20, 40)]
+    second = [tr.step(k / FPS, FrameInput.of(*frames[k])) for k in range(20, 40)]
     for r1, r2 in zip(first, second):
         assert [t.id for t in r1.tracks] == [t.id for t in r2.tracks]
         for t1, t2 in zip(r1.tracks, r2.tracks):
@@ -230,7 +231,7 @@ def test_memory_round_trip_gives_same_ids_after_restart(tmp_path) -> None:
     people = People(1)
     tr = Tracker(params())
     run_single(tr, people, [True] * 5)
-    save_memory(tmp_path / "m.npz", tr.memory, "colour", extra=tr.live_galleries())
+    save_memory(tmp_path / "m.npz", tr.memory, "colour", extra=tr.export_memory().live_galleries)
     memory, _ = read_memory(tmp_path / "m.npz")
     restarted = Tracker(params(), memory)
     res = run_single(restarted, people, [True] * 3, start=100.0)
@@ -245,7 +246,7 @@ def test_time_mode_estimates_velocity_in_metres_per_second_across_irregular_gaps
     res = None
     for t in stamps:
         pos = np.array([[1.5 * t, 0.5, 1.0]]) + rng.normal(scale=0.01, size=(1, 3))
-        res = tr.update(float(t), pos, None)  # position-only: the motion model carries association
+        res = tr.step(float(t), FrameInput.of(pos, None))  # position-only: the motion model carries association
         ids |= {v.id for v in res.tracks}
     assert ids == {1} and res is not None
     assert res.tracks[0].velocity[0] == pytest.approx(1.5, abs=0.15)

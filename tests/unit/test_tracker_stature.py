@@ -12,6 +12,7 @@ from services.tracker.convert import tracks_message
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
 from services.tracker.core.stature import StatureParams, log_odds, observe
 from services.tracker.core.types import FrameResult, TrackStatus
+from services.tracker.core.types import FrameInput
 from tests.helpers.views import camera_looking_along_x, turned_round
 
 P = StatureParams()
@@ -88,15 +89,15 @@ def _a_then_b(stature: StatureParams | None, mix: float, height: float, gone_s: 
     trk = RobustTracker(RobustParams(appearance=COLOUR, stature=stature))
     t = 0.0
     for _ in range(30):
-        trk.update(t, np.array([[2.0, 0.0, 1.0]]), a[None].astype(np.float32), None, np.array([0.9]),
-                   statures=np.array([1.62]))
+        trk.step(t, FrameInput.of(np.array([[2.0, 0.0, 1.0]]), a[None].astype(np.float32), None, np.array([0.9]),
+                   statures=np.array([1.62])))
         t += 0.1
     for _ in range(round(gone_s * 10)):
-        trk.update(t, np.zeros((0, 3)), np.zeros((0, 8), np.float32), None, np.zeros(0), statures=np.zeros(0))
+        trk.step(t, FrameInput.of(np.zeros((0, 3)), np.zeros((0, 8), np.float32), None, np.zeros(0), statures=np.zeros(0)))
         t += 0.1
     for _ in range(10):
-        r = trk.update(t, np.array([[x, 0.0, 1.0]]), b[None].astype(np.float32), None, np.array([0.9]),
-                       statures=np.array([height]))
+        r = trk.step(t, FrameInput.of(np.array([[x, 0.0, 1.0]]), b[None].astype(np.float32), None, np.array([0.9]),
+                       statures=np.array([height])))
         t += 0.1
     return [v.id for v in trk.reported(r)]
 
@@ -124,7 +125,7 @@ def test_a_tracks_stature_is_reported_and_published() -> None:
     def last(stature: StatureParams | None, heights: list[float]):  # type: ignore[no-untyped-def]
         trk = RobustTracker(RobustParams(stature=stature))
         for k, h in enumerate(heights):
-            r = trk.update(0.1 * k, np.array([[2.0, 0.0, 1.0]]), statures=np.array([h]))
+            r = trk.step(0.1 * k, FrameInput.of(np.array([[2.0, 0.0, 1.0]]), statures=np.array([h])))
         return trk.reported(r)
 
     views = last(P, [1.70, 1.72, 1.74, 1.72])
@@ -142,11 +143,11 @@ def test_a_hand_over_between_cameras_takes_the_old_tracks_stature_too() -> None:
     away = turned_round(fov)
     trk = RobustTracker(RobustParams(max_coast_unseen_s=6.0, max_position_var_unseen=100.0, handover_gate_sq=13.8))
     for k in range(10):
-        trk.update(k * 0.1, np.array([[3.0, 0.0, 1.0]]), view=fov, camera="head", statures=np.array([1.76]))
+        trk.step(k * 0.1, FrameInput.of(np.array([[3.0, 0.0, 1.0]]), view=fov, camera="head", statures=np.array([1.76])))
     for k in range(10, 40):
-        trk.update(k * 0.1, np.zeros((0, 3)), view=away, camera="head", statures=np.zeros(0))
+        trk.step(k * 0.1, FrameInput.of(np.zeros((0, 3)), view=away, camera="head", statures=np.zeros(0)))
     for k in range(40, 45):
-        r = trk.update(k * 0.1, np.array([[3.0, 0.3, 1.0]]), view=away, camera="back", statures=np.array([1.78]))
+        r = trk.step(k * 0.1, FrameInput.of(np.array([[3.0, 0.3, 1.0]]), view=away, camera="back", statures=np.array([1.78])))
     [view] = [v for v in r.tracks if v.status is TrackStatus.CONFIRMED]
     assert view.id == 1  # handed over
     assert view.stature == pytest.approx((10 * 1.76 + 5 * 1.78) / 15)
@@ -156,4 +157,4 @@ def test_a_hand_over_between_cameras_takes_the_old_tracks_stature_too() -> None:
 def test_statures_of_the_wrong_length_are_refused_with_a_clear_error() -> None:
     trk = RobustTracker(RobustParams())
     with pytest.raises(ValueError, match="one value per detection"):
-        trk.update(0.0, np.array([[2.0, 0.0, 1.0], [3.0, 0.0, 1.0]]), statures=np.array([1.7]))
+        trk.step(0.0, FrameInput.of(np.array([[2.0, 0.0, 1.0], [3.0, 0.0, 1.0]]), statures=np.array([1.7])))

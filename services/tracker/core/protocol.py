@@ -2,31 +2,30 @@
 and the benchmarks may ask of either profile (the thesis's
 :class:`~services.tracker.core.tracker.Tracker`, the robust
 :class:`~services.tracker.core.robust.RobustTracker`), so nothing outside the core needs
-to tell them apart.
+to tell them apart. Each profile implements every member; none is optional.
 
-Both profiles subclass :class:`TrackerCore` explicitly and so share :meth:`TrackerCore.update`,
-which converts loose arrays once into a :class:`~services.tracker.core.types.FrameInput`
-and hands it to the profile's :meth:`~TrackerCore.step`.
+A frame goes in as a :class:`~services.tracker.core.types.FrameInput` (``FrameInput.of``
+converts loose arrays once), the static map at construction (the settings' ``obstacles``) or
+with the frames (``FrameInput.obstacles``, a map that arrives while tracking); what the ID
+memory's file keeps beside the remembered galleries goes out and back in as one
+:class:`~services.tracker.core.types.KeptMemory`.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Protocol
-
-import numpy as np
+from typing import Protocol, TypeVar
 
 from services.tracker.core.identity import IdentityMemory
-from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, ScoreModel, TrackView
-
-if TYPE_CHECKING:
-    from common.geometry.occupancy import ObstacleMap
-    from services.tracker.core.view import View
+from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, KeptMemory, TrackView
 
 __all__ = ["TrackerCore"]
 
+State = TypeVar("State")
 
-class TrackerCore(Protocol):
-    """A multi-person tracker: one :meth:`step` per frame, in stamp order."""
+
+class TrackerCore(Protocol[State]):
+    """A multi-person tracker: one :meth:`step` per frame, in stamp order. ``State`` is the
+    profile's whole state, as :meth:`snapshot` gives it."""
 
     #: the ID memory (Algorithm 2 of Pinto's thesis): remembered people's descriptors
     memory: IdentityMemory
@@ -34,16 +33,6 @@ class TrackerCore(Protocol):
     def step(self, stamp: float, frame: FrameInput) -> FrameResult:
         """Process one frame (``stamp`` in seconds, never older than the last one)."""
         ...
-
-    def update(self, stamp: float, positions: np.ndarray, descriptors: np.ndarray | None = None,
-               measurement_cov: np.ndarray | None = None, scores: np.ndarray | None = None,
-               view: View | None = None, aspects: np.ndarray | None = None,
-               orientations: np.ndarray | None = None, score_model: ScoreModel | None = None,
-               camera: str = "", postures: np.ndarray | None = None,
-               statures: np.ndarray | None = None) -> FrameResult:
-        """:meth:`step` on loose arrays (see :class:`FrameInput` for each)."""
-        return self.step(stamp, FrameInput.of(positions, descriptors, measurement_cov, scores, view, aspects,
-                                              orientations, score_model, camera, postures, statures))
 
     def reported(self, result: FrameResult) -> list[TrackView]:
         """What to output of ``result``: the profile's reported tracks."""
@@ -58,26 +47,10 @@ class TrackerCore(Protocol):
         """Use the embedding model's calibrated thresholds (None: position-only association)."""
         ...
 
-    def set_obstacles(self, obstacles: ObstacleMap | None) -> None:
-        """Use a static map's obstacles: no track is born on them (robust; the thesis profile has
-        no birth map and keeps none). None: no map."""
-        ...
-
-    def snapshot(self) -> Any:
-        """The whole state, for :meth:`restore` (which leaves it valid for another restore)."""
-        ...
-
-    def restore(self, state: Any) -> None:
-        ...
-
     def forget(self, track_id: int) -> dict[str, int | bool]:
         """Forget a person: their remembered appearance goes, a live track with that ID keeps
         its ID but loses its appearance and learns none. Returns ``descriptors`` (removed),
         ``classifier`` (whether one was removed), ``live_track`` (whether one was cleared)."""
-        ...
-
-    def forget_all(self) -> list[int]:
-        """Forget everyone; returns the IDs."""
         ...
 
     def restart_clock(self) -> list[int]:
@@ -89,23 +62,20 @@ class TrackerCore(Protocol):
         """The IDs of the live tracks."""
         ...
 
-    def live_galleries(self) -> list[tuple[int, np.ndarray]]:
-        """(ID, descriptors (M, D)) to keep beside the memory: the live tracks' appearance."""
+    def snapshot(self) -> State:
+        """The whole state, for :meth:`restore` (which leaves it valid for another restore)."""
         ...
 
-    def kept_classifiers(self) -> dict[int, np.ndarray]:
-        """ID -> trained appearance classifier to keep beside the memory (none: a profile without)."""
-        return {}
+    def restore(self, state: State) -> None:
+        ...
 
-    def kept_recovery(self) -> dict[str, np.ndarray]:
-        """What the ID memory's recovery knows, as named arrays to keep beside the memory (where
-        and when each person was last detected, who was seen with whom); none: a profile without."""
-        return {}
+    def export_memory(self) -> KeptMemory:
+        """What the ID memory's file keeps beside :attr:`memory`: the live tracks' galleries, the
+        trained classifiers, the recovery's state (where and when each person was last seen)."""
+        ...
 
-    def load_recovery(self, arrays: dict[str, np.ndarray]) -> None:
-        """The recovery's state, as :meth:`kept_recovery` gave it (a profile without ignores it;
-        ValueError when it is inconsistent)."""
-
-    def load_classifiers(self, weights: dict[int, np.ndarray]) -> None:
-        """The remembered people's classifiers, as :meth:`kept_classifiers` gave them (a profile
-        without ignores them)."""
+    def import_memory(self, kept: KeptMemory) -> None:
+        """Take back what :meth:`export_memory` gave (a part that is None is left as it is; the
+        live galleries are already in the memory the file was read into). ValueError when the
+        recovery's state is inconsistent."""
+        ...

@@ -50,7 +50,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from common.geometry.occupancy import ObstacleMap
 from services.tracker.core import classifier as clf
 from services.tracker.core import cues, kalman, lifecycle, ukf
 from services.tracker.core.cues import Cue, Pairing
@@ -62,13 +61,14 @@ from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.bank import GalleryBank
 from services.tracker.core.reports import TrackRow, row_view, track_rows, track_view, track_views
 from services.tracker.core.tracks import RobustTrackerState, TrackTable
-from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, ScoreModel, TrackStatus, TrackView
+from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, KeptMemory, ScoreModel, TrackStatus
+from services.tracker.core.types import TrackView
 from services.tracker.core.view import View
 
 __all__ = ["AppearanceModel", "RobustParams", "RobustTracker", "RobustTrackerState", "ScoreModel"]
 
 
-class RobustTracker(TrackerCore):
+class RobustTracker(TrackerCore[RobustTrackerState]):
     """The robust profile (:class:`~services.tracker.core.protocol.TrackerCore`)."""
 
     def __init__(self, params: RobustParams, memory: IdentityMemory | None = None) -> None:
@@ -119,9 +119,6 @@ class RobustTracker(TrackerCore):
         """Set the embedding model's calibration (e.g. once its model card is known)."""
         self.params = replace(self.params, appearance=model)
         self._set_cues()
-
-    def set_obstacles(self, obstacles: ObstacleMap | None) -> None:  # a static map's, e.g. from ROS 2's /map
-        self.params = replace(self.params, obstacles=obstacles)
 
     def _q(self, dt: float) -> np.ndarray:
         q = self._q_of.get(dt)
@@ -267,8 +264,9 @@ class RobustTracker(TrackerCore):
         candidates), none on the static map's obstacles (a wall end, a door jamb)."""
         p = self.params
         free = [d for d, c in enumerate(pairing.confident.tolist()) if c and d not in matched]
-        if p.obstacles is not None and free:
-            on = p.obstacles.blocked(pairing.positions[free, :2], p.birth_clearance_m).tolist()
+        obstacles = pairing.frame.obstacles if pairing.frame.obstacles is not None else p.obstacles
+        if obstacles is not None and free:
+            on = obstacles.blocked(pairing.positions[free, :2], p.birth_clearance_m).tolist()
             result.births_blocked, free = sum(on), [d for d, b in zip(free, on) if not b]
         born = lifecycle.births(free, matched, pairing.positions, pairing.p_det, p.birth_separation_m)
         lifecycle.birth(self.state, pairing, born, self._born, self._p0)
@@ -315,13 +313,6 @@ class RobustTracker(TrackerCore):
             t.slot[j], t.forgotten[j] = -1, True
         return {"descriptors": removed, "classifier": had_classifier, "live_track": bool(rows)}
 
-    def forget_all(self) -> list[int]:
-        """Forget everyone (:meth:`forget` for every remembered or live ID); returns the IDs."""
-        ids = sorted(set(self.memory.entries) | set(self.classifiers) | self.live_ids())
-        for i in ids:
-            self.forget(i)
-        return ids
-
     def predict_views(self, views: list[TrackView], dt: float) -> list[TrackView]:
         """``views`` moved ``dt`` seconds ahead by the constant-velocity model (for output at
         a fixed rate between frames); the tracker's state does not change."""
@@ -359,28 +350,22 @@ class RobustTracker(TrackerCore):
     def restore(self, state: RobustTrackerState) -> None:
         self.state = state.copy()
 
-    def live_classifiers(self) -> dict[int, np.ndarray]:
-        """ID -> weights of every confirmed live track's trained classifier."""
-        t = self.state.tracks
-        return {i: w for j, i in enumerate(t.id) if i and (w := trained(t, j)) is not None}
-
-    def kept_classifiers(self) -> dict[int, np.ndarray]:
-        """The classifiers to keep: the remembered people's and the live tracks'."""
-        return {**self.classifiers, **self.live_classifiers()}
-
-    def kept_recovery(self) -> dict[str, np.ndarray]:
-        return lifecycle.kept_recovery(self.state)
-
-    def load_recovery(self, arrays: dict[str, np.ndarray]) -> None:
-        lifecycle.load_recovery(self.state, arrays)
-
-    def load_classifiers(self, weights: dict[int, np.ndarray]) -> None:
-        """The remembered people's classifiers (from the ID memory's file)."""
-        self.state.classifiers = dict(weights)
-
-    def live_galleries(self) -> list[tuple[int, np.ndarray]]:
+    def export_memory(self) -> KeptMemory:
+        """The live tracks' galleries, the classifiers to keep (the remembered people's and the
+        confirmed live tracks') and the recovery's state; a live track counts as having left
+        where and when it was last detected (after a restart that is where the person is)."""
         t, bank = self.state.tracks, self.state.bank
-        return [(i, bank.descriptors(t.slot[j])) for j, i in enumerate(t.id) if i and bank.size(t.slot[j])]
+        live = {i: w for j, i in enumerate(t.id) if i and (w := trained(t, j)) is not None}
+        return KeptMemory([(i, bank.descriptors(t.slot[j])) for j, i in enumerate(t.id) if i and bank.size(t.slot[j])],
+                          {**self.classifiers, **live}, lifecycle.kept_recovery(self.state))
+
+    def import_memory(self, kept: KeptMemory) -> None:
+        """The remembered people's classifiers and the recovery's state, from the ID memory's file
+        (the recovery for the remembered people only; ValueError when inconsistent)."""
+        if kept.classifiers is not None:
+            self.state.classifiers = dict(kept.classifiers)
+        if kept.recovery is not None:
+            lifecycle.load_recovery(self.state, kept.recovery)
 
 
 def _split(flags: list[bool]) -> tuple[list[int], list[int]]:

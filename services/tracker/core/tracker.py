@@ -25,7 +25,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from common.geometry.occupancy import ObstacleMap
 from services.tracker.core import kalman
 from services.tracker.core.association import (
     AppearanceGate,
@@ -43,7 +42,8 @@ from services.tracker.core.id_decisions import nearest
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.protocol import TrackerCore
 from services.tracker.core.thesis_params import TrackerParams
-from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, IdDecision, TrackStatus, TrackView
+from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, IdDecision, KeptMemory, TrackStatus
+from services.tracker.core.types import TrackView
 
 __all__ = ["FrameResult", "Track", "TrackStatus", "TrackView", "Tracker", "TrackerParams", "TrackerState"]
 
@@ -81,7 +81,7 @@ class TrackerState:
     last_stamp: float | None
 
 
-class Tracker(TrackerCore):
+class Tracker(TrackerCore[TrackerState]):
     """The thesis's tracker. ``params.gate`` None means there are no appearance thresholds:
     every frame is then associated position-only."""
 
@@ -121,9 +121,6 @@ class Tracker(TrackerCore):
         s_max = self.params.s_max if model.s_max is None else model.s_max
         gate = AppearanceGate(model.t_lower, model.t_upper, s_max, self.params.inf)
         self.params = replace(self.params, gate=gate, t_recover=model.t_recover)
-
-    def set_obstacles(self, obstacles: ObstacleMap | None) -> None:
-        """The thesis has no birth map: a static map changes nothing."""
 
     # ------------------------------------------------------------------ update
     def step(self, stamp: float, frame: FrameInput) -> FrameResult:
@@ -323,13 +320,6 @@ class Tracker(TrackerCore):
                 self._forgotten.add(track_id)
         return {"descriptors": removed, "classifier": False, "live_track": live}
 
-    def forget_all(self) -> list[int]:
-        """Forget everyone; returns the IDs."""
-        ids = sorted(set(self.memory.entries) | {i for i, _ in self._pending} | self.live_ids())
-        for i in ids:
-            self.forget(i)
-        return ids
-
     def predict_views(self, views: list[TrackView], dt: float) -> list[TrackView]:
         """``views`` moved ``dt`` seconds ahead by the motion model (for output at a fixed
         rate between frames); the tracker's state does not change."""
@@ -360,10 +350,15 @@ class Tracker(TrackerCore):
         """The tracker's output for ``result``: the Confirmed tracks (as in the thesis)."""
         return result.confirmed
 
-    def live_galleries(self) -> list[tuple[int, np.ndarray]]:
-        """(ID, descriptors (M, D)) of every live track and every pending archive."""
+    def export_memory(self) -> KeptMemory:
+        """The galleries of every live track and every pending archive; the thesis keeps no
+        classifiers and no recovery state."""
         out = [(t.id, t.gallery.descriptors) for t in self.tracks if t.gallery is not None and len(t.gallery)]
-        return out + [(i, g.descriptors) for i, g in self._pending]
+        return KeptMemory(out + [(i, g.descriptors) for i, g in self._pending], {}, {})
+
+    def import_memory(self, kept: KeptMemory) -> None:
+        """Nothing to take: Pinto's Algorithm 2 reads the remembered galleries alone (the memory)."""
+        return None
 
 
 def _view(t: Track, stamp: float) -> TrackView:

@@ -16,9 +16,11 @@ from typing import TYPE_CHECKING, Literal, NamedTuple
 import numpy as np
 
 if TYPE_CHECKING:
+    from common.geometry.occupancy import ObstacleMap
     from services.tracker.core.view import View
 
 __all__ = ["AppearanceModel", "FrameInput", "FrameResult", "HandOver", "IdCandidate", "IdDecision", "IdOutcome", "IdRule",
+           "KeptMemory",
            "ScoreModel", "TrackStatus", "TrackView"]
 
 
@@ -302,7 +304,9 @@ class FrameInput(NamedTuple):
     the profile's). ``camera``: the camera the frame comes from. ``postures`` (N,) int8 the
     detector's posture report per detection, the index in ``posture.POSTURES`` (-1: none;
     None: no report at all). ``statures`` (N,) each standing person's measured stature (m; NaN:
-    not measured, None: no measurement at all; core/stature.py).
+    not measured, None: no measurement at all; core/stature.py). ``obstacles``: the robot's
+    static map as it is now, when one arrives while tracking (ROS 2's ``/map``; None: the one
+    the profile was built with, if any).
     """
 
     positions: np.ndarray
@@ -317,6 +321,7 @@ class FrameInput(NamedTuple):
     camera: str = ""
     postures: np.ndarray | None = None
     statures: np.ndarray | None = None
+    obstacles: ObstacleMap | None = None
 
     @classmethod
     def of(cls, positions: np.ndarray, descriptors: np.ndarray | None = None,
@@ -357,3 +362,16 @@ class FrameInput(NamedTuple):
     def has_descriptors(self) -> bool:
         """Whether this frame carries descriptors (of some dimension; maybe NaN rows)."""
         return self.descriptors is not None and self.descriptors.shape[1] > 0
+
+
+@dataclass
+class KeptMemory:
+    """What the ID memory's file keeps beside the remembered galleries: ``live_galleries`` (ID,
+    descriptors (M, D)) of the people tracked now, the trained appearance ``classifiers`` by ID,
+    and the open-set recovery's state as named arrays (``recovery``: where and when each person
+    was last seen, who was seen with whom). A profile without classifiers or recovery keeps
+    them empty; on import, None leaves a part as it is."""
+
+    live_galleries: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    classifiers: dict[int, np.ndarray] | None = None
+    recovery: dict[str, np.ndarray] | None = None

@@ -37,8 +37,9 @@ from common.messages.schemas import Tracks  # noqa: E402
 from common.transport.router_process import RouterProcess  # noqa: E402
 from common.transport.zenoh import open_transport  # noqa: E402
 from common.transport.zenoh_config import ZenohOptions  # noqa: E402
+from services.tracker.presets import preset_environment  # noqa: E402
 
-__all__ = ["RUNS", "LiveRun", "judge", "quality_module", "run_live", "run_offline", "table"]
+__all__ = ["LiveRun", "judge", "quality_module", "run_live", "run_offline", "runs", "table"]
 
 SERVICES = ("detector", "localizer", "embedder", "tracker")
 
@@ -70,9 +71,10 @@ def _perception(*args: str) -> list[str]:
 #: The tracker as the offline chain runs it: its fixed measurement noise instead of each
 #: detection's covariance (the offline chain's detections carry none).
 LIKE_OFFLINE = {"PERCEPTION_TRACKER__ROBUST__USE_DETECTION_COVARIANCE": "false"}
-#: quality.py's PETS_SITE as the services' settings: the open place's ID-memory prior (the
-#: localizer sends the camera's floor view through the homography by itself)
-SITE = {"PERCEPTION_TRACKER__ROBUST__RECOVERY__LEFT_WEIGHT": "0.3"}
+#: quality.py's site preset (deploy/presets/pets-site.yaml), given to the services as their
+#: environment: the open place's ID-memory prior (the localizer sends the camera's floor view
+#: through the homography by itself)
+SITE_PRESET = "pets-site"
 
 
 def run_live(root: Path, n_frames: int, workdir: Path, timeout_s: float = 900.0,
@@ -182,20 +184,21 @@ def judge(root: Path, n_frames: int, rows: list[Any]) -> Any:
     return q.judge(table, rows, ignore)
 
 
-#: the live runs of :func:`table`: label and the services' settings
-RUNS = (("live, tracker as offline (fixed R)", LIKE_OFFLINE),
-        ("live, defaults (R from the floor homography)", {}),
-        ("live, as offline, the site's settings (PETS_SITE)", {**LIKE_OFFLINE, **SITE}))
+def runs() -> tuple[tuple[str, dict[str, str]], ...]:
+    """The live runs of :func:`table`: label and the services' settings."""
+    return (("live, tracker as offline (fixed R)", LIKE_OFFLINE),
+            ("live, defaults (R from the floor homography)", {}),
+            ("live, as offline, the site's settings (pets-site)", {**LIKE_OFFLINE, **preset_environment(SITE_PRESET)}))
 
 
 def table(root: Path, n_frames: int, cache_dir: Path | None) -> str:
-    """The first ``n_frames`` through the live services (each of :data:`RUNS`), beside the offline
+    """The first ``n_frames`` through the live services (each of :func:`runs`), beside the offline
     chain, as a markdown table with its notes."""
     lines = [f"### PETS09-S2L1 frames 1-{n_frames} through the live services (robust), beside the offline chain", "",
              "| chain | MOTA | IDF1 | IDSW | frames/s |", "|---|---|---|---|---|"]
     offline = judge(root, n_frames, run_offline(root, n_frames, cache_dir))
     lines.append(f"| offline (quality.py's PETS chain) | {offline.mota:.3f} | {offline.idf1:.3f} | {offline.id_switches} | |")
-    for label, env in RUNS:
+    for label, env in runs():
         with tempfile.TemporaryDirectory() as tmp:
             run = run_live(root, n_frames, Path(tmp), env=env)
         r = judge(root, n_frames, run.rows)
@@ -203,7 +206,7 @@ def table(root: Path, n_frames: int, cache_dir: Path | None) -> str:
     lines += ["", "(camera --max -> HOG -> localizer -> embedder -> tracker, each a process over a real router; "
               "'as offline': the tracker's fixed measurement noise, as the offline chain's detections carry no "
               "covariance; 'defaults': each detection's covariance from the floor homography; 'the site's settings': "
-              "quality.py's PETS_SITE, an open place's ID-memory prior. Live, the tracker has the camera's floor view "
+              "the pets-site preset, an open place's ID-memory prior. Live, the tracker has the camera's floor view "
               "the localizer sends; offline it has none.)"]
     return "\n".join(lines)
 

@@ -42,7 +42,7 @@ Data (``../shared/data``, or ``$PERCEPTION_SHARED_DATA``; nothing is downloaded)
    each tracker. The project's tracker gets the colour descriptors (embedding model
    ``colour``, thresholds from TrackerConfig's defaults); the two baselines get the
    positions only; the project's robust profile runs once more as the site would be configured
-   (``PETS_SITE``: the camera's floor view and an open place's ID-memory prior). Detections and
+   (the camera's floor view and deploy/presets/pets-site.yaml, an open place's ID-memory prior). Detections and
    descriptors are cached under ``--cache-dir``
    (default ``benchmarks/.cache/``), keyed by a hash of the detector's and embedder's code and
    settings and the frames, so only the first run pays the ~1-2 minutes of detection.
@@ -115,6 +115,7 @@ from services.localizer.config import LocalizerConfig  # noqa: E402
 from services.tracker.config import TrackerConfig  # noqa: E402
 from services.tracker.core.types import IdDecision  # noqa: E402
 from services.tracker.core.view import FloorView  # noqa: E402
+from services.tracker.presets import load_preset  # noqa: E402
 from services.tracker.offline import Detections, Row, frame_stamps, read_detections, track_config  # noqa: E402
 from tools.evaluation.evaluate import evaluate_tables  # noqa: E402
 from tools.evaluation.identity import DEFAULT_GAP, DEFAULT_MIN_FRAMES, Identity, IdentityCollector  # noqa: E402
@@ -192,16 +193,16 @@ def project_adapters(scores: dict[str, float] | None = None) -> list[TrackerAdap
 
 
 #: PETS09 as its site would be configured: the camera's floor view (``perception track
-#: --floor-view``) and what the place is: a public square, where people who walk out of the
-#: image seldom turn straight back (``left_weight``; a home is 1, the default).
-PETS_SITE = {"recovery": {"left_weight": 0.3}}
+#: --floor-view``) and what the place is, the tracker preset (``perception track --preset``) of a
+#: public square, where people who walk out of the image seldom turn straight back.
+PETS_SITE_PRESET = "pets-site"
 
 
 def pets_site_adapter(root: Path) -> TrackerAdapter:
-    """The robust profile with PETS09's floor view and :data:`PETS_SITE`."""
+    """The robust profile with PETS09's floor view and the preset :data:`PETS_SITE_PRESET`."""
     meta = json.loads((root / "ground_homography.json").read_text())
     view = FloorView(np.asarray(meta["H"], float), *meta["image_size"])
-    config = TrackerConfig.model_validate({"profile": "robust", "memory_path": None, "robust": PETS_SITE})
+    config = TrackerConfig.model_validate({**load_preset(PETS_SITE_PRESET), "profile": "robust", "memory_path": None})
 
     def run(dets: Detections) -> list[Row]:
         return track_config(dets, config, "colour" if dets.descriptors is not None else None, view=view)
@@ -861,7 +862,7 @@ def main(argv: list[str] | None = None) -> int:
         print(format_scores(title, tables[title]))
         print("(the project's tracker uses the colour descriptors, and positions only in the rows ', no appearance'; "
               "kalman-baseline and norfair positions only; 'floor view, open place': the camera's view and the site's "
-              "settings, PETS_SITE)\n")
+              "settings, the pets-site preset)\n")
     else:
         print(f"PETS09 skipped: {pets} not found\n")
 

@@ -115,14 +115,14 @@ def _from_env(prefix: str, environ: Mapping[str, str]) -> dict[str, Any]:
 
 def load_config(model: type[C], path: str | Path | None = None, *, env_prefix: str | None = None,
                 overrides: Mapping[str, Any] | None = None, section: str | None = None,
-                environ: Mapping[str, str] | None = None) -> C:
+                environ: Mapping[str, str] | None = None, base: Mapping[str, Any] | None = None) -> C:
     """Build a validated ``model`` from defaults, file, environment and overrides.
 
     ``section`` names the part of the file for this service (e.g. ``tracker`` in a deploy
     file that configures several services): when the file has a top-level ``section``
     key, that mapping is used; otherwise the whole file holds this service's settings.
     ``overrides`` with value ``None`` are ignored, so unset CLI flags can be passed
-    straight through.
+    straight through. ``base`` (a preset) is a layer of settings under the file's.
     """
     data: dict[str, Any] = {}
     source = "defaults"
@@ -136,6 +136,8 @@ def load_config(model: type[C], path: str | Path | None = None, *, env_prefix: s
             in_section = section
             if not isinstance(data, dict):
                 raise ConfigError(f"section {section!r} of {path} must be a mapping")
+    if base:
+        data = _merge(dict(base), data)
     if env_prefix:
         data = _merge(data, _from_env(env_prefix, os.environ if environ is None else environ))
     if overrides:

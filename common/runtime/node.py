@@ -213,8 +213,10 @@ def settings_summary(config: BaseModel) -> dict[str, str]:
 CONFIG_ORIGIN_ENV = "PERCEPTION_CONFIG_ORIGIN"
 
 
-def load_node_config(model: type[C], name: str, path: str | Path | None, overrides: Mapping[str, Any]) -> C:
-    """Defaults -> ``path`` (section ``name`` if present) -> ``PERCEPTION_<NAME>__*`` -> overrides.
+def load_node_config(model: type[C], name: str, path: str | Path | None, overrides: Mapping[str, Any],
+                     base: Mapping[str, Any] | None = None) -> C:
+    """Defaults -> ``base`` (a preset) -> ``path`` (section ``name`` if present) -> ``PERCEPTION_<NAME>__*``
+    -> overrides.
 
     A bad value is a :class:`CliError` naming the field, the file and how to fix it (the launch
     file and its entry when ``perception launch`` wrote the file).
@@ -223,7 +225,7 @@ def load_node_config(model: type[C], name: str, path: str | Path | None, overrid
 
     env = f"PERCEPTION_{name.upper()}"
     try:
-        return load_config(model, path, env_prefix=env, overrides=_prune(overrides), section=name)
+        return load_config(model, path, env_prefix=env, overrides=_prune(overrides), section=name, base=base)
     except ConfigError as exc:
         origin = os.environ.get(CONFIG_ORIGIN_ENV, "")
         text = str(exc).replace(str(path), origin) if origin and path is not None else str(exc)
@@ -233,15 +235,16 @@ def load_node_config(model: type[C], name: str, path: str | Path | None, overrid
 
 def run_node(args: argparse.Namespace, name: str, config_model: type[C], overrides: Mapping[str, Any],
              build: Callable[..., Node], *, prepare: Callable[[C], Mapping[str, Any]] | None = None,
-             adjust: Callable[[C], C] | None = None) -> int:
+             adjust: Callable[[C], C] | None = None, base: Mapping[str, Any] | None = None) -> int:
     """Run one node from its parsed flags until SIGINT/SIGTERM; the process's exit status.
 
     ``prepare(config)`` runs before the transport opens (load a model, check a file) and
     returns extra keyword arguments for ``build``; ``adjust(config)`` may rewrite the
-    validated config (flags that cannot be plain overrides). A ``ValueError`` (or
+    validated config (flags that cannot be plain overrides); ``base`` is a layer of settings under
+    the ``--service-config`` file's (a preset). A ``ValueError`` (or
     ``ConfigError``) from either, or from ``build``, stops the node with exit status 2.
     """
-    config = load_node_config(config_model, name, getattr(args, "service_config", None), overrides)
+    config = load_node_config(config_model, name, getattr(args, "service_config", None), overrides, base)
     if adjust is not None:
         config = adjust(config)
     keys = keys_from_args(args)

@@ -17,13 +17,15 @@ import os
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+
+from common.runtime.settings import setting
 
 from services.tracker.core import AppearanceModel, ScoreModel, TrackerCore, TrackerParams
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.profiles import ClassifierConfig, PostureConfig, RobustConfig, ScoreConfig, ThesisConfig
 
-__all__ = ["DEFAULT_APPEARANCE", "DEFAULT_EMBEDDING_MODEL", "PROFILES", "SEVERAL_CAMERAS", "AppearanceConfig",
+__all__ = ["DEFAULT_APPEARANCE", "DEFAULT_EMBEDDING_MODEL", "PROFILES", "AppearanceConfig",
            "ClassifierConfig", "PostureConfig", "RobustConfig", "ScoreConfig", "ThesisConfig", "TrackerConfig",
            "default_memory_path"]
 
@@ -43,12 +45,12 @@ class AppearanceConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    t_lower: float = Field(ge=0.0, description="below: appearance alone admits a pair")
-    t_upper: float = Field(gt=0.0, description="at or above: the pair is never admitted")
-    t_recover: float = Field(gt=0.0, description="Algorithm 2: reuse a remembered ID closer than this")
-    s_max: float | None = Field(default=None, ge=0.0, description="per-model S_max (thesis profile); None uses thesis.s_max")
-    metric: Literal["euclidean", "cosine"] | None = Field(
-        default=None, description="how the model's descriptors compare; None: as its model card says (euclidean if none)")
+    t_lower: float = setting(..., "below this distance, appearance alone admits a pair", ge=0.0)
+    t_upper: float = setting(..., "at or above this distance, the pair is never admitted", gt=0.0)
+    t_recover: float = setting(..., "Algorithm 2: reuse a remembered ID closer than this", gt=0.0)
+    s_max: float | None = setting(None, "per-model S_max (thesis profile); none: thesis.s_max", ge=0.0)
+    metric: Literal["euclidean", "cosine"] | None = setting(
+        None, "how the model's descriptors compare; none: as its model card says (euclidean if none)")
 
     @model_validator(mode="after")
     def _ordered(self) -> AppearanceConfig:
@@ -85,19 +87,6 @@ def _default_appearance() -> dict[str, AppearanceConfig]:
 #: so it is written once, in the core (tests/unit/test_config_defaults.py checks they agree).
 _D = TrackerParams()
 
-#: The robust settings for several cameras with blind stretches between their views (the
-#: head camera and one on the base looking backwards): a track out of every view coasts up
-#: to 6 s and 100 m^2 (about 3 s of walking at q_accel 3), and a person confirmed in one
-#: camera's view takes the ID of a track that left another camera's view, by motion (the
-#: chi2 gate of the association). ``deploy/two-cameras.yaml``, ``perception demo
-#: --back-camera`` and ``run_chain(back_camera=...)`` use them. They are not the defaults: on
-#: one moving camera (the head turning away from people, the base driving) the longer
-#: coasting lets drifted predictions take the wrong person when the view comes back
-#: (simulator moving-base IDF1 0.705 -> 0.643; moving-head 0.798 -> 0.797).
-SEVERAL_CAMERAS: dict[str, float] = {"max_coast_unseen_s": 6.0, "max_position_var_unseen": 100.0,
-                                     "handover_gate_sq": 13.8}
-
-
 #: The thesis profile's settings that used to sit at the top of the tracker's settings.
 _OLD_THESIS_KEYS = tuple(ThesisConfig.model_fields)
 
@@ -107,47 +96,52 @@ class TrackerConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    profile: Literal["robust", "thesis"] = Field(
-        default="robust",
-        description="'robust' (default): cue fusion, staged association, life cycle in seconds; "
-                    "'thesis': Pinto's thesis exactly")
-    robust: RobustConfig = Field(default_factory=RobustConfig, description="the robust profile's settings")
-    thesis: ThesisConfig = Field(default_factory=ThesisConfig, description="the thesis profile's settings")
+    profile: Literal["robust", "thesis"] = setting(
+        "robust", "robust: cue fusion, staged association, life cycle in seconds; thesis: Pinto's thesis exactly "
+                  "(--profile)")
+    robust: RobustConfig = setting(description="the robust profile's settings", default_factory=RobustConfig)
+    thesis: ThesisConfig = setting(description="the thesis profile's settings", default_factory=ThesisConfig)
     # --- appearance (both profiles) and the ID memory (Algorithm 2)
-    embedding_model: str | None = Field(
-        default=None, min_length=1, description="accept descriptors of this model only; None: the first model seen")
-    appearance: dict[str, AppearanceConfig] = Field(default_factory=_default_appearance)
+    embedding_model: str | None = setting(None, "accept descriptors of this model only (--embedding-model); none: the "
+                                          "first model seen, or the memory file's", min_length=1, advanced=True)
+    appearance: dict[str, AppearanceConfig] = setting(
+        default_factory=_default_appearance, advanced=True,
+        description="per embedding model, its t_lower, t_upper, t_recover and optional s_max and metric; a file's "
+                    "models are added to (or override) the shipped ones")
     # --- bounded memory (the TU Ilmenau framework)
-    memory_size: int = Field(default=_D.memory_size, ge=1, le=100_000, description="max descriptors per remembered ID")
-    max_remembered_ids: int = Field(default=10_000, ge=1, le=1_000_000,
-                                    description="max IDs remembered; one more forgets the one archived longest ago")
+    memory_size: int = setting(_D.memory_size, "most descriptors kept per remembered ID", ge=1, le=100_000,
+                               advanced=True)
+    max_remembered_ids: int = setting(10_000, "most IDs remembered; one more forgets the one archived longest ago",
+                                      ge=1, le=1_000_000, advanced=True)
     # --- service
-    camera: str = Field(default="head", min_length=1, description="camera whose streams to track ('*' for all)")
-    frame_id: str = Field(default="map", min_length=1, description="tracking frame; inputs in another frame are dropped")
-    output_rate_hz: float = Field(
-        default=10.0, ge=0.0, le=1000.0,
-        description="Tracks published at this rate, predicted to the publish time (TU Ilmenau); 0: once per input frame")
-    join_wait_s: float = Field(default=0.1, ge=0.0, le=10.0,
-                               description="how long localized detections wait for their embeddings")
-    no_embeddings: list[str] = Field(
-        default_factory=list, description="streams no embedder reads (a second, slow detector's, e.g. head-hog): "
-                                          "their frames are tracked by position at once, not after join_wait_s")
-    view_age_s: float = Field(
-        default=1.0, gt=0.0, le=60.0,
-        description="with several cameras, a coasting track is reported while in the view of any camera that sent a "
-                    "frame within this long")
-    reorder_window_s: float = Field(default=0.5, ge=0.0, le=10.0,
-                                    description="inputs older than this behind the newest are dropped")
-    clock_jump_s: float = Field(
-        default=5.0, gt=0.0, le=3600.0,
-        description="a frame this much older than its source's newest is a clock jump (a replay that loops): "
-                    "every track ends, its ID remembered, and tracking starts over; must exceed reorder_window_s")
-    memory_path: Path | None = Field(default_factory=default_memory_path,
-                                     description="ID memory file, loaded at start and rewritten on change; null: none")
-    retention_s: float = Field(default=7 * 86400.0, gt=0.0,
-                               description="a remembered ID not seen for this long is forgotten (s; default 7 days)")
-    memory_save_period_s: float = Field(default=2.0, gt=0.0, le=3600.0,
-                                        description="how often live tracks' galleries are also written")
+    camera: str = setting("head", "camera whose localized and embeddings streams to track (--camera); '*' for all",
+                          min_length=1)
+    frame_id: str = setting("map", "tracking frame; inputs in another frame are dropped and counted", min_length=1)
+    output_rate_hz: float = setting(10.0, "Tracks are published at this rate, predicted to the publish time (TU "
+                                    "Ilmenau; --output-rate); 0: once per input frame", unit="Hz", ge=0.0, le=1000.0)
+    join_wait_s: float = setting(0.1, "how long localized detections wait for their embeddings before they are "
+                                 "tracked by position only", unit="s", ge=0.0, le=10.0, advanced=True)
+    no_embeddings: list[str] = setting(
+        default_factory=list, advanced=True,
+        description="streams no embedder reads (a second, slow detector's, e.g. head-hog; --no-embeddings): their "
+                    "frames are tracked by position at once, not after join_wait_s")
+    view_age_s: float = setting(1.0, "with several cameras, a coasting track is reported while in the view of any "
+                                "camera that sent a frame within this long", unit="s", gt=0.0, le=60.0, advanced=True)
+    reorder_window_s: float = setting(0.5, "inputs older than this behind the newest are dropped (TU Ilmenau)",
+                                      unit="s", ge=0.0, le=10.0, advanced=True)
+    clock_jump_s: float = setting(
+        5.0, "a frame this much older than its source's newest is a clock jump (a replay that loops): every track "
+             "ends, its ID remembered, and tracking starts over; must exceed reorder_window_s", unit="s", gt=0.0,
+        le=3600.0, advanced=True)
+    memory_path: Path | None = setting(default_factory=default_memory_path,
+                                       default_text="~/.local/state/people-perception/tracker-id-memory.npz",
+                                       description="ID memory file, loaded at start and rewritten on change, so a "
+                                                   "restarted tracker keeps identities (--memory); none: no memory "
+                                                   "file (--no-memory)")
+    retention_s: float = setting(7 * 86400.0, "a remembered ID not seen for this long is forgotten (7 days)",
+                                 unit="s", gt=0.0)
+    memory_save_period_s: float = setting(2.0, "how often the live tracks' galleries are also written", unit="s",
+                                          gt=0.0, le=3600.0, advanced=True)
 
     @model_validator(mode="before")
     @classmethod

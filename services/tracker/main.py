@@ -19,8 +19,9 @@ tracks only). Subscribes to the localizer's LocalizedDetections and the
 embedder's Embeddings, publishes Tracks after every frame, and answers `?id=K`
 queries on the track query key.
 
-Settings come from defaults (the paper's values) <- --service-config FILE (section
-'tracker' if present) <- PERCEPTION_TRACKER__FIELD environment variables <- flags.
+Settings come from defaults (the paper's values) <- --preset NAME (deploy/presets/NAME.yaml)
+<- --service-config FILE (section 'tracker' if present) <- PERCEPTION_TRACKER__FIELD
+environment variables <- flags.
 The ID memory is kept in --memory (default under ~/.local/state) so a restarted
 tracker keeps identities; --no-memory turns that off."""
 
@@ -28,4 +29,5 @@ add_arguments = flags.add_arguments
 
 
 def main(args: argparse.Namespace) -> int:
-    return run_node(args, "tracker", TrackerConfig, flags.overrides(args), TrackerService, adjust=flags.adjust(args))
+    return run_node(args, "tracker", TrackerConfig, flags.overrides(args), TrackerService, adjust=flags.adjust(args),
+                    base=flags.preset(args))

@@ -13,6 +13,7 @@ import numpy as np
 from common.runtime.cli_util import CliError, check_input_file
 from common.runtime.config import ConfigError, read_config_file
 from common.runtime.node import load_node_config
+from services.tracker import flags
 from services.tracker.config import DEFAULT_EMBEDDING_MODEL, PROFILES, TrackerConfig
 from services.tracker.core.types import FrameResult
 from services.tracker.core.view import FloorView
@@ -34,9 +35,8 @@ Output CSV: frame,stamp,id,x,y,z, one row per Confirmed track per frame.
 A fixed camera's view (--floor-view, its floor homography): a coasting person whose feet
 leave the image is no longer reported, and the ID memory tells a person who walked out of
 the image from one lost inside it (hidden, missed). In an open place, where those who walk
-out seldom come straight back, set robust.recovery.left_weight below 1 (e.g. 0.3) in
---service-config: a stranger walking in is then less readily given the ID of someone who
-walked out."""
+out seldom come straight back, give --preset pets-site (robust.recovery.left_weight 0.3): a
+stranger walking in is then less readily given the ID of someone who walked out."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -44,6 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--output", type=Path, required=True, metavar="TRACKS.csv", help="where to write the tracks")
     parser.add_argument("--service-config", type=Path, default=None, metavar="FILE",
                         help="YAML/JSON settings; its 'tracker' section if it has one, else the whole file")
+    flags.add_preset_argument(parser)
     # The old spelling: --config is the Zenoh config in every other command, so it only explains.
     parser.add_argument("--config", dest="old_config", type=Path, default=None, help=argparse.SUPPRESS)
     parser.add_argument("--embedding-model", default=DEFAULT_EMBEDDING_MODEL, metavar="NAME",
@@ -98,7 +99,8 @@ def main(args: argparse.Namespace) -> int:
                        f"give the tracker settings as --service-config {args.old_config}")
     config = load_node_config(TrackerConfig, "tracker", args.service_config, {
         "profile": args.profile, "thesis": {"time_step": args.time_step},
-        "robust": {"scores": {"birth_score": args.birth_score}, "static_map": {"path": args.static_map}}})
+        "robust": {"scores": {"birth_score": args.birth_score}, "static_map": {"path": args.static_map}}},
+        base=flags.preset(args))
     check_input_file(args.detections, "expected a detections CSV file: frame,stamp,x,y,z,score[,e0,e1,...]")
     try:
         dets = read_detections(args.detections)

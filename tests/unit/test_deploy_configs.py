@@ -40,8 +40,8 @@ def test_inline_service_configs_validate(launch_file: Path, tmp_path: Path) -> N
 
 
 def test_the_two_camera_deploy_file_uses_the_several_camera_tracker_settings() -> None:
-    from services.tracker.config import SEVERAL_CAMERAS
+    from services.tracker.presets import load_preset
 
     launch = load_launch_file(DEPLOY / "two-cameras.yaml", environ={})
     tracker = next(s for s in launch.services if s.command == "tracker")
-    assert isinstance(tracker.config, dict) and tracker.config["robust"] == SEVERAL_CAMERAS
+    assert isinstance(tracker.config, dict) and tracker.config["robust"] == load_preset("several-cameras")["robust"]

@@ -216,9 +216,9 @@ def test_ukf_motion_tracks_a_turning_person_and_reports_constant_velocity_views(
 
 def test_motion_must_be_known() -> None:
     with pytest.raises(ValueError, match="motion"):
-        RobustParams(motion="ctrv")  # type: ignore[arg-type]
-    with pytest.raises(ValueError):
         TrackerConfig.model_validate({"robust": {"motion": "ctrv"}})
+    with pytest.raises(ValueError, match="report_coast_s"):
+        TrackerConfig.model_validate({"robust": {"report_coast_s": 3.0, "max_coast_s": 2.0}})
 
 
 def test_field_of_view_contains_what_projects_inside_the_image_and_range() -> None:
@@ -277,10 +277,10 @@ def _walk_past(params: RobustParams) -> list[int]:
 
 
 def test_a_person_walking_from_one_camera_into_the_other_keeps_their_id_with_the_several_camera_settings() -> None:
-    from services.tracker.config import SEVERAL_CAMERAS
+    from services.tracker.presets import load_preset
 
     assert _walk_past(RobustParams()) == [1, 2]  # the blind stretch outlasts max_coast_s: a new ID
-    assert _walk_past(RobustParams(**SEVERAL_CAMERAS)) == [1]  # coasted out of view, taken up by the other camera
+    assert _walk_past(RobustParams(**load_preset("several-cameras")["robust"])) == [1]  # coasted out of view, taken up by the other camera
 
 
 def test_out_of_view_time_does_not_count_towards_max_coast_and_the_same_camera_does_not_hand_over() -> None:

@@ -29,7 +29,8 @@ from services.embedder.config import EmbedderConfig
 from services.embedder.service import EmbedderService
 from services.localizer.config import LocalizerConfig
 from services.localizer.service import LocalizerService
-from services.tracker.config import SEVERAL_CAMERAS, TrackerConfig
+from services.tracker.config import TrackerConfig
+from services.tracker.presets import load_preset
 from services.tracker.service import TrackerService
 from tools.demo.attention import AttentionScore, TruthTracks
 from tools.demo.scoring import score_tracks
@@ -110,8 +111,9 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         slow = [(0, DetectorService(bus.transport(), keys, DetectorConfig(
                     backend=second.backend, camera=camera, stream=stream))),  # type: ignore[arg-type]
                 (second.delay, LocalizerService(bus.transport(), keys, LocalizerConfig(camera=camera, stream=stream)))]
-    if back_camera is not None:  # the blind stretches between the views: SEVERAL_CAMERAS, unless set by the caller
-        robust = {k: v for k, v in SEVERAL_CAMERAS.items() if k not in tracker_config.robust.model_fields_set}
+    if back_camera is not None:  # the blind stretches between the views: the several-cameras preset, unless set
+        preset = load_preset("several-cameras")["robust"]
+        robust = {k: v for k, v in preset.items() if k not in tracker_config.robust.model_fields_set}
         tracker_config = tracker_config.model_copy(update={
             "camera": "*", "robust": tracker_config.robust.model_copy(update=robust)})
     nodes = [

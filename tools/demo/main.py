@@ -29,7 +29,7 @@ from common.runtime.service import Shutdown
 from common.transport.base import Transport
 from common.transport.zenoh_config import ZenohOptions
 from common.transport.zenoh import TransportError, open_transport
-from services.tracker.config import SEVERAL_CAMERAS
+from services.tracker.presets import preset_environment
 from tools.demo.attention import AttentionLog
 from tools.demo.monitor import Monitor
 from tools.demo.ros2_echo import TrackedEcho
@@ -140,7 +140,7 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
     own_env = {"detector-back": {"PERCEPTION_DETECTOR__DEPTH__CAMERA_HEIGHT_M": f"{BACK_CAMERA_OFFSET[2]:g}",
                                  "PERCEPTION_DETECTOR__DEPTH__TILT_DEG": "0"}}
     if args.back_camera:  # the tracker bridges the blind stretches between the two views
-        own_env["tracker"] = {f"PERCEPTION_TRACKER__ROBUST__{k.upper()}": f"{v:g}" for k, v in SEVERAL_CAMERAS.items()}
+        own_env["tracker"] = preset_environment("several-cameras")
     if args.no_static_map:  # nor from the ROS 2 robot's /map
         own_env.setdefault("tracker", {})["PERCEPTION_TRACKER__ROBUST__STATIC_MAP__TOPIC"] = "false"
     for name in names:

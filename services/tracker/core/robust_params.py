@@ -19,7 +19,9 @@ _F3 = tuple[float, float, float]
 
 @dataclass(frozen=True)
 class RobustParams:
-    """The robust profile's settings (README of the tracker: what each one does)."""
+    """The robust profile's settings and their defaults (README of the tracker, *Settings*: what
+    each one does). Their ranges are checked where they are read, services/tracker/profiles.py's
+    RobustConfig (the only builder outside the tests)."""
 
     #: "cv": constant-velocity Kalman filter; "ukf": unscented filter, coordinated turn (Basso/Munaro)
     motion: Literal["cv", "ukf"] = "cv"
@@ -72,28 +74,3 @@ class RobustParams:
     stature: StatureParams | None = field(default_factory=StatureParams)
     #: the ID memory's open-set decision (core/recovery.py)
     recovery: RecoveryParams = field(default_factory=RecoveryParams)
-
-    def __post_init__(self) -> None:
-        if self.n_init < 1:
-            raise ValueError("n_init must be at least 1")
-        if self.motion not in ("cv", "ukf"):
-            raise ValueError(f"motion must be 'cv' or 'ukf', got {self.motion!r}")
-        if not (self.q_turn >= 0 and self.sigma0_turn >= 0):
-            raise ValueError("q_turn and sigma0_turn must not be negative")
-        for name in ("q_accel", "q_z", "sigma0_position", "sigma0_velocity", "new_density", "gate_sq",
-                     "is_person_tau_s", "max_position_var"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
-        if not (0 < self.tentative_timeout_s and 0 <= self.report_coast_s <= self.max_coast_s):
-            raise ValueError("need tentative_timeout_s > 0 and 0 <= report_coast_s <= max_coast_s")
-        if not (self.max_coast_unseen_s > 0 and self.max_position_var_unseen > 0):
-            raise ValueError("max_coast_unseen_s and max_position_var_unseen must be positive")
-        if self.handover_gate_sq is not None and not self.handover_gate_sq > 0:
-            raise ValueError(f"handover_gate_sq must be positive or None, got {self.handover_gate_sq}")
-        if not 0 <= self.view_margin < 0.5:
-            raise ValueError(f"view_margin must be in [0, 0.5), got {self.view_margin}")
-        if not (self.birth_separation_m >= 0 and self.birth_clearance_m >= 0):
-            raise ValueError(f"birth_separation_m and birth_clearance_m must not be negative, got "
-                             f"{self.birth_separation_m}, {self.birth_clearance_m}")
-        if not 0.5 <= self.confirm_is_person < 1:
-            raise ValueError("confirm_is_person must be in [0.5, 1)")

@@ -18,7 +18,9 @@ _S_MAX = next(f.default for f in fields(AppearanceGate) if f.name == "s_max")
 
 @dataclass(frozen=True)
 class TrackerParams:
-    """Everything the core needs; defaults are the thesis's values (see the README table)."""
+    """Everything the core needs; defaults are the thesis's values (the README's *Settings*). Their
+    ranges are checked where they are read, services/tracker/profiles.py's ThesisConfig (the only
+    builder outside the tests)."""
 
     sigma0: _F6 = (0.2, 0.2, 0.2, 1.0, 1.0, 1.0)
     sigma_q: _F6 = (0.2, 0.2, 0.2, 1.0, 1.0, 1.0)
@@ -35,11 +37,3 @@ class TrackerParams:
     inf: float = 1e5
     #: S_max of the gate :meth:`Tracker.set_appearance` builds for a model that names none
     s_max: float = _S_MAX
-
-    def __post_init__(self) -> None:
-        if self.n_init < 1 or self.max_misses < 1:
-            raise ValueError("n_init and max_misses must be at least 1")
-        if self.frame_period_s <= 0:
-            raise ValueError("frame_period_s must be positive")
-        if not 0 < self.position_gate_probability < 1:
-            raise ValueError("position_gate_probability must be in (0, 1)")

@@ -44,12 +44,7 @@ class RobustConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    motion: Literal["cv", "ukf"] = setting(_R.motion, "motion model: cv, a constant-velocity Kalman filter; ukf, an "
-                                           "unscented filter with a coordinated turn (Basso/Munaro)")
     q_accel: float = setting(_R.q_accel, "white acceleration noise on x and y", unit="m²/s³", gt=0.0, advanced=True)
-    q_turn: float = setting(_R.q_turn, "random walk of the turn rate (ukf)", unit="rad²/s³", ge=0.0, advanced=True)
-    sigma0_turn: float = setting(_R.sigma0_turn, "a new track's turn-rate std (ukf)", unit="rad/s", ge=0.0,
-                                 advanced=True)
     q_z: float = setting(_R.q_z, "random-walk noise of z", unit="m²/s", gt=0.0, advanced=True)
     sigma0_position: float = setting(_R.sigma0_position, "a new track's position std", unit="m", gt=0.0,
                                      advanced=True)

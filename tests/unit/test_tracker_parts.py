@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from services.tracker.core import cues, kalman, ukf
+from services.tracker.core import cues, kalman
 from services.tracker.core.gallery import Gallery
 from services.tracker.core.robust import RobustParams, RobustTracker
 from services.tracker.core.bank import GalleryBank
@@ -132,7 +132,6 @@ def test_one_covariance_test_counts_and_replaces() -> None:
 
 def test_the_process_noise_is_one_function() -> None:
     dt = 0.1
-    assert np.array_equal(ukf.process_noise(dt, 3.0, 0.05, 0.0)[:6, :6], kalman.white_acceleration(dt, 3.0, 0.05))
     assert np.array_equal(RobustTracker(RobustParams(q_accel=3.0, q_z=0.05))._q(dt),
                           kalman.white_acceleration(dt, 3.0, 0.05))
 

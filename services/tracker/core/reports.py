@@ -91,42 +91,37 @@ def track_rows(table: TrackTable, bank: GalleryBank) -> list[TrackRow]:
     return out
 
 
-def row_view(t: TrackRow, stamp: float, ukf: bool, posture: bool) -> TrackView:
+def row_view(t: TrackRow, stamp: float, posture: bool) -> TrackView:
     """A :class:`TrackRow` as :func:`track_view` reports its track."""
-    mean, cov = (t.mean[:6], t.cov[:6, :6]) if ukf else (t.mean, t.cov)
-    return TrackView(t.id, t.status, mean, cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp), t.last_update,
+    return TrackView(t.id, t.status, t.mean, t.cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp), t.last_update,
                      len(t.gallery) if t.gallery is not None else 0, t.ever_confirmed,
                      posture=t.posture if posture else None, orientation=t.orientation if posture else None,
                      stature=t.stature if t.stature_n else None)
 
 
-def track_view(state: RobustTrackerState, j: int, stamp: float, status: TrackStatus, in_view: bool | None,
-               ukf: bool) -> TrackView:
-    """Track ``j`` as the tracker reports it at ``stamp`` (``ukf``: its state is the unscented
-    filter's, of which the view shows (x, y, z, vx, vy, vz)); posture and orientation when the
+def track_view(state: RobustTrackerState, j: int, stamp: float, status: TrackStatus, in_view: bool | None) -> TrackView:
+    """Track ``j`` as the tracker reports it at ``stamp``; posture and orientation when the
     posture cue is on. The arrays are shared: the tracker never writes into a mean, cov, posture
     or orientation array it has shown, every change makes new ones."""
     t, poses = state.tracks, _posture(state.tracks)
-    mean, cov = (t.mean[j, :6], t.cov[j, :6, :6]) if ukf else (t.mean[j], t.cov[j])
     h, n = stature_of(t, j)
-    return TrackView(t.id[j], status, mean, cov, t.total_hits[j], 0, max(0.0, stamp - t.first_stamp[j]),
+    return TrackView(t.id[j], status, t.mean[j], t.cov[j], t.total_hits[j], 0, max(0.0, stamp - t.first_stamp[j]),
                      t.last_update[j], state.bank.size(t.slot[j]), t.ever_confirmed[j], in_view,
                      posture=poses.posture[j] if poses else None, orientation=poses.orientation[j] if poses else None,
                      stature=h if n else None)
 
 
-def track_views(state: RobustTrackerState, stamp: float, view_known: bool, ukf: bool) -> list[TrackView]:
+def track_views(state: RobustTrackerState, stamp: float, view_known: bool) -> list[TrackView]:
     """Every live track as :func:`track_view`; a coasting one says whether it is in view when
     the frame had a view (``view_known``)."""
     t = state.tracks
     if not t.id:
         return []
-    means, covs = (t.mean[:, :6], t.cov[:, :6, :6]) if ukf else (t.mean, t.cov)
     cols = _posture(t)
     poses = zip(cols.posture, cols.orientation) if cols else ((None, None) for _ in t.id)
     coasting, make, sizes = TrackStatus.COASTING, TrackView.of_fields, state.bank.n.tolist()
     return [make(i, s, m, c, h, 0, max(0.0, stamp - first), last, sizes[slot] if slot >= 0 else 0, ever,
                  flag if view_known and s is coasting else None, pp, o, body)
             for i, s, m, c, h, first, last, slot, ever, flag, (pp, o), body
-            in zip(t.id, t.status, means, covs, t.total_hits, t.first_stamp, t.last_update, t.slot, t.ever_confirmed,
+            in zip(t.id, t.status, t.mean, t.cov, t.total_hits, t.first_stamp, t.last_update, t.slot, t.ever_confirmed,
                    t.in_view, poses, _statures(t))]

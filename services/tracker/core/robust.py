@@ -5,9 +5,7 @@ nominal frames, so the same settings hold at 5, 10 or 30 Hz. The papers are Pint
 the TU Ilmenau framework, Basso/Munaro's RGB-D tracker and Ban et al.'s robotic head.
 
 1. **Predict** every track with a constant-velocity model whose process noise is white
-   acceleration (``q_accel``, m^2/s^3) on (x, y) and a random walk on z; or, with
-   ``motion="ukf"``, Basso/Munaro's unscented filter with a coordinated-turn model (a person
-   walks arcs of constant turn rate, :mod:`services.tracker.core.ukf`).
+   acceleration (``q_accel``, m^2/s^3) on (x, y) and a random walk on z.
 2. **Score every (detection, track) pair** by the TU Ilmenau framework's cue fusion: each
    cue gives a probability that the pair is the same person, 0.5 meaning "no information",
    and the cues combine by the Bayesian product (Eq 1), i.e. their log-odds add:
@@ -51,7 +49,7 @@ from dataclasses import replace
 import numpy as np
 
 from services.tracker.core import classifier as clf
-from services.tracker.core import cues, kalman, lifecycle, ukf
+from services.tracker.core import cues, kalman, lifecycle
 from services.tracker.core.cues import Cue, Pairing
 from services.tracker.core.cues.online_classifier import trained
 from services.tracker.core.association import match_log_odds
@@ -73,16 +71,13 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
 
     def __init__(self, params: RobustParams, memory: IdentityMemory | None = None) -> None:
         self.params = params
-        self._ukf = params.motion == "ukf"
         self._set_cues()
         columns = {c.name: cols for c in self.cues if (cols := c.columns()) is not None}
-        self.state = RobustTrackerState(TrackTable.empty(ukf.DIM if self._ukf else 6, columns),
+        self.state = RobustTrackerState(TrackTable.empty(6, columns),
                                         GalleryBank(params.gallery_size),
                                         memory if memory is not None else IdentityMemory(params.memory_size))
         self._r = np.diag(np.asarray(params.sigma_r, float) ** 2)
         self._p0 = np.diag([params.sigma0_position ** 2] * 3 + [params.sigma0_velocity ** 2] * 2 + [0.0])
-        if self._ukf:
-            self._p0 = ukf.initiate(np.zeros(3), params.sigma0_position, params.sigma0_velocity, params.sigma0_turn)[1]
         self.bad_covariances = 0  #: detections whose covariance was unusable
         self._q_of: dict[float, np.ndarray] = {}  # process noise by step: a stream's steps take a few values
         self._r_n: dict[int, np.ndarray] = {}  # the fixed R broadcast to n detections
@@ -158,7 +153,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         self._remove(lifecycle.confirm(state, self.params, result))
         lifecycle.probation(state, self.params, stamp, result)  # recent recoveries checked again
         result.matches = len(matches)
-        result.tracks = track_views(state, stamp, frame.view is not None, self._ukf)
+        result.tracks = track_views(state, stamp, frame.view is not None)
         return result
 
     def _appearance(self, frame: FrameInput) -> bool:
@@ -198,10 +193,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         dt = stamp - self.state.last_stamp
         if dt <= 0:
             return False
-        if self._ukf:
-            t.mean, t.cov = ukf.predict(t.mean, t.cov, dt, self.params.q_accel, self.params.q_z, self.params.q_turn)
-        else:
-            t.mean, t.cov = kalman.predict(t.mean, t.cov, dt, self._q(dt))
+        t.mean, t.cov = kalman.predict(t.mean, t.cov, dt, self._q(dt))
         fade = math.exp(-dt / self.params.is_person_tau_s)  # IsPerson drifts back to "unknown"
         t.is_person = [0.5 + (q - 0.5) * fade for q in t.is_person]
         for cue in self._predicting:  # posture and orientation drift
@@ -275,7 +267,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         """Coasting and deletion (:func:`lifecycle.age`); a deleted track's appearance is archived."""
         ended, keep = lifecycle.age(self.state, self.params, stamp, previous, view)
         for j in ended:
-            result.deleted.append(track_view(self.state, j, stamp, TrackStatus.DELETED, None, self._ukf))
+            result.deleted.append(track_view(self.state, j, stamp, TrackStatus.DELETED, None))
             lifecycle.archive(self.state, j, view, self.params.recovery.exit_horizon_s)
         self._remove({j for j, k in enumerate(keep) if not k})
 
@@ -291,7 +283,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
 
     def _view(self, t: TrackRow, stamp: float) -> TrackView:
         """The view of a track as :attr:`tracks` pictured it."""
-        return row_view(t, stamp, self._ukf, self.params.posture is not None)
+        return row_view(t, stamp, self.params.posture is not None)
 
     def forget(self, track_id: int) -> dict[str, int | bool]:
         """Forget a person: their remembered descriptors and classifier go, and a live track

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
 
 from common.geometry.occupancy import ObstacleMap
 from services.tracker.core.classifier import ClassifierParams
@@ -23,11 +22,7 @@ class RobustParams:
     each one does). Their ranges are checked where they are read, services/tracker/profiles.py's
     RobustConfig (the only builder outside the tests)."""
 
-    #: "cv": constant-velocity Kalman filter; "ukf": unscented filter, coordinated turn (Basso/Munaro)
-    motion: Literal["cv", "ukf"] = "cv"
     q_accel: float = 3.0  # m^2/s^3, white acceleration on x and y
-    q_turn: float = 0.01  # rad^2/s^3, random walk of the turn rate ("ukf")
-    sigma0_turn: float = 0.5  # rad/s, a new track's turn-rate std ("ukf")
     q_z: float = 0.05  # m^2/s, random walk of z
     sigma0_position: float = 0.3  # m, a new track's position std
     sigma0_velocity: float = 2.0  # m/s, a new track's velocity std (people walk at ~1.4 m/s; the frame may move)

@@ -1,5 +1,5 @@
 """TrackerConfig: the tracker's settings. Each profile has its section, ``robust:`` and
-``thesis:``, with the core's defaults (:class:`RobustParams`, :class:`TrackerParams`,
+``thesis:``, with the core's defaults (:class:`RobustParams`, :class:`ThesisParams`,
 written there only); the service's settings and the ID memory's are at the top.
 
 Appearance thresholds depend on the embedding model's distance scale, so they live under
@@ -21,7 +21,7 @@ from pydantic import BaseModel, ConfigDict, field_validator, model_validator
 
 from common.runtime.settings import setting
 
-from services.tracker.core import AppearanceModel, ScoreModel, TrackerCore, TrackerParams
+from services.tracker.core import AppearanceModel, ScoreModel, TrackerCore, ThesisParams
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.profiles import ClassifierConfig, PostureConfig, RobustConfig, ScoreConfig, ThesisConfig
 
@@ -85,7 +85,7 @@ def _default_appearance() -> dict[str, AppearanceConfig]:
 
 #: The core's defaults: every default below that the core also has is taken from here,
 #: so it is written once, in the core (tests/unit/test_config_defaults.py checks they agree).
-_D = TrackerParams()
+_D = ThesisParams()
 
 #: The thesis profile's settings that used to sit at the top of the tracker's settings.
 _OLD_THESIS_KEYS = tuple(ThesisConfig.model_fields)

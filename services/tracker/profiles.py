@@ -2,7 +2,7 @@
 ``robust:`` (:class:`RobustConfig`, its cues' sections in :mod:`services.tracker.cue_settings`)
 and ``thesis:`` (:class:`ThesisConfig`), each setting declared once with
 :func:`~common.runtime.settings.setting` and its default read from the core (:class:`RobustParams`,
-:class:`TrackerParams`; tests/unit/test_config_defaults.py checks they agree), each building its core."""
+:class:`ThesisParams`; tests/unit/test_config_defaults.py checks they agree), each building its core."""
 
 from __future__ import annotations
 
@@ -18,9 +18,9 @@ from services.tracker.core import (
     RobustParams,
     RobustTracker,
     ScoreModel,
-    Tracker,
+    ThesisTracker,
     TrackerCore,
-    TrackerParams,
+    ThesisParams,
 )
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.cue_settings import (
@@ -35,7 +35,7 @@ from services.tracker.cue_settings import (
 __all__ = ["ClassifierConfig", "PostureConfig", "RecoveryConfig", "RobustConfig", "ScoreConfig", "StaticMapConfig",
            "StatureConfig", "ThesisConfig"]
 
-_D = TrackerParams()
+_D = ThesisParams()
 _R = RobustParams()
 
 
@@ -170,14 +170,14 @@ class ThesisConfig(BaseModel):
             raise ValueError(f"every standard deviation must be positive, got {v}")
         return v
 
-    def params(self, appearance: AppearanceModel | None, memory_size: int) -> TrackerParams:
+    def params(self, appearance: AppearanceModel | None, memory_size: int) -> ThesisParams:
         """The core's parameters; ``appearance`` None means position-only association.
 
         ``gate`` and ``t_recover`` come from the embedding model's thresholds, not from the
         core's defaults (the core's ``t_recover`` 400 is TriNet's): position-only, there is
         no gate and ``t_recover`` is 0 (unused: no descriptor is ever compared).
         """
-        params = TrackerParams(
+        params = ThesisParams(
             sigma0=self.sigma0, sigma_q=self.sigma_q, sigma_r=self.sigma_r, gate=None, t_recover=0.0,
             n_init=self.n_init, max_misses=self.max_misses, time_step=self.time_step,
             frame_period_s=self.frame_period_s, gallery_size=self.gallery_size, memory_size=memory_size,
@@ -190,7 +190,7 @@ class ThesisConfig(BaseModel):
         return dataclasses.replace(params, gate=gate, t_recover=appearance.t_recover)
 
     def build(self, appearance: AppearanceModel | None, memory: IdentityMemory | None, memory_size: int) -> TrackerCore:
-        return Tracker(self.params(appearance, memory_size), memory)
+        return ThesisTracker(self.params(appearance, memory_size), memory)
 
     def score_models(self) -> dict[str, ScoreModel]:
         """The thesis reads no detector scores."""

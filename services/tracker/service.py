@@ -14,7 +14,7 @@ The service wires four parts around the core (:class:`~services.tracker.core.Tra
 * **Pacing** (:mod:`services.tracker.pacing`): the tracker's output (the Confirmed tracks,
   and with the robust profile tracks coasting through a short miss) is published once per
   frame or at a fixed rate.
-* **The ID registry** (:mod:`services.tracker.registry`): ``keys.track_query()`` answers
+* **The ID ledger** (:mod:`services.tracker.ledger`): ``keys.track_query()`` answers
   ``?id=K`` with that ID's last known state; forgetting, retention, and the ID memory's
   file, loaded at start and written atomically when it changes, every
   ``memory_save_period_s`` with the live tracks' galleries, and at shutdown.
@@ -51,7 +51,7 @@ from services.tracker.core.view import FieldOfView, Views
 from services.tracker.intake import Frame, Intake
 from services.tracker.memory_file import descriptor_dim, load_memory, read_classifiers, read_recovery, shift_recovery
 from services.tracker.pacing import Pacing
-from services.tracker.registry import IdRegistry
+from services.tracker.ledger import IdLedger
 from services.tracker.reorder import InputKey, ReorderBuffer
 
 __all__ = ["TrackerService", "load_memory"]
@@ -99,7 +99,7 @@ class TrackerService(Node):
             apply=self._update, snapshot=self.tracker.snapshot, restore=self.tracker.restore,
             window_ns=int(config.reorder_window_s * 1e9))
         self.pacing: Pacing[Frame] = Pacing(config.output_rate_hz)
-        self.registry = IdRegistry(config, self.tracker, self.counters, self._log, self._lock, self.buffer.rebase,
+        self.ledger = IdLedger(config, self.tracker, self.counters, self._log, self._lock, self.buffer.rebase,
                                    lambda: self.model or "", clock, wall_clock)
         sm = config.robust.static_map
         self.map_sub = self.io.subscribe(keys.static_map(), StaticMap, MAPS) if sm.path is None and sm.topic else None
@@ -109,17 +109,17 @@ class TrackerService(Node):
         self.emb_sub = self.io.subscribe(keys.embeddings(config.camera), Embeddings, RELIABLE)
         self.publisher = self.io.publisher(keys.tracks(), Tracks, RELIABLE)
         self.decisions_pub = self.io.publisher(keys.id_decisions(), IdDecisions, RELIABLE)
-        self.io.serve(keys.track_query(), self.registry.answer_query)
+        self.io.serve(keys.track_query(), self.ledger.answer_query)
         self.io.serve(keys.forget_query(), self._answer_forget)
 
     @property
     def wall_clock(self) -> Callable[[], float]:
         """The wall clock of the last-seen times (retention)."""
-        return self.registry.wall_clock
+        return self.ledger.wall_clock
 
     @wall_clock.setter
     def wall_clock(self, clock: Callable[[], float]) -> None:
-        self.registry.wall_clock = clock
+        self.ledger.wall_clock = clock
 
     @property
     def model(self) -> str | None:
@@ -216,7 +216,7 @@ class TrackerService(Node):
         self.pacing.restart()
         self.intake.restart()
         self._epoch_ns = None
-        self.registry.ended(ended)
+        self.ledger.ended(ended)
         self.counters.count("clock_jumps")
         self._log.warning("clock_jump", "stamps of %r went back %.1f s, more than clock_jump_s (%.1f s): a new clock "
                           "(a replay that loops?); ended tracks %s, their IDs are remembered", source, back_ns / 1e9,
@@ -243,7 +243,7 @@ class TrackerService(Node):
         if result.births_blocked:  # confident detections on the static map's obstacles: no track born
             self.counters.count("births_on_obstacles", result.births_blocked)
         self._report_decisions(result, frame.loc.header)
-        self.registry.record(result, self._epoch_ns)
+        self.ledger.record(result, self._epoch_ns)
         return result
 
     def _report_decisions(self, result: FrameResult, header: Header) -> None:
@@ -288,8 +288,8 @@ class TrackerService(Node):
             published = self._drain(now)
             published += self._apply_ready(now)
             published += self._tick(now)
-            self.registry.expire(now)
-            self.registry.persist(now)
+            self.ledger.expire(now)
+            self.ledger.persist(now)
         return published
 
     def _apply_ready(self, now: float) -> list[Tracks]:
@@ -346,16 +346,16 @@ class TrackerService(Node):
 
     # ------------------------------------------------------------- forgetting
     def forget(self, track_id: int | None) -> ForgetReply:
-        """Forget one person (``track_id``) or everyone (None) (:meth:`IdRegistry.forget`)."""
-        return self.registry.forget(track_id)
+        """Forget one person (``track_id``) or everyone (None) (:meth:`IdLedger.forget`)."""
+        return self.ledger.forget(track_id)
 
     def _answer_forget(self, key: str, params: dict[str, str]) -> list[ForgetReply]:
-        return self.registry.answer_forget(key, params)
+        return self.ledger.answer_forget(key, params)
 
     # -------------------------------------------------------------------- end
     def close(self) -> None:
         """Write the ID memory with the live tracks' galleries, then undeclare (call once at shutdown)."""
         try:
-            self.registry.persist(self.clock(), force=True)
+            self.ledger.persist(self.clock(), force=True)
         finally:
             super().close()

@@ -10,7 +10,7 @@ from common.messages.schemas import TrackState
 from services.tracker.convert import track_state
 from services.tracker.core import posture as pose
 from services.tracker.core.robust import RobustParams, RobustTracker
-from services.tracker.core.tracker import Tracker, TrackerParams
+from services.tracker.core.thesis import ThesisTracker, ThesisParams
 from services.tracker.core.types import FrameInput
 
 
@@ -56,7 +56,7 @@ def test_without_boxes_or_with_the_thesis_the_posture_stays_unknown() -> None:
     for t in np.arange(0.0, 1.0, 0.1):
         trk.step(float(t), FrameInput.of(np.array([[0.0, 0.0, 1.1]])))
     np.testing.assert_allclose(trk.tracks[0].posture, pose.uniform(3))
-    thesis = Tracker(TrackerParams())
+    thesis = ThesisTracker(ThesisParams())
     r = thesis.step(0.0, FrameInput.of(np.array([[0.0, 0.0, 1.1]]), aspects=np.array([2.7])))
     assert r.tracks[0].posture is None
     state = track_state(r.tracks[0], False)

@@ -59,5 +59,5 @@ def test_a_stranger_does_not_inherit_a_remembered_id_and_an_undone_recovery_is_c
     given = [tr.id for m in out for tr in m.tracks]
     assert given[0] == p0 and rig.extra["ids_recovered"] == 1  # recovered at first ...
     assert rig.extra["ids_recovery_undone"] == 1 and given[-1] not in (p0, p1, stranger)  # ... and taken back
-    assert rig.service.registry._last_state[p0].status == "deleted"  # the remembered ID is not live any more
+    assert rig.service.ledger._last_state[p0].status == "deleted"  # the remembered ID is not live any more
     assert p0 in rig.service.tracker.memory

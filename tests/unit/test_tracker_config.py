@@ -11,7 +11,7 @@ import pytest
 
 from common.runtime.config import ConfigError, load_config
 from services.tracker.config import ThesisConfig, TrackerConfig
-from services.tracker.core import RobustTracker, Tracker, TrackerCore
+from services.tracker.core import RobustTracker, ThesisTracker, TrackerCore
 from services.tracker.core.types import FrameInput, KeptMemory
 
 
@@ -23,7 +23,7 @@ def test_each_profile_has_its_section_and_each_setting_is_written_once() -> None
         assert name in ThesisConfig.model_fields, name
     cfg = TrackerConfig(memory_path=None, profile="thesis", thesis={"n_init": 5, "gallery_size": 7})
     tracker = cfg.build_tracker(cfg.thresholds("colour"))
-    assert isinstance(tracker, Tracker) and (tracker.params.n_init, tracker.params.gallery_size) == (5, 7)
+    assert isinstance(tracker, ThesisTracker) and (tracker.params.n_init, tracker.params.gallery_size) == (5, 7)
     assert tracker.params.gate is not None and tracker.params.gate.s_max == cfg.thesis.s_max
 
 
@@ -47,7 +47,7 @@ def test_a_bad_old_flat_key_names_its_new_place_and_its_line(tmp_path: Path) -> 
     assert "thesis.frame_period_s" in str(err.value) and "line 3" in str(err.value)
 
 
-@pytest.mark.parametrize("profile, cls", [("robust", RobustTracker), ("thesis", Tracker)])
+@pytest.mark.parametrize("profile, cls", [("robust", RobustTracker), ("thesis", ThesisTracker)])
 def test_both_profiles_are_one_interface(profile: str, cls: type) -> None:
     cfg = TrackerConfig(memory_path=None, profile=profile)
     tracker: TrackerCore = cfg.build_tracker(None)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from perception.cli import main
-from services.tracker.core import AppearanceGate, Tracker, TrackerParams
+from services.tracker.core import AppearanceGate, ThesisTracker, ThesisParams
 from services.tracker.core.recovery import RecoveryParams
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
 from services.tracker.core.types import FrameInput, IdDecision
@@ -102,7 +102,7 @@ def test_the_thesis_profile_explains_algorithm_2_when_the_track_is_confirmed() -
     """Pinto's Algorithm 2 decides at birth (nearest remembered person within t_recover); the
     decision is told once, when the track is confirmed (its ID becomes visible), and survives
     a snapshot and restore (a rewind) as the track does."""
-    trk = Tracker(TrackerParams(gate=AppearanceGate(COLOUR.t_lower, COLOUR.t_upper), t_recover=COLOUR.t_recover,
+    trk = ThesisTracker(ThesisParams(gate=AppearanceGate(COLOUR.t_lower, COLOUR.t_upper), t_recover=COLOUR.t_recover,
                                 n_init=3, max_misses=2))
     told: list[tuple[float, IdDecision]] = []
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from services.tracker.core import AppearanceGate, Tracker, TrackerParams
+from services.tracker.core import AppearanceGate, ThesisTracker, ThesisParams
 from services.tracker.core.types import FrameInput
 from services.tracker.reorder import ReorderBuffer
 
@@ -107,10 +107,10 @@ def test_tracker_result_equals_in_order_processing() -> None:
         pos = np.array([[0.03 * k, 0.0, 1.0], [2.0, -0.02 * k, 1.0]]) + rng.normal(scale=0.01, size=(2, 3))
         desc = (looks + rng.normal(scale=0.01, size=looks.shape)).astype(np.float32)
         frames.append((k * 33 * MS, pos, desc))
-    params = TrackerParams(gate=AppearanceGate(0.25, 0.6), t_recover=0.35)
+    params = ThesisParams(gate=AppearanceGate(0.25, 0.6), t_recover=0.35)
 
-    def run(order: list[int]) -> Tracker:
-        tr = Tracker(params)
+    def run(order: list[int]) -> ThesisTracker:
+        tr = ThesisTracker(params)
         buf = ReorderBuffer(apply=lambda f: tr.step(f[0] / 1e9, FrameInput.of(f[1], f[2])), snapshot=tr.snapshot,
                             restore=tr.restore)
         for k in order:

@@ -8,7 +8,7 @@ import pytest
 
 from services.tracker.config import TrackerConfig
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker, ScoreModel
-from services.tracker.core.tracker import Tracker, TrackStatus
+from services.tracker.core.thesis import ThesisTracker, TrackStatus
 from services.tracker.core.view import FieldOfView
 from services.tracker.core.types import FrameInput
 from tests.helpers.views import camera_looking_along_x, turned_round
@@ -185,7 +185,7 @@ def test_cosine_metric_reads_unit_vectors_as_one_minus_cos() -> None:
 
 def test_profiles_build_their_cores_and_an_unknown_profile_is_refused() -> None:
     assert isinstance(TrackerConfig().build_tracker(None), RobustTracker)
-    assert type(TrackerConfig(profile="thesis").build_tracker(None)) is Tracker
+    assert type(TrackerConfig(profile="thesis").build_tracker(None)) is ThesisTracker
     with pytest.raises(ValueError, match="'robust' or 'thesis'"):
         TrackerConfig.model_validate({"profile": "fast"})
 

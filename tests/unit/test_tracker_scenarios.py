@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from services.tracker.core import AppearanceGate, Tracker, TrackerParams, TrackStatus
+from services.tracker.core import AppearanceGate, ThesisTracker, ThesisParams, TrackStatus
 from services.tracker.core.types import FrameInput
 from services.tracker.memory_file import read_memory, save_memory
 
@@ -15,10 +15,10 @@ FPS = 30.0
 GATE = AppearanceGate(t_lower=0.25, t_upper=0.6, s_max=0.05)
 
 
-def params(**kw: object) -> TrackerParams:
+def params(**kw: object) -> ThesisParams:
     base: dict[str, object] = {"gate": GATE, "t_recover": 0.35, "frame_period_s": 1 / FPS}
     base.update(kw)
-    return TrackerParams(**base)  # type: ignore[arg-type]
+    return ThesisParams(**base)  # type: ignore[arg-type]
 
 
 class People:
@@ -36,7 +36,7 @@ class People:
         return pos, desc.astype(np.float32).reshape(len(who), self.looks.shape[1])
 
 
-def run_single(tracker: Tracker, people: People, frames: list[bool], start: float = 0.0) -> list:
+def run_single(tracker: ThesisTracker, people: People, frames: list[bool], start: float = 0.0) -> list:
     """Person 0 standing at (2, 0, 1); ``frames[k]`` says whether it is detected in frame k."""
     results = []
     for k, seen in enumerate(frames):
@@ -46,7 +46,7 @@ def run_single(tracker: Tracker, people: People, frames: list[bool], start: floa
 
 
 def test_life_cycle_tentative_confirmed_and_back() -> None:
-    tr, people = Tracker(params()), People(1)
+    tr, people = ThesisTracker(params()), People(1)
     res = run_single(tr, people, [True, True, True, False, True, True, True])
     statuses = [r.tracks[0].status for r in res]
     assert statuses == [TrackStatus.TENTATIVE, TrackStatus.TENTATIVE, TrackStatus.CONFIRMED,
@@ -57,7 +57,7 @@ def test_life_cycle_tentative_confirmed_and_back() -> None:
 
 
 def test_tentative_is_deleted_after_five_misses_and_archived() -> None:
-    tr, people = Tracker(params()), People(1)
+    tr, people = ThesisTracker(params()), People(1)
     res = run_single(tr, people, [True, True] + [False] * 5)
     assert [len(r.tracks) for r in res] == [1, 1, 1, 1, 1, 1, 0]
     assert [t.id for t in res[-1].deleted] == [1]
@@ -66,7 +66,7 @@ def test_tentative_is_deleted_after_five_misses_and_archived() -> None:
 
 
 def test_false_positive_never_confirmed() -> None:
-    tr, people = Tracker(params()), People(2)
+    tr, people = ThesisTracker(params()), People(2)
     outputs = []
     for k in range(10):
         who, where = [0], [(2.0, 0.0, 1.0)]
@@ -78,7 +78,7 @@ def test_false_positive_never_confirmed() -> None:
 
 
 def test_occlusion_of_four_frames_keeps_the_track() -> None:
-    tr, people = Tracker(params()), People(1)
+    tr, people = ThesisTracker(params()), People(1)
     res = run_single(tr, people, [True] * 5 + [False] * 4 + [True] * 4)
     assert all(len(r.tracks) == 1 for r in res)
     assert not any(r.deleted for r in res) and not any(r.new_ids for r in res[1:])
@@ -86,7 +86,7 @@ def test_occlusion_of_four_frames_keeps_the_track() -> None:
 
 
 def test_occlusion_of_six_frames_deletes_then_recovers_id() -> None:
-    tr, people = Tracker(params()), People(1)
+    tr, people = ThesisTracker(params()), People(1)
     res = run_single(tr, people, [True] * 5 + [False] * 6 + [True] * 4)
     assert [t.id for t in res[9].deleted] == [1]  # 5th missed frame
     back = res[11]
@@ -96,7 +96,7 @@ def test_occlusion_of_six_frames_deletes_then_recovers_id() -> None:
 
 
 def test_same_person_returns_with_old_id_different_person_does_not() -> None:
-    tr, people = Tracker(params()), People(3)
+    tr, people = ThesisTracker(params()), People(3)
     t = 0.0
 
     def show(who: int, n: int, where: tuple[float, float, float]) -> list:
@@ -127,7 +127,7 @@ def test_same_person_returns_with_old_id_different_person_does_not() -> None:
 
 @pytest.mark.parametrize("time_step", ["time", "frame"])
 def test_two_people_crossing_keep_their_ids(time_step: str) -> None:
-    tr, people = Tracker(params(time_step=time_step)), People(2, seed=5)
+    tr, people = ThesisTracker(params(time_step=time_step)), People(2, seed=5)
     n = 60
     ids_by_person: dict[int, set[int]] = {0: set(), 1: set()}
     for k in range(n):
@@ -142,7 +142,7 @@ def test_two_people_crossing_keep_their_ids(time_step: str) -> None:
 
 
 def test_position_only_mode_tracks_and_leaves_memory_untouched() -> None:
-    tr, people = Tracker(params()), People(2)
+    tr, people = ThesisTracker(params()), People(2)
     for k in range(5):
         pos, desc = people.observe([0], [(2.0 + 0.03 * k, 0.0, 1.0)])
         tr.step(k / FPS, FrameInput.of(pos, desc))
@@ -170,13 +170,13 @@ def test_position_only_mode_tracks_and_leaves_memory_untouched() -> None:
 
 
 def test_without_thresholds_every_frame_is_position_only() -> None:
-    tr, people = Tracker(params(gate=None)), People(1)
+    tr, people = ThesisTracker(params(gate=None)), People(1)
     pos, desc = people.observe([0], [(0.0, 0.0, 1.0)])
     assert not tr.step(0.0, FrameInput.of(pos, desc)).appearance_available
 
 
 def test_time_mode_counts_dropped_frames_as_elapsed_misses() -> None:
-    tr, people = Tracker(params()), People(1)
+    tr, people = ThesisTracker(params()), People(1)
     run_single(tr, people, [True] * 3)
     t0 = 2 / FPS
     res = tr.step(t0 + 3 / FPS, FrameInput.of(np.zeros((0, 3)), np.zeros((0, 32), np.float32)))  # frames dropped upstream
@@ -186,14 +186,14 @@ def test_time_mode_counts_dropped_frames_as_elapsed_misses() -> None:
 
 
 def test_frame_mode_ignores_gaps() -> None:
-    tr, people = Tracker(params(time_step="frame")), People(1)
+    tr, people = ThesisTracker(params(time_step="frame")), People(1)
     run_single(tr, people, [True] * 3)
     res = tr.step(10.0, FrameInput.of(np.zeros((0, 3)), np.zeros((0, 32), np.float32)))
     assert res.tracks[0].misses == 1
 
 
 def test_time_mode_process_noise_grows_with_gap() -> None:
-    a, b = Tracker(params()), Tracker(params())
+    a, b = ThesisTracker(params()), ThesisTracker(params())
     people = People(1)
     pos, desc = people.observe([0], [(0.0, 0.0, 1.0)])
     a.step(0.0, FrameInput.of(pos, desc))
@@ -205,7 +205,7 @@ def test_time_mode_process_noise_grows_with_gap() -> None:
 
 
 def test_out_of_order_stamp_is_refused() -> None:
-    tr = Tracker(params())
+    tr = ThesisTracker(params())
     tr.step(1.0, FrameInput.of(np.zeros((0, 3))))
     with pytest.raises(ValueError, match="in order"):
         tr.step(0.5, FrameInput.of(np.zeros((0, 3))))
@@ -214,7 +214,7 @@ def test_out_of_order_stamp_is_refused() -> None:
 def test_snapshot_restore_replays_identically() -> None:
     people = People(2, seed=9)
     frames = [people.observe([0, 1], [(0.1 * k, 0.0, 1.0), (3.0, 0.1 * k, 1.0)]) for k in range(40)]
-    tr = Tracker(params(gallery_size=10))
+    tr = ThesisTracker(params(gallery_size=10))
     for k in range(20):
         tr.step(k / FPS, FrameInput.of(*frames[k]))
     snap = tr.snapshot()
@@ -229,17 +229,17 @@ def test_snapshot_restore_replays_identically() -> None:
 
 def test_memory_round_trip_gives_same_ids_after_restart(tmp_path) -> None:
     people = People(1)
-    tr = Tracker(params())
+    tr = ThesisTracker(params())
     run_single(tr, people, [True] * 5)
     save_memory(tmp_path / "m.npz", tr.memory, "colour", extra=tr.export_memory().live_galleries)
     memory, _ = read_memory(tmp_path / "m.npz")
-    restarted = Tracker(params(), memory)
+    restarted = ThesisTracker(params(), memory)
     res = run_single(restarted, people, [True] * 3, start=100.0)
     assert res[0].recovered_ids == [1] and [t.id for t in res[-1].confirmed] == [1]
 
 
 def test_time_mode_estimates_velocity_in_metres_per_second_across_irregular_gaps() -> None:
-    tr = Tracker(params())
+    tr = ThesisTracker(params())
     rng = np.random.default_rng(2)
     stamps = np.cumsum(rng.choice([1 / FPS, 2 / FPS, 3 / FPS], size=60))  # frames dropped at random
     ids = set()

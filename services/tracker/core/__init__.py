@@ -8,7 +8,7 @@ from services.tracker.core.gallery import Gallery
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.protocol import TrackerCore
 from services.tracker.core.robust import RobustParams, RobustTracker
-from services.tracker.core.tracker import Track, Tracker, TrackerParams
+from services.tracker.core.thesis import ThesisTrack, ThesisTracker, ThesisParams
 from services.tracker.core.types import (
     AppearanceModel,
     FrameInput,
@@ -28,11 +28,11 @@ __all__ = [
     "RobustParams",
     "RobustTracker",
     "ScoreModel",
-    "Track",
+    "ThesisTrack",
     "TrackStatus",
     "TrackView",
-    "Tracker",
+    "ThesisTracker",
     "TrackerCore",
-    "TrackerParams",
+    "ThesisParams",
     "match",
 ]

@@ -1,6 +1,6 @@
 """The one interface of a tracker core: what the service, ``perception track``, the config
 and the benchmarks may ask of either profile (the thesis's
-:class:`~services.tracker.core.tracker.Tracker`, the robust
+:class:`~services.tracker.core.thesis.Tracker`, the robust
 :class:`~services.tracker.core.robust.RobustTracker`), so nothing outside the core needs
 to tell them apart. Each profile implements every member; none is optional.
 

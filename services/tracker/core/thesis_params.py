@@ -8,7 +8,7 @@ from typing import Literal
 
 from services.tracker.core.association import AppearanceGate
 
-__all__ = ["TrackerParams"]
+__all__ = ["ThesisParams"]
 
 _F6 = tuple[float, float, float, float, float, float]
 _F3 = tuple[float, float, float]
@@ -17,7 +17,7 @@ _S_MAX = next(f.default for f in fields(AppearanceGate) if f.name == "s_max")
 
 
 @dataclass(frozen=True)
-class TrackerParams:
+class ThesisParams:
     """Everything the core needs; defaults are the thesis's values (the README's *Settings*). Their
     ranges are checked where they are read, services/tracker/profiles.py's ThesisConfig (the only
     builder outside the tests)."""
@@ -35,5 +35,5 @@ class TrackerParams:
     memory_size: int = 500
     position_gate_probability: float = 0.95
     inf: float = 1e5
-    #: S_max of the gate :meth:`Tracker.set_appearance` builds for a model that names none
+    #: S_max of the gate :meth:`ThesisTracker.set_appearance` builds for a model that names none
     s_max: float = _S_MAX

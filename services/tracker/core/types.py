@@ -1,6 +1,6 @@
 """What every tracker core takes and gives: one frame's input, the tracks it reports, why they
 have their IDs, the embedding model's and the detector's calibrations. Shared by both profiles
-(:mod:`~services.tracker.core.tracker`, :mod:`~services.tracker.core.robust`) and by
+(:mod:`~services.tracker.core.thesis`, :mod:`~services.tracker.core.robust`) and by
 everything that drives them through :class:`~services.tracker.core.protocol.TrackerCore`.
 
 Pure numpy; no I/O.

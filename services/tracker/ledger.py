@@ -26,7 +26,7 @@ from services.tracker.convert import track_state
 from services.tracker.core import FrameResult, TrackerCore, TrackStatus
 from services.tracker.memory_file import read_last_seen, save_memory, shift_recovery
 
-__all__ = ["IdRegistry"]
+__all__ = ["IdLedger"]
 
 log = logging.getLogger("services.tracker.service")
 
@@ -34,7 +34,7 @@ log = logging.getLogger("services.tracker.service")
 _ANSWERED = (TrackStatus.CONFIRMED, TrackStatus.COASTING)
 
 
-class IdRegistry:
+class IdLedger:
     """The query table, last-seen times, forgetting and persistence around ``tracker``.
 
     ``lock``: held while the tracker changes (frames, forget requests from query threads);

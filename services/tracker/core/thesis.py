@@ -1,11 +1,11 @@
 """The multi-person tracker of Pinto's thesis (III-C to III-E): Kalman filters, Algorithm 1,
 the Tentative/Confirmed/Deleted life cycle and Algorithm 2 over an ID memory.
 
-One call of :meth:`Tracker.update` processes one frame: predict every track, associate,
+One call of :meth:`ThesisTracker.step` processes one frame: predict every track, associate,
 update the matched tracks, age the missed ones, start tracks for the unmatched
 detections. Only Confirmed tracks are the tracker's output (:attr:`FrameResult.confirmed`).
 
-Time step (``TrackerParams.time_step``):
+Time step (``ThesisParams.time_step``):
 
 * ``"frame"``: ``dt = 1`` per call and ``Q = diag(sigma_q**2)``, the thesis exactly
   (velocities in metres per frame, each call one frame, gaps ignored).
@@ -41,15 +41,15 @@ from services.tracker.core.gallery import Gallery
 from services.tracker.core.id_decisions import nearest
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.protocol import TrackerCore
-from services.tracker.core.thesis_params import TrackerParams
+from services.tracker.core.thesis_params import ThesisParams
 from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, IdDecision, KeptMemory, TrackStatus
 from services.tracker.core.types import TrackView
 
-__all__ = ["FrameResult", "Track", "TrackStatus", "TrackView", "Tracker", "TrackerParams", "TrackerState"]
+__all__ = ["FrameResult", "ThesisTrack", "TrackStatus", "TrackView", "ThesisTracker", "ThesisParams", "ThesisState"]
 
 
 @dataclass
-class Track:
+class ThesisTrack:
     """One track; ``mean`` (6,) and ``cov`` (6, 6) are the Kalman state."""
 
     id: int
@@ -65,30 +65,30 @@ class Track:
     ever_confirmed: bool = False
     decision: IdDecision | None = None  # why Algorithm 2 gave its ID, told when it is confirmed
 
-    def copy(self) -> Track:
-        return Track(self.id, self.mean.copy(), self.cov.copy(), self.gallery.copy() if self.gallery else None,
+    def copy(self) -> ThesisTrack:
+        return ThesisTrack(self.id, self.mean.copy(), self.cov.copy(), self.gallery.copy() if self.gallery else None,
                      self.first_stamp, self.last_update, self.status, self.hits, self.misses, self.total_hits,
                      self.ever_confirmed, self.decision)
 
 
 @dataclass
-class TrackerState:
-    """A snapshot for rewinding (see :meth:`Tracker.snapshot`)."""
+class ThesisState:
+    """A snapshot for rewinding (see :meth:`ThesisTracker.snapshot`)."""
 
-    tracks: list[Track]
+    tracks: list[ThesisTrack]
     memory: IdentityMemory
     pending: list[tuple[int, Gallery]]
     last_stamp: float | None
 
 
-class Tracker(TrackerCore[TrackerState]):
+class ThesisTracker(TrackerCore[ThesisState]):
     """The thesis's tracker. ``params.gate`` None means there are no appearance thresholds:
     every frame is then associated position-only."""
 
-    def __init__(self, params: TrackerParams, memory: IdentityMemory | None = None) -> None:
+    def __init__(self, params: ThesisParams, memory: IdentityMemory | None = None) -> None:
         self.params = params
         self.memory = memory if memory is not None else IdentityMemory(params.memory_size)
-        self.tracks: list[Track] = []
+        self.tracks: list[ThesisTrack] = []
         self.last_stamp: float | None = None
         self._pending: list[tuple[int, Gallery]] = []  # galleries of tracks deleted in position-only frames
         self._forgotten: set[int] = set()  # IDs of live tracks whose person was forgotten
@@ -225,14 +225,14 @@ class Tracker(TrackerCore[TrackerState]):
             self.tracks = [t for i, t in enumerate(self.tracks) if i not in deleted_idx]
         return deleted
 
-    def _miss(self, t: Track, frames: int) -> None:
+    def _miss(self, t: ThesisTrack, frames: int) -> None:
         t.hits = 0
         t.misses += frames
         t.status = TrackStatus.TENTATIVE
         if t.misses >= self.params.max_misses:
             t.status = TrackStatus.DELETED
 
-    def _archive(self, t: Track, appearance: bool) -> None:
+    def _archive(self, t: ThesisTrack, appearance: bool) -> None:
         """Give a deleted track's gallery to the ID memory (held back in position-only frames)."""
         if t.id in self._forgotten:
             return
@@ -260,7 +260,7 @@ class Tracker(TrackerCore[TrackerState]):
         exclude = self.live_ids() | {i for i, _ in self._pending}
         track_id, recovered, ids, dist = self.memory.assign_weighed(desc, exclude, p.t_recover)
         mean, cov = kalman.initiate(position, np.asarray(p.sigma0))
-        t = Track(track_id, mean, cov, None, stamp, stamp)
+        t = ThesisTrack(track_id, mean, cov, None, stamp, stamp)
         if len(ids):  # Algorithm 2 weighed remembered people: why, reported once the track is confirmed
             t.decision = nearest(stamp, float(mean[0]), float(mean[1]), track_id, recovered, ids, dist, p.t_recover,
                                  p.gate)
@@ -271,7 +271,7 @@ class Tracker(TrackerCore[TrackerState]):
         self.tracks.append(t)
         return track_id, recovered
 
-    def _hit(self, t: Track, mean: np.ndarray, cov: np.ndarray, stamp: float) -> None:
+    def _hit(self, t: ThesisTrack, mean: np.ndarray, cov: np.ndarray, stamp: float) -> None:
         t.mean, t.cov = mean, cov
         t.hits += 1
         t.total_hits += 1
@@ -280,7 +280,7 @@ class Tracker(TrackerCore[TrackerState]):
         if t.status is TrackStatus.TENTATIVE and t.hits >= self.params.n_init:
             t.status, t.ever_confirmed = TrackStatus.CONFIRMED, True
 
-    def _add_descriptor(self, t: Track, desc: np.ndarray) -> None:
+    def _add_descriptor(self, t: ThesisTrack, desc: np.ndarray) -> None:
         if t.id in self._forgotten:
             return
         if t.gallery is None:
@@ -293,12 +293,12 @@ class Tracker(TrackerCore[TrackerState]):
         self._pending.clear()
 
     # ---------------------------------------------------------------- snapshots
-    def snapshot(self) -> TrackerState:
+    def snapshot(self) -> ThesisState:
         """The whole state, for :meth:`restore`; galleries are shared copy-on-write."""
-        return TrackerState([t.copy() for t in self.tracks], self.memory.copy(),
+        return ThesisState([t.copy() for t in self.tracks], self.memory.copy(),
                             [(i, g.copy()) for i, g in self._pending], self.last_stamp)
 
-    def restore(self, state: TrackerState) -> None:
+    def restore(self, state: ThesisState) -> None:
         """Go back to ``state`` (which stays valid for another restore)."""
         self.tracks = [t.copy() for t in state.tracks]
         self.memory = state.memory.copy()
@@ -361,7 +361,7 @@ class Tracker(TrackerCore[TrackerState]):
         return None
 
 
-def _view(t: Track, stamp: float) -> TrackView:
+def _view(t: ThesisTrack, stamp: float) -> TrackView:
     return TrackView(t.id, t.status, t.mean.copy(), t.cov.copy(), t.total_hits, t.misses,
                      max(0.0, stamp - t.first_stamp), t.last_update, len(t.gallery) if t.gallery else 0,
                      t.ever_confirmed)

@@ -22,7 +22,7 @@ class SimulatorConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     scenario: str = setting("still", "the scenario to play (perception simulate --list)")
-    seed: int = setting(0, "same seed, same run: people, clothes, odometry errors, noise", ge=0)
+    seed: int = setting(0, "random seed: same seed, same run (people, clothes, odometry errors, noise)", ge=0)
     fps: float = setting(15.0, "camera frames per simulated second", unit="Hz", gt=0.0, le=120.0)
     width: int = setting(640, "image width", unit="px", ge=16, le=4096)
     height: int = setting(480, "image height", unit="px", ge=16, le=4096)

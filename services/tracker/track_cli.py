@@ -14,10 +14,10 @@ from common.runtime.cli_util import CliError, check_input_file
 from common.runtime.config import ConfigError, read_config_file
 from common.runtime.node import load_node_config
 from services.tracker import flags
-from services.tracker.config import DEFAULT_EMBEDDING_MODEL, PROFILES, TrackerConfig
+from services.tracker.config import DEFAULT_EMBEDDING_MODEL, PROFILES, AppearanceConfig, TrackerConfig
 from services.tracker.core.types import FrameResult
 from services.tracker.core.view import FloorView
-from services.tracker.offline import FormatError, read_detections, track, write_tracks
+from services.tracker.offline import Detections, FormatError, Row, read_detections, track, write_tracks
 
 log = logging.getLogger(__name__)
 
@@ -93,6 +93,42 @@ def floor_view(path: Path) -> FloorView:
         raise CliError(f"floor homography {path}: {exc}") from exc
 
 
+def _detections(path: Path) -> Detections:
+    check_input_file(path, "expected a detections CSV file: frame,stamp,x,y,z,score[,e0,e1,...]")
+    try:
+        return read_detections(path)
+    except FormatError as exc:
+        raise CliError(str(exc)) from exc
+
+
+def _thresholds(config: TrackerConfig, dets: Detections, model: str) -> AppearanceConfig | None:
+    """The appearance thresholds of ``model`` when the detections have descriptors (CliError: none
+    configured), else None: position-only."""
+    if dets.descriptors is None:
+        log.info("no embedding columns: tracking position-only")
+        return None
+    thresholds = config.thresholds(model)
+    if thresholds is None:
+        known = ", ".join(sorted(config.appearance)) or "none"
+        raise CliError(f"no appearance thresholds for embedding model {model!r} (configured: {known}); "
+                       f"add t_lower, t_upper and t_recover under appearance.{model} in --service-config FILE, "
+                       "or pick another --embedding-model")
+    return thresholds
+
+
+def _write(args: argparse.Namespace, rows: list[Row], decisions: list[dict[str, object]], described: bool) -> None:
+    """The track rows to ``args.output`` and the ID decisions to ``args.id_log`` (CliError: cannot write)."""
+    try:
+        write_tracks(args.output, rows, status=args.status)
+        if args.id_log is not None:
+            args.id_log.write_text("".join(json.dumps(d) + "\n" for d in decisions))
+    except OSError as exc:
+        raise CliError(f"cannot write {exc.filename or args.output}: {exc.strerror or exc}") from exc
+    if args.id_log is not None:
+        log.info("%d ID decisions -> %s%s", len(decisions), args.id_log,
+                 "" if described else " (none: IDs are decided from descriptors, and there are none)")
+
+
 def main(args: argparse.Namespace) -> int:
     if args.old_config is not None:
         raise CliError(f"--config is the Zenoh config file in every command; "
@@ -101,22 +137,8 @@ def main(args: argparse.Namespace) -> int:
         "profile": args.profile, "thesis": {"time_step": args.time_step},
         "robust": {"scores": {"birth_score": args.birth_score}, "static_map": {"path": args.static_map}}},
         base=flags.preset(args))
-    check_input_file(args.detections, "expected a detections CSV file: frame,stamp,x,y,z,score[,e0,e1,...]")
-    try:
-        dets = read_detections(args.detections)
-    except FormatError as exc:
-        raise CliError(str(exc)) from exc
-    thresholds = None
-    if dets.descriptors is not None:
-        thresholds = config.thresholds(args.embedding_model)
-        if thresholds is None:
-            known = ", ".join(sorted(config.appearance)) or "none"
-            raise CliError(
-                f"no appearance thresholds for embedding model {args.embedding_model!r} (configured: {known}); "
-                f"add t_lower, t_upper and t_recover under appearance.{args.embedding_model} in --service-config FILE, "
-                "or pick another --embedding-model")
-    else:
-        log.info("no embedding columns: tracking position-only")
+    dets = _detections(args.detections)
+    thresholds = _thresholds(config, dets, args.embedding_model)
     view = floor_view(args.floor_view) if args.floor_view is not None else None
     decisions: list[dict[str, object]] = []
 
@@ -127,16 +149,7 @@ def main(args: argparse.Namespace) -> int:
     rows = track(dets, config.build_tracker(thresholds), show_progress=True, view=view,
                  on_result=keep_decisions if args.id_log is not None else None)
     elapsed = time.perf_counter() - start
-    try:
-        write_tracks(args.output, rows, status=args.status)
-        if args.id_log is not None:
-            args.id_log.write_text("".join(json.dumps(d) + "\n" for d in decisions))
-    except OSError as exc:
-        raise CliError(f"cannot write {exc.filename or args.output}: {exc.strerror or exc}") from exc
-    if args.id_log is not None:
-        log.info("%d ID decisions -> %s%s", len(decisions), args.id_log,
-                 "" if dets.descriptors is not None
-                 else " (none: IDs are decided from descriptors, and there are none)")
+    _write(args, rows, decisions, dets.descriptors is not None)
     n_frames = int(dets.frames[-1] - dets.frames[0] + 1) if len(dets.frames) else 0
     log.info("%d frames, %d detections -> %d track rows in %.2f s (%.0f frames/s)", n_frames, len(dets.frames),
              len(rows), elapsed, n_frames / elapsed if elapsed > 0 else float("inf"))

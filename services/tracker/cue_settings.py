@@ -13,10 +13,10 @@ from common.geometry.map_file import MapFileError, load_obstacles
 from common.geometry.occupancy import ObstacleMap
 from common.runtime.settings import setting
 from services.tracker.core import RobustParams, ScoreModel
-from services.tracker.core.classifier import ClassifierParams
-from services.tracker.core.posture import PostureParams
+from services.tracker.core.cues.classifier import ClassifierParams
+from services.tracker.core.cues.posture import PostureParams
 from services.tracker.core.recovery import RecoveryParams
-from services.tracker.core.stature import StatureParams
+from services.tracker.core.cues.stature import StatureParams
 
 __all__ = ["ClassifierConfig", "PostureConfig", "RecoveryConfig", "ScoreConfig", "StaticMapConfig", "StatureConfig"]
 
@@ -176,14 +176,8 @@ class RecoveryConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    p_new: float | None = setting(_RE.p_new, "prior that a newly confirmed person is someone new; none: estimated "
-                                  "online from the recent contested confirmations", gt=0.0, lt=1.0, advanced=True)
-    prior_window: float = setting(_RE.prior_window, "how many recent contested confirmations the online estimate "
-                                  "counts", ge=1.0, advanced=True)
-    prior_new: float = setting(_RE.prior_new, "the online estimate's Beta prior: new, in pseudo-confirmations",
-                               gt=0.0, advanced=True)
-    prior_returned: float = setting(_RE.prior_returned, "the online estimate's Beta prior: returning, in "
-                                    "pseudo-confirmations", gt=0.0, advanced=True)
+    p_new: float = setting(_RE.p_new, "prior that a newly confirmed person is someone new", gt=0.0, lt=1.0,
+                           advanced=True)
     p_recover: float = setting(_RE.p_recover, "posterior a remembered person needs to get their ID back", gt=0.0,
                                lt=1.0, advanced=True)
     p_undo: float = setting(_RE.p_undo, "during the check after a recovery, a recovery whose posterior falls below "

@@ -27,7 +27,7 @@ from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import descriptors_for, field_of_view, orientations_for, positions_of
 from services.tracker.core import FrameInput
 from services.tracker.core.cues import usable_covariances
-from services.tracker.core.posture import codes as posture_codes
+from services.tracker.core.cues.posture import codes as posture_codes
 from services.tracker.core.view import FieldOfView, FloorView, View, Views
 from services.tracker.reorder import ClockJumps, InputKey
 

@@ -4,7 +4,7 @@ Layout (version :data:`FORMAT_VERSION`): ``format_version``, ``model`` (the embe
 model's name), ``next_id``, ``capacity``, then the memory's blocks as
 :meth:`IdentityMemory.to_blocks` gives them: ``ids`` (K,), ``counts`` (K,) and
 ``descriptors`` (sum of counts, D) float32. Optionally (the robust profile's online
-classifiers, :mod:`services.tracker.core.classifier`): ``classifier_ids`` (C,) and
+classifiers, :mod:`services.tracker.core.cues.classifier`): ``classifier_ids`` (C,) and
 ``classifiers`` (C, D + 1) float64; a file without them reads as no classifiers. And
 ``seen_ids`` (S,), ``seen_at`` (S,) float64: when each ID was last seen (Unix time, for
 the retention). And the robust profile's open-set recovery (core/recovery.py), the arrays

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from services.tracker.config import TrackerConfig
-from services.tracker.core import classifier as clf
-from services.tracker.core.classifier import ClassifierParams
+from services.tracker.core.cues import classifier as clf
+from services.tracker.core.cues.classifier import ClassifierParams
 from services.tracker.core.recovery import RecoveryParams
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
 from services.tracker.core.types import FrameInput

@@ -8,7 +8,7 @@ import pytest
 
 from common.messages.schemas import TrackState
 from services.tracker.convert import track_state
-from services.tracker.core import posture as pose
+from services.tracker.core.cues import posture as pose
 from services.tracker.core.robust import RobustParams, RobustTracker
 from services.tracker.core.thesis import ThesisTracker, ThesisParams
 from services.tracker.core.types import FrameInput

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from services.tracker.core import recovery as rec
-from services.tracker.core.recovery import Decision, Departure, RecoveryParams, RecoveryState
+from services.tracker.core.recovery import Departure, RecoveryParams, RecoveryState
 
 P = RecoveryParams()
 
@@ -85,37 +85,11 @@ def test_the_stranger_log_odds_come_from_the_people_in_view() -> None:
     assert rec.decide(np.array([2.5]), np.ones(1, bool), 0.5, P, new_llr=crowd).index is None
 
 
-def test_p_new_follows_the_contested_confirmations_and_stays_bounded() -> None:
-    online = RecoveryParams(p_new=None)
-    fixed = RecoveryParams(p_new=0.2)
-    state = RecoveryState()
-    assert state.p_new(online) == 0.5 and state.p_new(fixed) == 0.2
-    for _ in range(200):  # a crowd of strangers, each weighed against someone remembered
-        state.count(Decision(None, 0.0, 1.0, contested=True), online)
-    assert 0.9 < state.p_new(online) <= (online.prior_window + 1) / (online.prior_window + 2) + 1e-9
-    for _ in range(200):  # then a home whose few people come and go
-        state.count(Decision(0, 1.0, 0.0, contested=True), online)
-    assert 1 / (online.prior_window + 2) - 1e-9 <= state.p_new(online) < 0.1
-    before = state.p_new(online)
-    state.revise(0.9)  # a recovery undone counts as someone new after all
-    assert state.p_new(online) > before
-
-
-def test_a_confirmation_nobody_remembered_could_be_does_not_move_p_new() -> None:
-    online = RecoveryParams(p_new=None)
-    state = RecoveryState()
-    empty = rec.decide(np.zeros(0), np.zeros(0, bool), 0.5, online)  # nobody remembered
-    far = rec.decide(np.array([3.0, 1.0]), np.zeros(2, bool), 0.5, online)  # nobody who could have walked here
+def test_a_decision_says_whether_anyone_remembered_could_be_the_person() -> None:
+    empty = rec.decide(np.zeros(0), np.zeros(0, bool), 0.5, P)  # nobody remembered
+    far = rec.decide(np.array([3.0, 1.0]), np.zeros(2, bool), 0.5, P)  # nobody who could have walked here
     assert empty.index is None and far.index is None and not empty.contested and not far.contested
-    for _ in range(50):  # the first people of a sequence: new by necessity, no evidence about returns
-        state.count(empty, online)
-        state.count(far, online)
-    assert state.p_new(online) == 0.5
-    near = rec.decide(np.array([-2.0, 1.0]), np.array([True, False]), 0.5, online)
-    assert near.contested  # one reachable candidate: a real open-set decision, counted
-    state.count(near, online)
-    assert state.p_new(online) != 0.5
-    assert RecoveryState().p_new(RecoveryParams(p_new=None, prior_new=3.0, prior_returned=7.0)) == pytest.approx(0.3)
+    assert rec.decide(np.array([-2.0, 1.0]), np.array([True, False]), 0.5, P).contested  # a real open-set decision
 
 
 def test_state_copies_are_independent_and_forgetting_prunes() -> None:
@@ -145,9 +119,10 @@ def test_the_config_section_reaches_the_core_and_is_checked() -> None:
 
     from services.tracker.config import TrackerConfig
 
-    cfg = TrackerConfig(robust={"recovery": {"p_new": None, "prior_new": 2.0}})
-    params = cfg.robust.recovery.params()
-    assert params.p_new is None and params.prior_new == 2.0 and params.prior_returned == 1.0
+    cfg = TrackerConfig(robust={"recovery": {"p_new": 0.2}})
+    assert cfg.robust.recovery.params().p_new == 0.2
+    with pytest.raises(ValidationError, match="prior_window"):  # the online P(new) left: never better than 0.3
+        TrackerConfig(robust={"recovery": {"prior_window": 20.0}})
     assert TrackerConfig().robust.recovery.params() == RecoveryParams()
     with pytest.raises(ValidationError, match="p_undo"):
         TrackerConfig(robust={"recovery": {"p_undo": 0.6, "p_recover": 0.5}})

@@ -122,19 +122,17 @@ def test_no_probation_means_no_undo() -> None:
 
 
 def test_recovery_state_is_snapshotted_and_forgotten_with_the_person() -> None:
-    trk = tracker(p_new=None)  # P(new) estimated online
+    trk = tracker()
     run(trk, 0.0, 1.0, [(DARK[0], (1.0, 0.0)), (RED, (3.0, 0.0))])
     a, b = id_at(trk, 1.0, 0.0), id_at(trk, 3.0, 0.0)
     run(trk, 1.0, 2.0, [])
     assert {a, b} <= set(trk.state.recovery.departures) and trk.state.recovery.together[a] == {b}
     snap = trk.snapshot()
-    p_new = trk.state.recovery.p_new(trk.params.recovery)
-    run(trk, 2.0, 2.5, [(_E[6], (5.0, 5.0))])  # a newcomer nobody remembered could have walked to ...
-    assert trk.state.recovery.p_new(trk.params.recovery) == p_new  # ... is new by necessity: not counted
-    run(trk, 2.5, 3.0, [(_E[6], (5.0, 5.0)), (_E[7], (2.0, 0.5))])  # one a remembered person could be
-    assert trk.state.recovery.p_new(trk.params.recovery) != p_new  # moves the online P(new)
+    run(trk, 2.0, 3.0, [(_E[6], (5.0, 5.0)), (_E[7], (2.0, 0.5))])  # two newcomers, seen together
+    together = dict(trk.state.recovery.together)
+    assert len(together) > 2
     trk.restore(snap)
-    assert trk.state.recovery.p_new(trk.params.recovery) == p_new
+    assert trk.state.recovery.together == {a: {b}, b: {a}}
     trk.forget(a)
     assert a not in trk.state.recovery.departures and a not in trk.state.recovery.together
     trk.restart_clock()

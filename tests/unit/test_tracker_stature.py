@@ -10,7 +10,7 @@ from common.messages.schemas import Header
 from services.tracker.config import TrackerConfig
 from services.tracker.convert import tracks_message
 from services.tracker.core.robust import AppearanceModel, RobustParams, RobustTracker
-from services.tracker.core.stature import StatureParams, log_odds, observe
+from services.tracker.core.cues.stature import StatureParams, log_odds, observe
 from services.tracker.core.types import FrameResult, TrackStatus
 from services.tracker.core.types import FrameInput
 from tests.helpers.views import camera_looking_along_x, turned_round

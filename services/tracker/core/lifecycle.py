@@ -34,8 +34,8 @@ import numpy as np
 from services.tracker.core import recovery as rec
 from services.tracker.core import recovery_evidence as rev
 from services.tracker.core.cues.base import Cue, Pairing
-from services.tracker.core.cues.online_classifier import trained
-from services.tracker.core.cues.stature_cue import stature_of
+from services.tracker.core.cues.classifier import trained
+from services.tracker.core.cues.stature import stature_of
 from services.tracker.core.id_decisions import explain
 from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.tracks import RobustTrackerState, TrackTable
@@ -249,9 +249,8 @@ def identity(state: RobustTrackerState, j: int, removed: set[int], p: RobustPara
     if p.appearance is None or not state.bank.size(t.slot[j]):
         return state.memory.new_id(), False
     ev = evidence(state, j, state.live_ids(removed), p)
-    p_new = state.recovery.p_new(rp)
+    p_new = rp.p_new
     decision = rec.decide(ev.llr, ev.reach, p_new, rp, ev.new_llr, lambda i: ev.rivals(ev.ids[i]))
-    state.recovery.count(decision, rp)
     k, stamp = (state.memory.new_id() if decision.index is None else ev.ids[decision.index]), t.last_update[j]
     if result is not None and ev.ids:
         result.id_decisions.append(_explain(state, j, ev, p_new, k, "new" if decision.index is None else "recovered",
@@ -259,7 +258,7 @@ def identity(state: RobustTrackerState, j: int, removed: set[int], p: RobustPara
     if decision.index is None:
         return k, False
     if rp.probation_s > 0:
-        t.probation[j] = (k, stamp + rp.probation_s, stamp + rp.check_period_s, 1.0 - decision.p_new)
+        t.probation[j] = (k, stamp + rp.probation_s, stamp + rp.check_period_s)
     return k, True
 
 
@@ -290,17 +289,16 @@ def probation(state: RobustTrackerState, p: RobustParams, stamp: float, result: 
     for j, prob in enumerate(t.probation):
         if prob is None:
             continue
-        k, until, check, share = prob
+        k, until, check = prob
         if t.id[j] != k or t.forgotten[j] or k not in state.memory or not state.bank.size(t.slot[j]):
             t.probation[j] = None
         elif stamp >= check or stamp >= until:
-            t.probation[j] = (k, until, stamp + rp.check_period_s, share) if stamp < until else None
+            t.probation[j] = (k, until, stamp + rp.check_period_s) if stamp < until else None
             ev = evidence(state, j, state.live_ids() - {k}, p)
-            p_new = state.recovery.p_new(rp)
+            p_new = rp.p_new
             if not rev.keeps(ev, k, p_new, rp):
                 t.id[j], t.probation[j] = state.memory.new_id(), None
                 state.recovery.undone += 1
-                state.recovery.revise(share)
                 result.recovery_undone.append((k, t.id[j]))
                 result.new_ids.append(t.id[j])
                 result.id_decisions.append(_explain(state, j, ev, p_new, t.id[j], "undone", rp.p_undo, k))

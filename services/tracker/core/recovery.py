@@ -15,15 +15,9 @@ only when k is more probable than all the others together.
   et al.'s clutter-or-new-person class of the association.
 * **Prior**: P(new) = ``p_new``, and the rest shared evenly by the K candidates. A larger
   memory thins every candidate's prior, so it never makes the decision more eager: for the
-  same evidence on the best candidate, one more candidate can only lower its posterior.
-  ``p_new`` None estimates it online: Ban et al.'s birth process, read as "what share of the
-  people who could have been returning were new", a Beta(``prior_new``, ``prior_returned``)
-  prior plus the posterior-weighted counts of the last ``prior_window`` *contested*
-  confirmations (a crowd of strangers makes it cautious, a home whose people come and go makes
-  it readier). Only a confirmation with at least one reachable remembered candidate counts:
-  one facing an empty memory, or only live or unreachable people, is new by necessity and says
-  nothing about the share of newcomers among those who could have returned (counting it drove
-  P(new) up at the start of every sequence, where the first people are all new).
+  same evidence on the best candidate, one more candidate can only lower its posterior. (An
+  estimate of P(new) online, from the share of newcomers among the recent contested
+  confirmations, was tried and left: it lost the simulator's IDF1, docs/results.md.)
 * **Posterior** ``P(k) = prior_k e^llr[k] / (P(new) + sum_j prior_j e^llr[j])``, and the decision
   weighs the best candidate against "new" and its *rivals*: the candidates known to be someone
   else than it, because the two were detected in the same frame. The margin to the second
@@ -62,16 +56,8 @@ class RecoveryParams:
     """How sure the ID memory must be before it gives a remembered ID, and when it takes it back."""
 
     #: prior probability that a newly confirmed person is someone new (the rest is shared by the
-    #: remembered candidates); None: estimated online from the contested confirmations so far.
-    #: 0.3 by the rule of services/tracker/README.md: the online estimate lost PETS09 IDF1
-    p_new: float | None = 0.3
-    #: the online estimate counts about this many recent contested confirmations (exponential
-    #: forgetting), so it follows the scene and never reaches 0 or 1
-    prior_window: float = 20.0
-    #: the estimate's Beta prior, in pseudo-confirmations: new and returning. Beta(1, 1) starts
-    #: at P(new) = 0.5 (no opinion) and weighs as two confirmations against ``prior_window``
-    prior_new: float = 1.0
-    prior_returned: float = 1.0
+    #: remembered candidates); 0.3 by the rule of docs/results.md (*How P(new) was chosen*)
+    p_new: float = 0.3
     #: a remembered ID is given when its posterior reaches this: more probable than "new" and
     #: every other candidate together
     p_recover: float = 0.5
@@ -99,14 +85,12 @@ class RecoveryParams:
     exit_horizon_s: float = 1.0
 
     def __post_init__(self) -> None:
-        if self.p_new is not None and not 0 < self.p_new < 1:
-            raise ValueError(f"p_new must be in (0, 1) or None, got {self.p_new}")
+        if not 0 < self.p_new < 1:
+            raise ValueError(f"p_new must be in (0, 1), got {self.p_new}")
         if not 0 < self.p_undo <= self.p_recover < 1:
             raise ValueError(f"need 0 < p_undo <= p_recover < 1, got {self.p_undo}, {self.p_recover}")
-        if not (self.max_speed > 0 and self.n_sigma >= 0 and self.prior_window >= 1):
-            raise ValueError("need max_speed > 0, n_sigma >= 0 and prior_window >= 1")
-        if not (self.prior_new > 0 and self.prior_returned > 0):
-            raise ValueError("need prior_new > 0 and prior_returned > 0")
+        if not (self.max_speed > 0 and self.n_sigma >= 0):
+            raise ValueError("need max_speed > 0 and n_sigma >= 0")
         if not (0 < self.left_weight <= 1 and self.exit_horizon_s >= 0):
             raise ValueError(f"need 0 < left_weight <= 1 and exit_horizon_s >= 0, got {self.left_weight}, "
                              f"{self.exit_horizon_s}")
@@ -132,28 +116,25 @@ class Departure:
 
 #: the arrays of :meth:`RecoveryState.to_arrays`, as the ID memory's file stores them
 ARRAY_KEYS = ("recovery_departure_ids", "recovery_departures", "recovery_together_ids", "recovery_together_counts",
-              "recovery_together_with", "recovery_counts")
+              "recovery_together_with")
 
 
 @dataclass
 class RecoveryState:
-    """What recovery remembers besides the descriptors: each remembered ID's departure, and the
-    online counts of new and returning people behind ``p_new``."""
+    """What recovery remembers besides the descriptors: each remembered ID's departure, and who
+    was seen with whom."""
 
     departures: dict[int, Departure] = field(default_factory=dict)
     #: ID -> the IDs it was detected in the same frame with (certainly other people); frozensets,
     #: replaced and never changed in place, so a copy of the dict is a copy of the state
     together: dict[int, frozenset[int]] = field(default_factory=dict)
-    new: float = 0.0
-    returned: float = 0.0
     #: recoveries undone so far
     undone: int = 0
     #: the last group recorded: a frame with the same people (or fewer of them) adds nothing
     last_group: frozenset[int] = frozenset()
 
     def copy(self) -> RecoveryState:
-        return RecoveryState(dict(self.departures), dict(self.together), self.new, self.returned, self.undone,
-                             self.last_group)
+        return RecoveryState(dict(self.departures), dict(self.together), self.undone, self.last_group)
 
     def to_arrays(self, live: dict[int, Departure] | None = None) -> dict[str, np.ndarray]:
         """The state as plain arrays (:data:`ARRAY_KEYS`), for the ID memory's file; ``live``: the
@@ -166,18 +147,13 @@ class RecoveryState:
                                                  for d in (deps[i] for i in ids)], np.float64).reshape(-1, 7),
                 "recovery_together_ids": np.array(groups, np.int64),
                 "recovery_together_counts": np.array([len(self.together[i]) for i in groups], np.int64),
-                "recovery_together_with": np.array([o for i in groups for o in sorted(self.together[i])], np.int64),
-                "recovery_counts": np.array([self.new, self.returned], np.float64)}
+                "recovery_together_with": np.array([o for i in groups for o in sorted(self.together[i])], np.int64)}
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> RecoveryState:
         """The state :meth:`to_arrays` wrote (keys it lacks: empty); ``ValueError`` saying which
-        block is inconsistent."""
-        departures, groups = _departures_of(arrays), _groups_of(arrays)
-        rates = _array(arrays, "recovery_counts", (2,), np.float64).reshape(-1)
-        if rates.shape != (2,) or not np.all(np.isfinite(rates)) or np.any(rates < 0):
-            raise ValueError(f"recovery counts: {rates.tolist()} (need two non-negative numbers)")
-        return cls(departures, groups, float(rates[0]), float(rates[1]))
+        block is inconsistent; an older file's ``recovery_counts`` are ignored)."""
+        return cls(_departures_of(arrays), _groups_of(arrays))
 
     def settle(self, stamp: float) -> None:
         """The first frame after a start at ``stamp``: departures stamped later are of another
@@ -208,29 +184,6 @@ class RecoveryState:
         if keep is not None:
             self.departures = {i: d for i, d in self.departures.items() if i in keep}
             self.together = {i: s & keep for i, s in self.together.items() if i in keep}
-
-    def p_new(self, params: RecoveryParams) -> float:
-        """The prior P(new): ``params.p_new``, or the Beta estimate from the counts."""
-        if params.p_new is not None:
-            return params.p_new
-        a, b = params.prior_new + self.new, params.prior_returned + self.returned
-        return a / (a + b)
-
-    def count(self, decision: Decision, params: RecoveryParams) -> None:
-        """One more confirmed person, new with probability ``decision.p_new``, when the decision
-        was contested (a reachable remembered candidate existed; otherwise it is new by
-        necessity and not counted); older counts fade so that about ``prior_window`` weigh in."""
-        if not decision.contested:
-            return
-        keep = 1.0 - 1.0 / params.prior_window
-        self.new = keep * self.new + decision.p_new
-        self.returned = keep * self.returned + (1.0 - decision.p_new)
-
-    def revise(self, share: float) -> None:
-        """A recovery counted ``share`` as returning was undone: count it as new instead."""
-        share = min(share, self.returned)
-        self.returned -= share
-        self.new += share
 
 
 @dataclass(frozen=True)

@@ -14,13 +14,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from services.tracker.core import classifier as clf
-from services.tracker.core import stature as body
-from services.tracker.core.classifier import ClassifierParams
+from services.tracker.core.cues import classifier as clf
+from services.tracker.core.cues import stature as body
+from services.tracker.core.cues.classifier import ClassifierParams
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.recovery import (Departure, RecoveryParams, RecoveryState, posterior, reachable, stranger_llr,
                                             support)
-from services.tracker.core.stature import StatureParams
+from services.tracker.core.cues.stature import StatureParams
 
 __all__ = ["Candidate", "Evidence", "evidence", "keeps", "min_distance"]
 

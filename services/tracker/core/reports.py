@@ -9,16 +9,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from services.tracker.core import posture as pose
+from services.tracker.core.cues import posture as pose
 from services.tracker.core.bank import GalleryBank
-from services.tracker.core.cues.online_classifier import trained
-from services.tracker.core.cues.stature_cue import stature_of
+from services.tracker.core.cues.classifier import trained
+from services.tracker.core.cues.stature import stature_of
 from services.tracker.core.tracks import FIELDS, RobustTrackerState, TrackTable
 from services.tracker.core.types import TrackStatus, TrackView
 
 if TYPE_CHECKING:
-    from services.tracker.core.cues.posture_cue import PostureColumns
-    from services.tracker.core.cues.stature_cue import StatureColumns
+    from services.tracker.core.cues.posture import PostureColumns
+    from services.tracker.core.cues.stature import StatureColumns
 
 __all__ = ["TrackRow", "row_view", "track_rows", "track_view", "track_views"]
 

@@ -19,7 +19,7 @@ the TU Ilmenau framework, Basso/Munaro's RGB-D tracker and Ban et al.'s robotic 
      0.1 at ``t_upper``). No descriptor, or a track without one yet, gives 0.5, so a
      track born while the embedder was down gains appearance later without an ID switch;
    * *confidence*: the detector's score as P(true person);
-   * *stature* (:mod:`~services.tracker.core.stature`): the measured height of a standing
+   * *stature* (:mod:`~services.tracker.core.cues.stature`): the measured height of a standing
      person against the track's, a soft biometric that clothes do not change.
 
    A detection may also be explained as **clutter or a new person** (Ban et al.'s clutter
@@ -48,10 +48,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from services.tracker.core import classifier as clf
+from services.tracker.core.cues import classifier as clf
 from services.tracker.core import cues, kalman, lifecycle
 from services.tracker.core.cues import Cue, Pairing
-from services.tracker.core.cues.online_classifier import trained
+from services.tracker.core.cues.classifier import trained
 from services.tracker.core.association import match_log_odds
 from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.protocol import TrackerCore

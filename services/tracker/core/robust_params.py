@@ -5,10 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from common.geometry.occupancy import ObstacleMap
-from services.tracker.core.classifier import ClassifierParams
-from services.tracker.core.posture import PostureParams
+from services.tracker.core.cues.classifier import ClassifierParams
+from services.tracker.core.cues.posture import PostureParams
 from services.tracker.core.recovery import RecoveryParams
-from services.tracker.core.stature import StatureParams
+from services.tracker.core.cues.stature import StatureParams
 from services.tracker.core.types import AppearanceModel, ScoreModel
 
 __all__ = ["RobustParams"]

@@ -50,7 +50,7 @@ class TrackTable:
     a probability), ``status``, the stamps, the hit counts, ``in_view`` (None: not known),
     ``camera``, ``slot`` the gallery's in the :class:`GalleryBank` (-1: none yet), and for the ID
     memory's recovery (core/recovery.py) ``fix`` (x, y, variance per axis) at the last detection,
-    ``probation`` (the recovered ID, its end, the next check, the share counted as returning).
+    ``probation`` (the recovered ID, its end, the next check).
     ``extra``: each cue's own per-track state by the cue's name (the online classifiers, the
     statures, the postures), kept in step with the rows."""
 
@@ -70,7 +70,7 @@ class TrackTable:
     camera: list[str]
     slot: list[int]
     fix: list[tuple[float, float, float] | None]
-    probation: list[tuple[int, float, float, float] | None]
+    probation: list[tuple[int, float, float] | None]
     extra: dict[str, Columns] = field(default_factory=dict)
 
     @classmethod

@@ -14,11 +14,11 @@ from services.tracker.core.cues.appearance import AppearanceCue, PairDistances, 
 from services.tracker.core.cues.base import Cue, Pairing
 from services.tracker.core.cues.confidence import ConfidenceCue, logit
 from services.tracker.core.cues.memory import MemoryCue, memory_alternatives
-from services.tracker.core.cues.online_classifier import OnlineClassifierCue, classifier_log_odds
+from services.tracker.core.cues.classifier import OnlineClassifierCue, classifier_log_odds
 from services.tracker.core.cues.position import PositionCue, measurement_covariance, position_log_odds
 from services.tracker.core.cues.position import usable_covariances
-from services.tracker.core.cues.posture_cue import PostureCue
-from services.tracker.core.cues.stature_cue import StatureCue
+from services.tracker.core.cues.posture import PostureCue
+from services.tracker.core.cues.stature import StatureCue
 
 if TYPE_CHECKING:
     from services.tracker.core.robust_params import RobustParams

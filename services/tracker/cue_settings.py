@@ -102,8 +102,8 @@ class StatureConfig(BaseModel):
 
 
 class StaticMapConfig(BaseModel):
-    """The robot's static map, its laser's walls and furniture (services/tracker/README.md, *A static
-    map*): no track is born on an obstacle. Read when the settings are loaded."""
+    """The robot's static map, its laser's walls and furniture (services/tracker/README.md, *How
+    it works*): no track is born on an obstacle. Read when the settings are loaded."""
 
     model_config = ConfigDict(extra="forbid")
 

@@ -63,7 +63,7 @@ class RecoveryParams:
 
     #: prior probability that a newly confirmed person is someone new (the rest is shared by the
     #: remembered candidates); None: estimated online from the contested confirmations so far.
-    #: 0.3 by the rule of services/tracker/README.md: the online estimate lost PETS09 IDF1
+    #: 0.3 by the rule of docs/results.md, *How P(new) was chosen*: the online estimate lost PETS09 IDF1
     p_new: float | None = 0.3
     #: the online estimate counts about this many recent contested confirmations (exponential
     #: forgetting), so it follows the scene and never reaches 0 or 1

@@ -1,4 +1,4 @@
-"""The robust profile's settings (services/tracker/README.md, *Profiles*, explains each)."""
+"""The robust profile's settings (services/tracker/README.md, *How it works*, explains them)."""
 
 from __future__ import annotations
 

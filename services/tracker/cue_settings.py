@@ -46,7 +46,7 @@ class ScoreConfig(BaseModel):
 
 
 class ClassifierConfig(BaseModel):
-    """Basso/Munaro's online per-track appearance classifiers (services/tracker/core/classifier.py)."""
+    """Basso/Munaro's online per-track appearance classifiers (services/tracker/core/cues/classifier.py)."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -63,7 +63,7 @@ class ClassifierConfig(BaseModel):
 
 
 class StatureConfig(BaseModel):
-    """The person's stature as a cue, a soft biometric (services/tracker/core/stature.py)."""
+    """The person's stature as a cue, a soft biometric (services/tracker/core/cues/stature.py)."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -102,8 +102,8 @@ class StatureConfig(BaseModel):
 
 
 class StaticMapConfig(BaseModel):
-    """The robot's static map, its laser's walls and furniture (services/tracker/README.md, *A static
-    map*): no track is born on an obstacle. Read when the settings are loaded."""
+    """The robot's static map, its laser's walls and furniture (services/tracker/README.md, *How
+    it works*): no track is born on an obstacle. Read when the settings are loaded."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -139,7 +139,7 @@ class StaticMapConfig(BaseModel):
 
 
 class PostureConfig(BaseModel):
-    """The TU Ilmenau framework's posture and orientation filters (services/tracker/core/posture.py)."""
+    """The TU Ilmenau framework's posture and orientation filters (services/tracker/core/cues/posture.py)."""
 
     model_config = ConfigDict(extra="forbid")
 

@@ -1,4 +1,4 @@
-"""The stature cue (services/tracker/core/stature.py): its log-odds, a track's estimate, and the
+"""The stature cue (services/tracker/core/cues/stature.py): its log-odds, a track's estimate, and the
 robust tracker keeping a taller newcomer off a look-alike's track."""
 
 from __future__ import annotations

@@ -29,7 +29,7 @@ __all__ = ["Candidate", "Evidence", "evidence", "keeps", "min_distance"]
 class Candidate:
     """The newly confirmed track as recovery sees it: its views (M, D) (its gallery), and where it
     is: ``stamp``, ``x``, ``y`` and the variance ``var`` per axis of that position; its
-    ``stature`` (m) from ``stature_n`` measurements (0: not known; core/stature.py)."""
+    ``stature`` (m) from ``stature_n`` measurements (0: not known; core/cues/stature.py)."""
 
     views: np.ndarray
     stamp: float

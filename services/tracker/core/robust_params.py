@@ -1,4 +1,4 @@
-"""The robust profile's settings (services/tracker/README.md, *Profiles*, explains each)."""
+"""The robust profile's settings (services/tracker/README.md, *How it works*, explains them)."""
 
 from __future__ import annotations
 
@@ -65,7 +65,7 @@ class RobustParams:
     classifier: ClassifierParams | None = field(default_factory=ClassifierParams)
     #: TU Ilmenau's posture and orientation filters; None: off
     posture: PostureParams | None = field(default_factory=PostureParams)
-    #: the person's stature as a cue (core/stature.py, a soft biometric); None: off
+    #: the person's stature as a cue (core/cues/stature.py, a soft biometric); None: off
     stature: StatureParams | None = field(default_factory=StatureParams)
     #: the ID memory's open-set decision (core/recovery.py)
     recovery: RecoveryParams = field(default_factory=RecoveryParams)

@@ -1,5 +1,5 @@
-"""The settings of Pinto's thesis profile (services/tracker/README.md, *Profiles*, explains
-each): the thesis's values by default."""
+"""The settings of Pinto's thesis profile (services/tracker/README.md, *How it works*, explains
+them): the thesis's values by default."""
 
 from __future__ import annotations
 

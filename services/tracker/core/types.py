@@ -304,7 +304,7 @@ class FrameInput(NamedTuple):
     the profile's). ``camera``: the camera the frame comes from. ``postures`` (N,) int8 the
     detector's posture report per detection, the index in ``posture.POSTURES`` (-1: none;
     None: no report at all). ``statures`` (N,) each standing person's measured stature (m; NaN:
-    not measured, None: no measurement at all; core/stature.py). ``obstacles``: the robot's
+    not measured, None: no measurement at all; core/cues/stature.py). ``obstacles``: the robot's
     static map as it is now, when one arrives while tracking (ROS 2's ``/map``; None: the one
     the profile was built with, if any).
     """

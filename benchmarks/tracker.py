@@ -1,4 +1,4 @@
-"""ThesisTracker benchmark: time of one update vs people x gallery size, and `perception track` throughput.
+"""Tracker benchmark: time of one update vs people x gallery size, and `perception track` throughput.
 
 Run: ``.venv/bin/python benchmarks/tracker.py`` (a few minutes on a 2-core VM;
 ``--reps`` trades precision for time). Prints median and p95 in milliseconds.

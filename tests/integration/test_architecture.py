@@ -105,3 +105,16 @@ def test_command_modules_are_named_after_their_commands() -> None:
     named = {".".join(p.relative_to(ROOT).with_suffix("").parts) for package in ("common", "services", "tools")
              for p in (ROOT / package).rglob("*.py") if p.stem == "main" or p.stem.endswith("_cli")}
     assert named <= modules, f"named as a command's module, but no command runs it: {sorted(named - modules)}"
+
+
+def test_the_tracker_core_reads_no_file_when_imported() -> None:
+    # in a child process: the core imported fresh, with every way of opening a file refused
+    code = ("import builtins, io, os, pathlib\n"
+            "def refuse(*a, **k):\n    raise AssertionError(f'I/O at import: {a[:1]}')\n"
+            "import numpy, scipy.optimize, scipy.linalg\n"  # their own start-up reads are theirs
+            "builtins.open = io.open = os.open = refuse\n"
+            "pathlib.Path.read_text = pathlib.Path.read_bytes = pathlib.Path.glob = refuse\n"
+            "import services.tracker.core, services.tracker.core.cues\n"
+            "print('ok')\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr[-2000:]

@@ -40,8 +40,16 @@ def last_level_cache_bytes(root: Path = Path("/sys/devices/system/cpu/cpu0/cache
 #: known) the product streams them through ``einsum``, which reads memory at about twice the rate
 #: of the stacked ``matmul`` there (measured on a 32 MiB L3: 100 galleries of 500 128-D
 #: descriptors, 24 MiB, in 0.79 ms against 1.55 ms; 60, 15 MiB, 0.39 against 0.26 ms, where
-#: ``matmul`` is faster: in the cache, ``einsum`` is the slower)
-_STREAM_BYTES = (last_level_cache_bytes() or 32 << 20) // 2
+#: ``matmul`` is faster: in the cache, ``einsum`` is the slower). Read from Linux at the first
+#: product, not when the module is imported.
+_STREAM_BYTES: int | None = None
+
+
+def _stream_bytes() -> int:
+    global _STREAM_BYTES
+    if _STREAM_BYTES is None:
+        _STREAM_BYTES = (last_level_cache_bytes() or 32 << 20) // 2
+    return _STREAM_BYTES
 
 
 class GalleryBank:
@@ -170,7 +178,7 @@ class GalleryBank:
             xs = np.zeros((hi, 1, self.dim), np.float32)
             xs[slots, 0] = x
         bank = self.data[:hi]
-        if bank.nbytes > _STREAM_BYTES:
+        if bank.nbytes > _stream_bytes():
             prod = np.einsum("sd,sdc->sc", xs[:, 0], bank)  # (hi, capacity), the galleries streamed once
         else:
             prod = np.matmul(xs, bank)[:, 0]  # (hi, capacity): one product per slot

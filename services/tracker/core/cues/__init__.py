@@ -8,7 +8,7 @@ Adding a cue is its module (a :class:`~services.tracker.core.cues.base.Cue`) and
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from services.tracker.core.cues.appearance import AppearanceCue, PairDistances, appearance_log_odds
 from services.tracker.core.cues.base import Cue, Pairing
@@ -21,14 +21,31 @@ from services.tracker.core.cues.posture import PostureCue
 from services.tracker.core.cues.stature import StatureCue
 
 if TYPE_CHECKING:
-    from services.tracker.core.robust_params import RobustParams
+    from services.tracker.core.cues.classifier import ClassifierParams
+    from services.tracker.core.cues.posture import PostureParams
+    from services.tracker.core.cues.stature import StatureParams
+    from services.tracker.core.recovery import RecoveryParams
+    from services.tracker.core.types import AppearanceModel
 
-__all__ = ["AppearanceCue", "ConfidenceCue", "Cue", "MemoryCue", "OnlineClassifierCue", "PairDistances",
+__all__ = ["AppearanceCue", "ConfidenceCue", "Cue", "CueSettings", "MemoryCue", "OnlineClassifierCue", "PairDistances",
            "Pairing", "PositionCue", "PostureCue", "StatureCue", "appearance_log_odds", "build", "classifier_log_odds",
            "logit", "measurement_covariance", "memory_alternatives", "position_log_odds", "usable_covariances"]
 
 
-def build(p: RobustParams) -> list[Cue]:
+class CueSettings(Protocol):
+    """What the cues read of the tracker's settings (the robust profile's ``RobustParams``)."""
+
+    new_density: float
+    gate_sq: float
+    appearance: AppearanceModel | None
+    appearance_weight: float
+    classifier: ClassifierParams | None
+    stature: StatureParams | None
+    posture: PostureParams | None
+    recovery: RecoveryParams
+
+
+def build(p: CueSettings) -> list[Cue]:
     """The cues of settings ``p``, in the order their log-odds are added (position first: its
     gate decides which pairs the others compare)."""
     model = p.appearance

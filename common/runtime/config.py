@@ -17,6 +17,8 @@ from typing import Any, Mapping, Sequence, TypeVar
 import yaml
 from pydantic import BaseModel, ValidationError
 
+from common.runtime.settings import unfold_advanced
+
 __all__ = ["ConfigError", "format_validation_error", "key_line", "load_config", "read_config_file"]
 
 C = TypeVar("C", bound=BaseModel)
@@ -136,12 +138,17 @@ def load_config(model: type[C], path: str | Path | None = None, *, env_prefix: s
             in_section = section
             if not isinstance(data, dict):
                 raise ConfigError(f"section {section!r} of {path} must be a mapping")
-    if base:
-        data = _merge(dict(base), data)
+    layers = [("a preset", dict(base or {})), (source, data)]
     if env_prefix:
-        data = _merge(data, _from_env(env_prefix, os.environ if environ is None else environ))
+        layers.append((f"the {env_prefix}* environment", _from_env(env_prefix, os.environ if environ is None else environ)))
     if overrides:
-        data = _merge(data, {k: v for k, v in overrides.items() if v is not None})
+        layers.append(("the flags", {k: v for k, v in overrides.items() if v is not None}))
+    data = {}
+    for where, layer in layers:  # an advanced setting written under advanced: in one layer, beside it in another
+        try:
+            data = _merge(data, unfold_advanced(model, layer))
+        except ValueError as exc:
+            raise ConfigError(f"invalid configuration in {where}: {exc}") from exc
     try:
         return model.model_validate(data)
     except ValidationError as exc:

@@ -18,12 +18,12 @@ from dataclasses import dataclass
 from pathlib import PurePath
 from typing import Annotated, Any, Iterator, Literal, Union, get_args, get_origin
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, model_validator
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined
 
-__all__ = ["SettingRow", "add_settings_epilog", "find_row", "flag_help", "markdown_table", "select_rows", "setting",
-           "setting_rows", "settings_epilog"]
+__all__ = ["AdvancedBlock", "SettingRow", "add_settings_epilog", "find_row", "flag_help", "markdown_table", "select_rows", "setting",
+           "setting_rows", "settings_epilog", "unfold_advanced"]
 
 
 def setting(default: Any = PydanticUndefined, description: str = "", *, unit: str | None = None,
@@ -48,9 +48,63 @@ def setting(default: Any = PydanticUndefined, description: str = "", *, unit: st
                  **field_kwargs)
 
 
+class AdvancedBlock(BaseModel):
+    """A settings section whose advanced settings are written under its ``advanced:`` key, apart
+    from the ones an integrator sets (``robust: {gate_sq: 13.8, advanced: {q_accel: 3.0}}``);
+    written beside the others they are taken too, as before. Only advanced settings go under
+    ``advanced:``; one given both ways is refused, naming it."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _unfold_advanced(cls, data: Any) -> Any:
+        return _lift(cls, data)
+
+
+def _lift(model: type[BaseModel], data: Any) -> Any:
+    """``data`` of section ``model`` with its ``advanced:`` block lifted beside the others
+    (ValueError: a setting there that is not advanced, or given both ways)."""
+    if not isinstance(data, dict) or "advanced" not in data or "advanced" in model.model_fields:
+        return data
+    block = data["advanced"] if data["advanced"] is not None else {}
+    if not isinstance(block, dict):
+        raise ValueError(f"advanced: must be a mapping of advanced settings, got {block!r}")
+    allowed = {f.alias or n for n, f in model.model_fields.items() if _extra(f).get("advanced")}
+    wrong = sorted(set(block) - allowed)
+    if wrong:
+        known = {f.alias or n for n, f in model.model_fields.items()}
+        why = [f"{k} (not advanced: write it beside advanced:)" if k in known else f"{k} (no such setting)"
+               for k in wrong]
+        raise ValueError(f"advanced: {', '.join(why)}; advanced settings here: {', '.join(sorted(allowed)) or 'none'}")
+    both = sorted(set(block) & set(data))
+    if both:
+        raise ValueError(f"{', '.join(both)} given both under advanced: and beside it: keep one")
+    return {**{k: v for k, v in data.items() if k != "advanced"}, **block}
+
+
+def unfold_advanced(model: type[BaseModel], data: Any, where: str = "") -> Any:
+    """``data`` (one layer of settings for ``model``: a file, the environment, the flags) with
+    every section's ``advanced:`` block lifted beside that section's other settings, so that layers
+    that write a setting in the two ways merge as one; ValueError naming the section."""
+    if not isinstance(data, dict):
+        return data
+    if issubclass(model, AdvancedBlock):
+        try:
+            data = _lift(model, data)
+        except ValueError as exc:
+            raise ValueError(f"{where or 'settings'}: {exc}") from exc
+    out = dict(data)
+    for name, field in model.model_fields.items():
+        key = field.alias or name
+        sub = _section(_strip_none(field.annotation)[0])
+        if sub is not None and isinstance(out.get(key), dict):
+            out[key] = unfold_advanced(sub, out[key], f"{where}.{key}" if where else key)
+    return out
+
+
 @dataclass(frozen=True)
 class SettingRow:
-    """One leaf setting, its text as the README and ``--help`` show it."""
+    """One leaf setting, its text as the README and ``--help`` show it; ``written``: its dotted
+    path as a settings file writes it (an advanced one under its section's ``advanced:``)."""
 
     name: str  #: dotted, e.g. ``depth.min_height_m``
     type: str  #: e.g. ``number``, ``integer``, ``text``, ``list of text``
@@ -59,6 +113,7 @@ class SettingRow:
     unit: str
     description: str
     advanced: bool
+    written: str = ""
 
 
 def _extra(field: FieldInfo) -> dict[str, Any]:
@@ -186,9 +241,11 @@ def setting_rows(model: type[BaseModel], prefix: str = "") -> Iterator[SettingRo
         bounds = ", ".join(_value(a) for a in get_args(annotation)) if literal else _bounds(field.metadata)
         if bounds and optional:
             bounds += " or none"
+        advanced = bool(extra.get("advanced", False))
+        written = f"{prefix}advanced.{field.alias or name}" if advanced and issubclass(model, AdvancedBlock) else key
         yield SettingRow(name=key, type=_type(field.annotation), default=_default(field), range=bounds,
                          unit=str(extra.get("unit", "")), description=" ".join((field.description or "").split()),
-                         advanced=bool(extra.get("advanced", False)))
+                         advanced=advanced, written=written)
         if section is not None:
             yield from setting_rows(section, f"{key}.")
 
@@ -223,7 +280,7 @@ def _code(text: str) -> str:
 def _table(rows: list[SettingRow]) -> list[str]:
     lines = ["| setting | default | range | unit | description |", "|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {_code(r.name)} | {_cell(_code(r.default))} | {_cell(r.range or r.type)} | {_cell(r.unit)} "
+        lines.append(f"| {_code(r.written or r.name)} | {_cell(_code(r.default))} | {_cell(r.range or r.type)} | {_cell(r.unit)} "
                      f"| {_cell(r.description)} |")
     return lines
 
@@ -236,7 +293,9 @@ def markdown_table(model: type[BaseModel], section: str = "") -> str:
     advanced = [r for r in rows if r.advanced]
     lines = _table(main) if main else []
     if advanced:
-        lines += ["", "Advanced (tuning; the defaults suit most robots):", "", *_table(advanced)]
+        under = any(r.written != r.name for r in advanced)
+        lines += ["", "Advanced (tuning; the defaults suit most robots" +
+                  ("; written under their section's `advanced:`" if under else "") + "):", "", *_table(advanced)]
     return "\n".join(lines)
 
 
@@ -283,7 +342,7 @@ def settings_epilog(model: type[BaseModel], section: str, width: int = 79) -> st
     if advanced:
         lines.append("advanced settings (tuning):")
         for r in advanced:
-            lines += _wrap(f"{r.name} = {_limits(r)}", width, "  ", "    ")
+            lines += _wrap(f"{r.written or r.name} = {_limits(r)}", width, "  ", "    ")
     return "\n".join(lines)
 
 

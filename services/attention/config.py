@@ -3,9 +3,9 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+from pydantic import ConfigDict, field_validator, model_validator
 
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 
 from services.attention.core import ServoParams
 
@@ -24,7 +24,7 @@ def parse_target(text: str) -> tuple[str, int]:
     raise ValueError(f"target {text!r} must be a track ID (0, 1, ...), 'nearest', 'lock' or 'none'")
 
 
-class AttentionConfig(BaseModel):
+class AttentionConfig(AdvancedBlock):
     """Everything ``perception attention`` can be told."""
 
     model_config = ConfigDict(extra="forbid")

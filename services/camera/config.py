@@ -5,16 +5,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+from pydantic import ConfigDict, field_validator, model_validator
 
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 
 from common.messages.keys import validate_chunk
 
 __all__ = ["CameraConfig"]
 
 
-class CameraConfig(BaseModel):
+class CameraConfig(AdvancedBlock):
     """Everything ``perception camera`` can be told."""
 
     model_config = ConfigDict(extra="forbid")

@@ -14,10 +14,10 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, model_validator
+from pydantic import ConfigDict, model_validator
 
 from common.messages.keys import validate_chunk
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 from services.detector.core import Detector
 from services.detector.core.boxes import DetectorError
 from services.detector.core.darknet import DarknetDetector, DarknetParams
@@ -42,7 +42,7 @@ _YOLO = YoloParams(model=Path())
 _DARKNET = DarknetParams(cfg=Path(), weights=Path())
 
 
-class _Section(BaseModel):
+class _Section(AdvancedBlock):
     model_config = ConfigDict(extra="forbid")
 
 

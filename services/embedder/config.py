@@ -11,9 +11,9 @@ import json
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, model_validator
+from pydantic import ConfigDict, model_validator
 
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 
 from common.runtime.config import ConfigError
 from services.embedder.core.backend import Backend, EmbedderError
@@ -32,7 +32,7 @@ _D = OnnxParams(path="")
 _M = DepthMaskParams()
 
 
-class ThresholdsConfig(BaseModel):
+class ThresholdsConfig(AdvancedBlock):
     """Tracker thresholds on the model's distance scale (from ``perception calibrate-embedder``)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -50,7 +50,7 @@ class ThresholdsConfig(BaseModel):
         return (self.t_lower, self.t_upper, self.t_recover)
 
 
-class OnnxConfig(BaseModel):
+class OnnxConfig(AdvancedBlock):
     """How to run an ONNX Re-ID model. A ``MODEL.json`` next to ``MODEL.onnx`` (as written
     by ``perception export-embedder``) supplies values not set here."""
 
@@ -86,7 +86,7 @@ class OnnxConfig(BaseModel):
             providers=tuple(self.providers) if self.providers else None, intra_op_threads=self.intra_op_threads)
 
 
-class DepthMaskConfig(BaseModel):
+class DepthMaskConfig(AdvancedBlock):
     """Depth cuts the background: each crop is masked to the pixels near the person's depth
     (the localizer's percentile) before it is described, when the frame has depth."""
 
@@ -108,7 +108,7 @@ class DepthMaskConfig(BaseModel):
         return DepthMaskParams(**self.model_dump(exclude={"enabled"}))
 
 
-class OrientationConfig(BaseModel):
+class OrientationConfig(AdvancedBlock):
     """An optional ONNX classifier of the upper body's orientation on each crop (TU Ilmenau):
     (N, 3, H, W) in, (N, 8) scores out, bins relative to the camera (see
     services/embedder/core/orientation.py)."""
@@ -126,7 +126,7 @@ class OrientationConfig(BaseModel):
                                  outputs=self.outputs)
 
 
-class EmbedderConfig(BaseModel):
+class EmbedderConfig(AdvancedBlock):
     """Settings of ``perception embedder``."""
 
     model_config = ConfigDict(extra="forbid")

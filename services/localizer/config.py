@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+from pydantic import ConfigDict, field_validator, model_validator
 
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 
 from common.messages.keys import validate_chunk
 from services.localizer.core import DepthNoiseModel, FloorParams, LocalizerParams
@@ -32,7 +32,7 @@ DEFAULT_FOOT_BIAS: dict[str, dict[str, float]] = {
 # --------------------------------------------------------------------------------------
 
 
-class FootBias(BaseModel):
+class FootBias(AdvancedBlock):
     """A detector's mean foot error as a share of the box's height: ``u`` across (+: right),
     ``v`` down (+: the boxes reach below the feet)."""
 
@@ -47,7 +47,7 @@ def _default_foot_bias() -> dict[str, FootBias]:
     return {k: FootBias(**v) for k, v in DEFAULT_FOOT_BIAS.items()}
 
 
-class StaticTransformConfig(BaseModel):
+class StaticTransformConfig(AdvancedBlock):
     """A fixed ``parent -> child`` transform given in the config (e.g. the camera mount)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -59,7 +59,7 @@ class StaticTransformConfig(BaseModel):
                                                               "quaternion (x, y, z, w)")
 
 
-class LocalizerConfig(BaseModel):
+class LocalizerConfig(AdvancedBlock):
     """Everything ``perception localizer`` can be told (file section ``localizer``)."""
 
     model_config = ConfigDict(extra="forbid")

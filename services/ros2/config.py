@@ -6,9 +6,9 @@ from __future__ import annotations
 import os
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+from pydantic import ConfigDict, field_validator, model_validator
 
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 
 from services.ros2.core.types import DISTROS
 
@@ -34,7 +34,7 @@ def _topic(v: str) -> str:
     return v
 
 
-class Ros2Config(BaseModel):
+class Ros2Config(AdvancedBlock):
     """Everything ``perception ros2`` can be told."""
 
     model_config = ConfigDict(extra="forbid")

@@ -17,9 +17,9 @@ import os
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+from pydantic import ConfigDict, field_validator, model_validator
 
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 
 from services.tracker.core import AppearanceModel, ScoreModel, TrackerCore, ThesisParams
 from services.tracker.core.identity import IdentityMemory
@@ -40,7 +40,7 @@ PROFILES = ("robust", "thesis")
 DEFAULT_EMBEDDING_MODEL = "colour"
 
 
-class AppearanceConfig(BaseModel):
+class AppearanceConfig(AdvancedBlock):
     """Algorithm 1 and 2 thresholds on one embedding model's distance scale."""
 
     model_config = ConfigDict(extra="forbid")
@@ -91,7 +91,7 @@ _D = ThesisParams()
 _OLD_THESIS_KEYS = tuple(ThesisConfig.model_fields)
 
 
-class TrackerConfig(BaseModel):
+class TrackerConfig(AdvancedBlock):
     """Everything ``perception tracker`` and ``perception track`` can be told."""
 
     model_config = ConfigDict(extra="forbid")

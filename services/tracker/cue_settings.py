@@ -7,11 +7,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, PrivateAttr, field_validator, model_validator
+from pydantic import ConfigDict, PrivateAttr, field_validator, model_validator
 
 from common.geometry.map_file import MapFileError, load_obstacles
 from common.geometry.occupancy import ObstacleMap
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 from services.tracker.core import RobustParams, ScoreModel
 from services.tracker.core.cues.classifier import ClassifierParams
 from services.tracker.core.cues.posture import PostureParams
@@ -28,7 +28,7 @@ _PO = PostureParams()
 _RE = RecoveryParams()
 
 
-class ScoreConfig(BaseModel):
+class ScoreConfig(AdvancedBlock):
     """How the detector's scores read as P(true person): ``sigmoid((score - center) / scale)``."""
 
     model_config = ConfigDict(extra="forbid")
@@ -45,7 +45,7 @@ class ScoreConfig(BaseModel):
         return ScoreModel(self.center, self.scale, self.default_p, self.birth_score)
 
 
-class ClassifierConfig(BaseModel):
+class ClassifierConfig(AdvancedBlock):
     """Basso/Munaro's online per-track appearance classifiers (services/tracker/core/cues/classifier.py)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -62,7 +62,7 @@ class ClassifierConfig(BaseModel):
         return ClassifierParams(self.rate, self.l2, self.clip, self.weight) if self.enabled else None
 
 
-class StatureConfig(BaseModel):
+class StatureConfig(AdvancedBlock):
     """The person's stature as a cue, a soft biometric (services/tracker/core/cues/stature.py)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -101,7 +101,7 @@ class StatureConfig(BaseModel):
         return StatureParams(**self.model_dump(exclude={"enabled"})) if self.enabled else None
 
 
-class StaticMapConfig(BaseModel):
+class StaticMapConfig(AdvancedBlock):
     """The robot's static map, its laser's walls and furniture (services/tracker/README.md, *How
     it works*): no track is born on an obstacle. Read when the settings are loaded."""
 
@@ -138,7 +138,7 @@ class StaticMapConfig(BaseModel):
         return self._obstacles
 
 
-class PostureConfig(BaseModel):
+class PostureConfig(AdvancedBlock):
     """The TU Ilmenau framework's posture and orientation filters (services/tracker/core/cues/posture.py)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -171,7 +171,7 @@ class PostureConfig(BaseModel):
                              self.max_kappa, tuple(tuple(r) for r in self.reported_likelihood))  # type: ignore[misc]
 
 
-class RecoveryConfig(BaseModel):
+class RecoveryConfig(AdvancedBlock):
     """The ID memory's open-set decision (services/tracker/core/recovery.py)."""
 
     model_config = ConfigDict(extra="forbid")

@@ -9,9 +9,9 @@ from __future__ import annotations
 import dataclasses
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+from pydantic import ConfigDict, field_validator, model_validator
 
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 from services.tracker.core import (
     AppearanceGate,
     AppearanceModel,
@@ -39,7 +39,7 @@ _D = ThesisParams()
 _R = RobustParams()
 
 
-class RobustConfig(BaseModel):
+class RobustConfig(AdvancedBlock):
     """The ``robust`` profile's settings (services/tracker/README.md, *Settings*)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -128,7 +128,7 @@ class RobustConfig(BaseModel):
         return {name: sc.model() for name, sc in self.detector_scores.items()}
 
 
-class ThesisConfig(BaseModel):
+class ThesisConfig(AdvancedBlock):
     """The ``thesis`` profile's settings: Pinto's thesis (services/tracker/README.md, *Settings*)."""
 
     model_config = ConfigDict(extra="forbid")

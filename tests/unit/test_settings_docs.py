@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import re
 from pathlib import Path
 from typing import Literal
 
 import pytest
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from common.runtime.settings import flag_help, markdown_table, setting, setting_rows, settings_epilog
+from common.runtime.settings import AdvancedBlock, flag_help, markdown_table, setting, setting_rows, settings_epilog
 from tools.system import settings_docs
 
 
@@ -144,3 +145,56 @@ def test_a_commands_help_lists_its_settings_from_the_declaration(command: str, f
     sub = next(a for a in build_parser(only=command)._actions if isinstance(a, argparse._SubParsersAction))
     text = sub.choices[command].format_help()
     assert " ".join(flag_text.split()) in " ".join(text.split()) and "settings (defaults; --service-config" in text
+
+
+class _Tuned(AdvancedBlock):
+    model_config = ConfigDict(extra="forbid")
+
+    rate_hz: float = setting(10.0, "output rate", unit="Hz", gt=0.0)
+    gain: float = setting(3.0, "a filter's gain", ge=0.0, advanced=True)
+
+
+class _Node(AdvancedBlock):
+    model_config = ConfigDict(extra="forbid")
+
+    port: int = setting(7447, "the port")
+    inner: _Tuned = setting(default_factory=_Tuned, description="the filter")
+
+
+def test_advanced_settings_are_written_under_advanced_or_beside_the_others() -> None:
+    nested = _Node.model_validate({"inner": {"rate_hz": 5.0, "advanced": {"gain": 1.5}}})
+    flat = _Node.model_validate({"inner": {"rate_hz": 5.0, "gain": 1.5}})
+    assert nested == flat and nested.inner.gain == 1.5
+    for bad, says in (({"advanced": {"rate_hz": 5.0}}, "rate_hz (not advanced"),
+                      ({"advanced": {"gian": 1.0}}, "gian (no such setting)"),
+                      ({"gain": 1.0, "advanced": {"gain": 2.0}}, "gain given both"),
+                      ({"advanced": [1]}, "must be a mapping")):
+        with pytest.raises(ValidationError, match=re.escape(says)):
+            _Node.model_validate({"inner": bad})
+    rows = {r.name: r.written for r in setting_rows(_Node)}
+    assert rows == {"port": "port", "inner.rate_hz": "inner.rate_hz", "inner.gain": "inner.advanced.gain"}
+    assert "`inner.advanced.gain`" in markdown_table(_Node) and "inner.advanced.gain = 3.0" in settings_epilog(_Node, "x")
+
+
+def test_the_trackers_advanced_settings_go_under_advanced() -> None:
+    from services.tracker.config import TrackerConfig
+
+    cfg = TrackerConfig.model_validate({"robust": {"gate_sq": 9.2, "advanced": {"q_accel": 2.0},
+                                                   "recovery": {"advanced": {"p_recover": 0.6}}}})
+    assert (cfg.robust.gate_sq, cfg.robust.q_accel, cfg.robust.recovery.p_recover) == (9.2, 2.0, 0.6)
+    with pytest.raises(ValidationError, match="gate_sq \\(not advanced"):
+        TrackerConfig.model_validate({"robust": {"advanced": {"gate_sq": 9.2}}})
+
+
+def test_layers_that_write_an_advanced_setting_both_ways_merge(tmp_path: Path) -> None:
+    from common.runtime.config import ConfigError, load_config
+
+    file = tmp_path / "node.yaml"
+    file.write_text("inner:\n  gain: 2.0\n")
+    cfg = load_config(_Node, file, base={"inner": {"advanced": {"gain": 1.0}}})
+    assert cfg.inner.gain == 2.0  # the file over the preset, whichever way each wrote it
+    cfg = load_config(_Node, file, env_prefix="X", environ={"X__INNER__ADVANCED__GAIN": "4.0"})
+    assert cfg.inner.gain == 4.0  # the environment over the file
+    file.write_text("inner:\n  advanced:\n    rate_hz: 2.0\n")
+    with pytest.raises(ConfigError, match=re.escape(f"{file}: inner: advanced: rate_hz (not advanced")):
+        load_config(_Node, file)

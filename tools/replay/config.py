@@ -22,9 +22,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, field_validator
+from pydantic import ConfigDict, field_validator
 
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 
 from common.runtime.config import load_config
 from common.messages.keys import validate_chunk
@@ -38,7 +38,7 @@ def _topic(v: str | None) -> str | None:
     return v
 
 
-class CameraTopics(BaseModel):
+class CameraTopics(AdvancedBlock):
     model_config = ConfigDict(extra="forbid")
 
     rgb: str | None = setting(None, "sensor_msgs/Image or CompressedImage colour topic")
@@ -51,7 +51,7 @@ class CameraTopics(BaseModel):
         return _topic(v)
 
 
-class TopicMapConfig(BaseModel):
+class TopicMapConfig(AdvancedBlock):
     model_config = ConfigDict(extra="forbid")
 
     cameras: dict[str, CameraTopics] = setting(description="per camera name (frames/{name}): its rgb, depth and "

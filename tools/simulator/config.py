@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+from pydantic import ConfigDict, field_validator, model_validator
 
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 
 from common.messages.keys import validate_chunk
 from tools.simulator.core.cameras import back_camera
@@ -16,7 +16,7 @@ from tools.simulator.messages import FRAME_NAMES
 __all__ = ["SimulatorConfig"]
 
 
-class SimulatorConfig(BaseModel):
+class SimulatorConfig(AdvancedBlock):
     """What to simulate and how fast. ``duration_s`` None = the scenario's length, 0 = until stopped."""
 
     model_config = ConfigDict(extra="forbid")

@@ -4,16 +4,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, PrivateAttr, model_validator
+from pydantic import ConfigDict, PrivateAttr, model_validator
 
-from common.runtime.settings import setting
+from common.runtime.settings import AdvancedBlock, setting
 
 from common.geometry.map_file import MapFileError, OccupancyGrid, read_map
 
 __all__ = ["ViewerConfig"]
 
 
-class ViewerConfig(BaseModel):
+class ViewerConfig(AdvancedBlock):
     """What ``perception view`` serves and how often it refreshes."""
 
     model_config = ConfigDict(extra="forbid")

@@ -15,7 +15,7 @@ its RGB frame, crop the boxes and publish one descriptor per detection on
 embeddings/{camera}, with a model card (name, dimension, metric, recommended tracker
 thresholds).
 
-Backends: 'colour' (default, no model: striped colour histograms, 128-D) and 'onnx'
+Backends: 'colour' (default, no model: striped colour histograms, 224-D) and 'onnx'
 (any Re-ID model: --model FILE.onnx; GPU via onnxruntime-gpu, providers TensorRT,
 CUDA, CPU in that order unless --providers says otherwise).
 

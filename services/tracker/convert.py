@@ -8,7 +8,7 @@ import numpy as np
 
 from common.messages.schemas import (Embeddings, Header, IdDecisions, IdDecisionState, LocalizedDetections, TrackState,
                                      Tracks)
-from services.tracker.core.types import FrameResult, IdDecision, TrackView
+from services.tracker.core.types import FrameResult, IdDecision, TrackReport
 from services.tracker.core.view import FieldOfView, FloorView
 
 __all__ = ["descriptors_for", "field_of_view", "id_decisions_message", "orientations_for", "positions_of", "track_state",
@@ -70,7 +70,7 @@ def orientations_for(loc: LocalizedDetections, emb: Embeddings | None) -> np.nda
     return out
 
 
-def track_state(view: TrackView, appearance: bool, epoch_ns: int = 0) -> TrackState:
+def track_state(view: TrackReport, appearance: bool, epoch_ns: int = 0) -> TrackState:
     """A core track as a :class:`TrackState`; core stamps are seconds since ``epoch_ns``.
 
     ``appearance`` says whether this frame had descriptors; the track's own flag is also
@@ -93,7 +93,7 @@ def track_state(view: TrackView, appearance: bool, epoch_ns: int = 0) -> TrackSt
     )
 
 
-def tracks_message(result: FrameResult, reported: list[TrackView], header: Header, model: str,
+def tracks_message(result: FrameResult, reported: list[TrackReport], header: Header, model: str,
                    epoch_ns: int) -> Tracks:
     """The ``reported`` tracks of ``result`` (the tracker's output: Confirmed, and coasting for
     the robust profile) as a Tracks message. Core stamps are seconds since ``epoch_ns``."""

@@ -45,7 +45,7 @@ from common.runtime.service import Counters
 from common.transport.base import Transport
 from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.convert import id_decisions_message, tracks_message
-from services.tracker.core import FrameResult, TrackView
+from services.tracker.core import FrameResult, TrackReport
 from services.tracker.core.types import KeptMemory
 from services.tracker.core.view import FieldOfView, Views
 from services.tracker.intake import Frame, Intake
@@ -264,15 +264,15 @@ class TrackerService(Node):
             in_frame = header.model_copy(update={"frame_id": self.config.frame_id})
             self.decisions_pub.put(id_decisions_message(fresh, in_frame))
 
-    def _publish(self, frame: Frame, result: FrameResult, views: list[TrackView] | None = None,
+    def _publish(self, frame: Frame, result: FrameResult, reports: list[TrackReport] | None = None,
                  stamp_ns: int | None = None) -> Tracks:
-        """Publish ``result``'s output (``views``: predicted to ``stamp_ns`` at the fixed rate).
+        """Publish ``result``'s output (``reports``: predicted to ``stamp_ns`` at the fixed rate).
         The header names the newest input frame (seq, source, ``input_stamp_ns``)."""
         assert self._epoch_ns is not None
         h = frame.loc.header
         header = Header(stamp_ns=h.stamp_ns if stamp_ns is None else max(stamp_ns, h.stamp_ns),
                         frame_id=self.config.frame_id, seq=h.seq, source=h.source)
-        reported = self.tracker.reported(result) if views is None else views
+        reported = self.tracker.reported(result) if reports is None else reports
         msg = tracks_message(result, reported, header, self.model or "", self._epoch_ns)
         msg.input_stamp_ns = h.stamp_ns
         self.publisher.put(msg)
@@ -335,8 +335,8 @@ class TrackerService(Node):
         frame, result, stamp_ns = due
         assert self._epoch_ns is not None
         dt = max(0.0, (stamp_ns - self._epoch_ns) / 1e9 - result.stamp)
-        views = self.tracker.predict_views(self.tracker.reported(result), dt)
-        return [self._publish(frame, result, views, stamp_ns)]
+        reports = self.tracker.predict_reports(self.tracker.reported(result), dt)
+        return [self._publish(frame, result, reports, stamp_ns)]
 
     def deadline(self, now: float) -> float | None:
         """Seconds until the earliest pending frame stops waiting for its embeddings, or the

@@ -11,7 +11,7 @@ from services.tracker.convert import track_state
 from services.tracker.core.cues import posture as pose
 from services.tracker.core.robust import RobustParams, RobustTracker
 from services.tracker.core.thesis import ThesisTracker, ThesisParams
-from services.tracker.core.types import FrameInput
+from services.tracker.core.types import FrameInput, FrameResult
 
 
 def test_each_posture_is_the_most_likely_for_its_own_height_and_box() -> None:
@@ -32,10 +32,12 @@ def test_walking_direction_gives_the_orientation_and_standing_still_gives_nothin
 
 
 def _frames(trk: RobustTracker, t0: float, t1: float, start: tuple[float, float], velocity: tuple[float, float],
-            height: float, aspect: float) -> None:
+            height: float, aspect: float) -> FrameResult:
+    """The person's frames from ``t0`` to ``t1``; the last frame's result."""
     for t in np.arange(t0, t1, 0.1):
         x, y = start[0] + velocity[0] * (t - t0), start[1] + velocity[1] * (t - t0)
-        trk.step(float(t), FrameInput.of(np.array([[x, y, height]]), aspects=np.array([aspect])))
+        result = trk.step(float(t), FrameInput.of(np.array([[x, y, height]]), aspects=np.array([aspect])))
+    return result
 
 
 def test_a_person_walks_then_sits_down_facing_the_way_they_walked() -> None:
@@ -43,11 +45,11 @@ def test_a_person_walks_then_sits_down_facing_the_way_they_walked() -> None:
     _frames(trk, 0.0, 3.0, (0.0, 0.0), (0.0, 1.0), 1.1, 2.7)  # walks along +y, standing
     t = trk.tracks[0]
     assert t.posture[0] > 0.9 and int(np.argmax(t.orientation)) == 2 and t.orientation[2] > 0.5
-    _frames(trk, 3.0, 6.0, (0.0, 3.0), (0.0, 0.0), 0.7, 1.6)  # stops and sits
+    last = _frames(trk, 3.0, 6.0, (0.0, 3.0), (0.0, 0.0), 0.7, 1.6)  # stops and sits
     t = trk.tracks[0]
     assert t.posture[1] > 0.8
     assert int(np.argmax(t.orientation)) == 2  # still facing the way they came, less sure
-    state = track_state(trk._view(t, 6.0), True)
+    state = track_state(trk.reported(last)[0], True)
     assert np.argmax(state.posture) == 1 and np.isclose(sum(state.orientation), 1.0)
 
 

@@ -62,7 +62,7 @@ def test_both_profiles_are_one_interface(profile: str, cls: type) -> None:
     assert tracker.restart_clock() == [1] and tracker.live_ids() == set() and 1 in tracker.memory
     tracker.restore(state)
     assert tracker.live_ids() == {1}
-    ahead = tracker.predict_views(tracker.reported(result), 0.5)
+    ahead = tracker.predict_reports(tracker.reported(result), 0.5)
     assert ahead[0].position[0] == pytest.approx(result.tracks[0].position[0] + 0.5 * result.tracks[0].velocity[0])
     tracker.import_memory(KeptMemory(classifiers={}, recovery=None))
     assert isinstance(tracker.export_memory().classifiers, dict)

@@ -15,7 +15,7 @@ from services.tracker.core.types import (
     FrameResult,
     ScoreModel,
     TrackStatus,
-    TrackView,
+    TrackReport,
 )
 
 __all__ = [
@@ -30,7 +30,7 @@ __all__ = [
     "ScoreModel",
     "ThesisTrack",
     "TrackStatus",
-    "TrackView",
+    "TrackReport",
     "ThesisTracker",
     "TrackerCore",
     "ThesisParams",

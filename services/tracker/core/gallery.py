@@ -3,7 +3,7 @@
 A :class:`Gallery` holds at most ``capacity`` descriptors (default 500, as TU Ilmenau's
 appearance sample sets). When a new descriptor arrives at a full gallery, the two most
 similar descriptors among the stored ones and the new one are found, and the older of the
-two is pruned: redundant views go first, the newest appearance is always kept.
+two is pruned: redundant samples go first, the newest appearance is always kept.
 
 The closest pair is found in O(n * D) per insertion by keeping, for every stored
 descriptor, its nearest neighbour in the gallery (squared distance and index). That

@@ -16,7 +16,7 @@ from __future__ import annotations
 from typing import Protocol, TypeVar
 
 from services.tracker.core.identity import IdentityMemory
-from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, KeptMemory, TrackView
+from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, KeptMemory, TrackReport
 
 __all__ = ["TrackerCore"]
 
@@ -34,12 +34,12 @@ class TrackerCore(Protocol[State]):
         """Process one frame (``stamp`` in seconds, never older than the last one)."""
         ...
 
-    def reported(self, result: FrameResult) -> list[TrackView]:
+    def reported(self, result: FrameResult) -> list[TrackReport]:
         """What to output of ``result``: the profile's reported tracks."""
         ...
 
-    def predict_views(self, views: list[TrackView], dt: float) -> list[TrackView]:
-        """``views`` moved ``dt`` seconds ahead by the motion model (output at a fixed rate
+    def predict_reports(self, reports: list[TrackReport], dt: float) -> list[TrackReport]:
+        """``reports`` moved ``dt`` seconds ahead by the motion model (output at a fixed rate
         between frames); the tracker's state does not change."""
         ...
 

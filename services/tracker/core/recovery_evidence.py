@@ -27,11 +27,11 @@ __all__ = ["Candidate", "Evidence", "evidence", "keeps", "min_distance"]
 
 @dataclass(frozen=True)
 class Candidate:
-    """The newly confirmed track as recovery sees it: its views (M, D) (its gallery), and where it
+    """The newly confirmed track as recovery sees it: its ``descriptors`` (M, D) (its gallery), and where it
     is: ``stamp``, ``x``, ``y`` and the variance ``var`` per axis of that position; its
     ``stature`` (m) from ``stature_n`` measurements (0: not known; core/cues/stature.py)."""
 
-    views: np.ndarray
+    descriptors: np.ndarray
     stamp: float
     x: float
     y: float
@@ -73,11 +73,11 @@ def evidence(track: Candidate, memory: IdentityMemory, exclude: set[int], pair_l
     ``track`` could be, from the association's cues: ``pair_llr`` turns Euclidean descriptor
     distances into the model's weighted log-odds, here the distance of the track's mean view to
     the remembered gallery (Algorithm 2's); the remembered person's classifier (``classifiers``,
-    weighted by ``classifier.weight``) adds its mean log-odds over the track's views. The same
+    weighted by ``classifier.weight``) adds its mean log-odds over the track's descriptors. The same
     appearance measure against ``others`` ((M, D) arrays), the galleries of the people in view now, gives the
     stranger's log-odds (:func:`stranger_llr`). With ``stature``, the track's stature against
     each remembered one's (their departures') adds the association's stature log-odds."""
-    mean = np.asarray(track.views, np.float32).mean(axis=0)
+    mean = np.asarray(track.descriptors, np.float32).mean(axis=0)
     ids_a, dist = memory.distances(mean, exclude=exclude)
     ids = ids_a.tolist()
     llr = np.asarray(pair_llr(dist), float).copy()
@@ -96,10 +96,10 @@ def evidence(track: Candidate, memory: IdentityMemory, exclude: set[int], pair_l
 def _add_classifiers(llr: np.ndarray, track: Candidate, ids: list[int], classifiers: dict[int, np.ndarray],
                      classifier: ClassifierParams | None) -> None:
     """``llr`` (K,) plus each remembered person's classifier's weighted mean log-odds over the
-    track's views, where they have one of the views' size."""
+    track's descriptors, where they have one of the descriptors' size."""
     if classifier is None or not classifier.weight > 0:
         return
-    u = clf.normalise(np.asarray(track.views, np.float32))
+    u = clf.normalise(np.asarray(track.descriptors, np.float32))
     cols = [i for i, k in enumerate(ids) if len(classifiers.get(k, ())) == u.shape[1] + 1]
     if cols:
         w = np.stack([classifiers[ids[i]] for i in cols])

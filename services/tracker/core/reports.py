@@ -1,4 +1,4 @@
-"""What the robust tracker shows of its tracks: :class:`~services.tracker.core.types.TrackView`
+"""What the robust tracker shows of its tracks: :class:`~services.tracker.core.types.TrackReport`
 per track for each frame's result, and :class:`TrackRow`, a full picture of a track for
 inspection and tests. Pure numpy."""
 
@@ -14,13 +14,13 @@ from services.tracker.core.bank import GalleryBank
 from services.tracker.core.cues.classifier import trained
 from services.tracker.core.cues.stature import stature_of
 from services.tracker.core.tracks import FIELDS, RobustTrackerState, TrackTable
-from services.tracker.core.types import TrackStatus, TrackView
+from services.tracker.core.types import TrackStatus, TrackReport
 
 if TYPE_CHECKING:
     from services.tracker.core.cues.posture import PostureColumns
     from services.tracker.core.cues.stature import StatureColumns
 
-__all__ = ["TrackRow", "row_view", "track_rows", "track_view", "track_views"]
+__all__ = ["TrackRow", "track_report", "track_reports", "track_rows"]
 
 
 @dataclass(frozen=True)
@@ -91,35 +91,27 @@ def track_rows(table: TrackTable, bank: GalleryBank) -> list[TrackRow]:
     return out
 
 
-def row_view(t: TrackRow, stamp: float, posture: bool) -> TrackView:
-    """A :class:`TrackRow` as :func:`track_view` reports its track."""
-    return TrackView(t.id, t.status, t.mean, t.cov, t.total_hits, 0, max(0.0, stamp - t.first_stamp), t.last_update,
-                     len(t.gallery) if t.gallery is not None else 0, t.ever_confirmed,
-                     posture=t.posture if posture else None, orientation=t.orientation if posture else None,
-                     stature=t.stature if t.stature_n else None)
-
-
-def track_view(state: RobustTrackerState, j: int, stamp: float, status: TrackStatus, in_view: bool | None) -> TrackView:
+def track_report(state: RobustTrackerState, j: int, stamp: float, status: TrackStatus, in_view: bool | None) -> TrackReport:
     """Track ``j`` as the tracker reports it at ``stamp``; posture and orientation when the
     posture cue is on. The arrays are shared: the tracker never writes into a mean, cov, posture
     or orientation array it has shown, every change makes new ones."""
     t, poses = state.tracks, _posture(state.tracks)
     h, n = stature_of(t, j)
-    return TrackView(t.id[j], status, t.mean[j], t.cov[j], t.total_hits[j], 0, max(0.0, stamp - t.first_stamp[j]),
+    return TrackReport(t.id[j], status, t.mean[j], t.cov[j], t.total_hits[j], 0, max(0.0, stamp - t.first_stamp[j]),
                      t.last_update[j], state.bank.size(t.slot[j]), t.ever_confirmed[j], in_view,
                      posture=poses.posture[j] if poses else None, orientation=poses.orientation[j] if poses else None,
                      stature=h if n else None)
 
 
-def track_views(state: RobustTrackerState, stamp: float, view_known: bool) -> list[TrackView]:
-    """Every live track as :func:`track_view`; a coasting one says whether it is in view when
+def track_reports(state: RobustTrackerState, stamp: float, view_known: bool) -> list[TrackReport]:
+    """Every live track as :func:`track_report`; a coasting one says whether it is in view when
     the frame had a view (``view_known``)."""
     t = state.tracks
     if not t.id:
         return []
     cols = _posture(t)
     poses = zip(cols.posture, cols.orientation) if cols else ((None, None) for _ in t.id)
-    coasting, make, sizes = TrackStatus.COASTING, TrackView.of_fields, state.bank.n.tolist()
+    coasting, make, sizes = TrackStatus.COASTING, TrackReport.of_fields, state.bank.n.tolist()
     return [make(i, s, m, c, h, 0, max(0.0, stamp - first), last, sizes[slot] if slot >= 0 else 0, ever,
                  flag if view_known and s is coasting else None, pp, o, body)
             for i, s, m, c, h, first, last, slot, ever, flag, (pp, o), body

@@ -57,10 +57,10 @@ from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.protocol import TrackerCore
 from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.bank import GalleryBank
-from services.tracker.core.reports import TrackRow, row_view, track_rows, track_view, track_views
+from services.tracker.core.reports import TrackRow, track_report, track_reports, track_rows
 from services.tracker.core.tracks import RobustTrackerState, TrackTable
 from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, KeptMemory, ScoreModel, TrackStatus
-from services.tracker.core.types import TrackView
+from services.tracker.core.types import TrackReport
 from services.tracker.core.view import View
 
 __all__ = ["AppearanceModel", "RobustParams", "RobustTracker", "RobustTrackerState", "ScoreModel"]
@@ -140,7 +140,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
             state.last_stamp = stamp  # nothing to track, nothing to predict
             return FrameResult(stamp, self._appearance(frame))
         pairing = self._pairing(stamp, frame)
-        pairing.moved = self._predict(stamp)  # new state arrays: the views of the last frame keep theirs
+        pairing.moved = self._predict(stamp)  # new state arrays: the reports of the last frame keep theirs
         previous, state.last_stamp = state.last_stamp, stamp
         matches = self._associate(self._log_odds(pairing), pairing.confident)
         rows = np.array(matches, np.int64).T if matches else np.zeros((2, 0), np.int64)  # (detections, tracks)
@@ -153,7 +153,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         self._remove(lifecycle.confirm(state, self.params, result))
         lifecycle.probation(state, self.params, stamp, result)  # recent recoveries checked again
         result.matches = len(matches)
-        result.tracks = track_views(state, stamp, frame.view is not None)
+        result.tracks = track_reports(state, stamp, frame.view is not None)
         return result
 
     def _appearance(self, frame: FrameInput) -> bool:
@@ -235,7 +235,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         t = self.state.tracks
         d_idx, t_idx = rows
         new_means, new_covs = kalman.update(t.mean[t_idx], t.cov[t_idx], pairing.positions[d_idx], pairing.r[d_idx])
-        if not pairing.moved:  # a view of the last frame keeps its arrays
+        if not pairing.moved:  # a report of the last frame keeps its arrays
             t.mean, t.cov = t.mean.copy(), t.cov.copy()
         t.mean[t_idx], t.cov[t_idx] = new_means, new_covs
         sure, p_true, stamp, camera = pairing.confident.tolist(), pairing.p_det.tolist(), pairing.stamp, \
@@ -267,7 +267,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         """Coasting and deletion (:func:`lifecycle.age`); a deleted track's appearance is archived."""
         ended, keep = lifecycle.age(self.state, self.params, stamp, previous, view)
         for j in ended:
-            result.deleted.append(track_view(self.state, j, stamp, TrackStatus.DELETED, None))
+            result.deleted.append(track_report(self.state, j, stamp, TrackStatus.DELETED, None))
             lifecycle.archive(self.state, j, view, self.params.recovery.exit_horizon_s)
         self._remove({j for j, k in enumerate(keep) if not k})
 
@@ -280,10 +280,6 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
             if t.slot[j] >= 0:
                 self.state.bank.release(t.slot[j])
         t.drop(rows)
-
-    def _view(self, t: TrackRow, stamp: float) -> TrackView:
-        """The view of a track as :attr:`tracks` pictured it."""
-        return row_view(t, stamp, self.params.posture is not None)
 
     def forget(self, track_id: int) -> dict[str, int | bool]:
         """Forget a person: their remembered descriptors and classifier go, and a live track
@@ -305,14 +301,14 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
             t.slot[j], t.forgotten[j] = -1, True
         return {"descriptors": removed, "classifier": had_classifier, "live_track": bool(rows)}
 
-    def predict_views(self, views: list[TrackView], dt: float) -> list[TrackView]:
-        """``views`` moved ``dt`` seconds ahead by the constant-velocity model (for output at
+    def predict_reports(self, reports: list[TrackReport], dt: float) -> list[TrackReport]:
+        """``reports`` moved ``dt`` seconds ahead by the constant-velocity model (for output at
         a fixed rate between frames); the tracker's state does not change."""
-        if not views or dt <= 0:
-            return list(views)
-        means, covs = kalman.predict(np.stack([v.mean for v in views]), np.stack([v.cov for v in views]), dt,
+        if not reports or dt <= 0:
+            return list(reports)
+        means, covs = kalman.predict(np.stack([v.mean for v in reports]), np.stack([v.cov for v in reports]), dt,
                                      self._q(dt))
-        return [replace(v, mean=m, cov=c) for v, m, c in zip(views, means, covs)]
+        return [replace(v, mean=m, cov=c) for v, m, c in zip(reports, means, covs)]
 
     def restart_clock(self) -> list[int]:
         """End every live track and forget the clock, keeping the ID memory (a clock jump: a replay
@@ -328,7 +324,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         self.state.recovery.departures.clear()  # their stamps are of the old clock
         return ids
 
-    def reported(self, result: FrameResult) -> list[TrackView]:
+    def reported(self, result: FrameResult) -> list[TrackReport]:
         """What to output: confirmed tracks, and coasting ones missed for at most
         ``report_coast_s`` unless known to be out of the camera's view."""
         limit = self.params.report_coast_s

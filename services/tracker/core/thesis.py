@@ -43,9 +43,9 @@ from services.tracker.core.identity import IdentityMemory
 from services.tracker.core.protocol import TrackerCore
 from services.tracker.core.thesis_params import ThesisParams
 from services.tracker.core.types import AppearanceModel, FrameInput, FrameResult, IdDecision, KeptMemory, TrackStatus
-from services.tracker.core.types import TrackView
+from services.tracker.core.types import TrackReport
 
-__all__ = ["FrameResult", "ThesisTrack", "TrackStatus", "TrackView", "ThesisTracker", "ThesisParams", "ThesisState"]
+__all__ = ["FrameResult", "ThesisTrack", "TrackStatus", "TrackReport", "ThesisTracker", "ThesisParams", "ThesisState"]
 
 
 @dataclass
@@ -207,12 +207,12 @@ class ThesisTracker(TrackerCore[ThesisState]):
             if has_desc[d]:
                 self._add_descriptor(self.tracks[ti], descriptors[d])  # type: ignore[index]
 
-    def _age_missed(self, unmatched_t: np.ndarray, frames: int, appearance: bool, stamp: float) -> list[TrackView]:
+    def _age_missed(self, unmatched_t: np.ndarray, frames: int, appearance: bool, stamp: float) -> list[TrackReport]:
         """Count a miss for every unmatched track; delete (and archive) those at ``max_misses``.
 
         Returns the deleted tracks.
         """
-        deleted: list[TrackView] = []
+        deleted: list[TrackReport] = []
         deleted_idx = set()
         for ti in unmatched_t.tolist():
             t = self.tracks[ti]
@@ -320,18 +320,18 @@ class ThesisTracker(TrackerCore[ThesisState]):
                 self._forgotten.add(track_id)
         return {"descriptors": removed, "classifier": False, "live_track": live}
 
-    def predict_views(self, views: list[TrackView], dt: float) -> list[TrackView]:
-        """``views`` moved ``dt`` seconds ahead by the motion model (for output at a fixed
+    def predict_reports(self, reports: list[TrackReport], dt: float) -> list[TrackReport]:
+        """``reports`` moved ``dt`` seconds ahead by the motion model (for output at a fixed
         rate between frames); the tracker's state does not change."""
-        if not views or dt <= 0:
-            return list(views)
+        if not reports or dt <= 0:
+            return list(reports)
         if self.params.time_step == "frame":
             step, scale = dt / self.params.frame_period_s, dt / self.params.frame_period_s
         else:
             step, scale = dt, dt / self.params.frame_period_s
-        means, covs = kalman.predict(np.stack([v.mean for v in views]), np.stack([v.cov for v in views]), step,
+        means, covs = kalman.predict(np.stack([v.mean for v in reports]), np.stack([v.cov for v in reports]), step,
                                      np.diag(self._q_frame * scale))
-        return [replace(v, mean=m, cov=c) for v, m, c in zip(views, means, covs)]
+        return [replace(v, mean=m, cov=c) for v, m, c in zip(reports, means, covs)]
 
     def restart_clock(self) -> list[int]:
         """End every live track and forget the clock, keeping the ID memory (a clock jump:
@@ -346,7 +346,7 @@ class ThesisTracker(TrackerCore[ThesisState]):
         self.last_stamp = None
         return ended
 
-    def reported(self, result: FrameResult) -> list[TrackView]:
+    def reported(self, result: FrameResult) -> list[TrackReport]:
         """The tracker's output for ``result``: the Confirmed tracks (as in the thesis)."""
         return result.confirmed
 
@@ -361,8 +361,8 @@ class ThesisTracker(TrackerCore[ThesisState]):
         return None
 
 
-def _view(t: ThesisTrack, stamp: float) -> TrackView:
-    return TrackView(t.id, t.status, t.mean.copy(), t.cov.copy(), t.total_hits, t.misses,
+def _view(t: ThesisTrack, stamp: float) -> TrackReport:
+    return TrackReport(t.id, t.status, t.mean.copy(), t.cov.copy(), t.total_hits, t.misses,
                      max(0.0, stamp - t.first_stamp), t.last_update, len(t.gallery) if t.gallery else 0,
                      t.ever_confirmed)
 

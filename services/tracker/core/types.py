@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 
 __all__ = ["AppearanceModel", "FrameInput", "FrameResult", "HandOver", "IdCandidate", "IdDecision", "IdOutcome", "IdRule",
            "KeptMemory",
-           "ScoreModel", "TrackStatus", "TrackView"]
+           "ScoreModel", "TrackStatus", "TrackReport"]
 
 
 class TrackStatus(str, Enum):
@@ -32,7 +32,7 @@ class TrackStatus(str, Enum):
 
 
 @dataclass(frozen=True)
-class TrackView:
+class TrackReport:
     """A read-only picture of a track after an update."""
 
     id: int
@@ -54,12 +54,12 @@ class TrackView:
     stature: float | None = None
 
     @classmethod
-    def of_fields(cls, *values: object) -> TrackView:
+    def of_fields(cls, *values: object) -> TrackReport:
         """A view from all its fields in order, made the way a plain class would be: a frozen
         dataclass's ``__init__`` sets every field through ``object.__setattr__``, twice as
         slow, and the robust core makes one view per track per frame."""
         view = object.__new__(cls)
-        view.__dict__.update(zip(_VIEW_FIELDS, values))
+        view.__dict__.update(zip(_REPORT_FIELDS, values))
         return view
 
     @property
@@ -71,7 +71,7 @@ class TrackView:
         return self.mean[3:]
 
 
-_VIEW_FIELDS = tuple(f.name for f in fields(TrackView))
+_REPORT_FIELDS = tuple(f.name for f in fields(TrackReport))
 
 
 #: what an ID decision did: a fresh ID, a remembered one, a recovery taken back, or the ID of a
@@ -213,8 +213,8 @@ class FrameResult:
 
     stamp: float
     appearance_available: bool
-    tracks: list[TrackView] = field(default_factory=list)  # live tracks (tentative and confirmed)
-    deleted: list[TrackView] = field(default_factory=list)
+    tracks: list[TrackReport] = field(default_factory=list)  # live tracks (tentative and confirmed)
+    deleted: list[TrackReport] = field(default_factory=list)
     new_ids: list[int] = field(default_factory=list)
     recovered_ids: list[int] = field(default_factory=list)
     #: recoveries taken back this frame (robust profile): (the remembered ID, the fresh ID the track got)
@@ -227,7 +227,7 @@ class FrameResult:
     births_blocked: int = 0
 
     @property
-    def confirmed(self) -> list[TrackView]:
+    def confirmed(self) -> list[TrackReport]:
         """The tracker's output: Confirmed tracks only."""
         return [t for t in self.tracks if t.status is TrackStatus.CONFIRMED]
 

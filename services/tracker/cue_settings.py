@@ -144,7 +144,8 @@ class PostureConfig(AdvancedBlock):
     model_config = ConfigDict(extra="forbid")
 
     enabled: bool = setting(True, "estimate each track's posture (standing, sitting, lying) and orientation (TU "
-                            "Ilmenau's filters) and weigh the detectors' posture reports in the association")
+                            "Ilmenau's filters), the detectors' posture reports as evidence; published, not "
+                            "weighed in the association")
     posture_tau_s: float = setting(_PO.posture_tau_s, "time constant of the posture's drift to unknown", unit="s",
                                    gt=0.0, advanced=True)
     orientation_tau_s: float = setting(_PO.orientation_tau_s, "time constant of the orientation's drift to unknown",

@@ -16,8 +16,9 @@ Algorithm 2). Profile 'robust' (default) adds the log-odds of position, appearan
 detector confidence and a per-track appearance classifier, and publishes confirmed and
 briefly coasting tracks; 'thesis' is Pinto's thesis exactly (Algorithm 1, Confirmed
 tracks only). Subscribes to the localizer's LocalizedDetections and the
-embedder's Embeddings, publishes Tracks after every frame, and answers `?id=K`
-queries on the track query key.
+embedder's Embeddings, publishes Tracks at --output-rate (10 Hz by default, predicted
+to the publish time; 0: after every frame), and answers `?id=K` queries on the track
+query key.
 
 Settings come from defaults (the paper's values) <- --preset NAME (deploy/presets/NAME.yaml)
 <- --service-config FILE (section 'tracker' if present) <- PERCEPTION_TRACKER__FIELD

@@ -86,11 +86,10 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         """The cues of the settings, and which of them use each hook (a hook a cue leaves as
         :class:`Cue`'s is not called)."""
         self.cues = cues.build(self.params)
-        used = [c for c in self.cues]
-        self._predicting = [c for c in used if type(c).predict is not Cue.predict]
-        self._scoring = [c for c in used if type(c).log_odds is not Cue.log_odds]
-        self._learning = [c for c in used if type(c).learn is not Cue.learn]
-        self._born = [c for c in used if type(c).born is not Cue.born]
+        self._predicting = [c for c in self.cues if type(c).predict is not Cue.predict]
+        self._scoring = [c for c in self.cues if type(c).log_odds is not Cue.log_odds]
+        self._learning = [c for c in self.cues if type(c).learn is not Cue.learn]
+        self._born = [c for c in self.cues if type(c).born is not Cue.born]
 
     # ------------------------------------------------------------ the state
     @property
@@ -183,7 +182,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         score_model = self.params.scores if frame.score_model is None else frame.score_model
         return Pairing(stamp, frame, frame.positions, r, descriptors if appearance else None, has_desc,
                        clf.normalise(descriptors[has_desc]) if any_desc else None,  # type: ignore[index]
-                       score_model.probability(scores), score_model.confident(scores), score_model)
+                       score_model.probability(scores), score_model.confident(scores))
 
     def _predict(self, stamp: float) -> bool:
         """Move every track to ``stamp``; whether their state is in new arrays."""

@@ -17,7 +17,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from services.tracker.core.tracks import Columns, RobustTrackerState
-    from services.tracker.core.types import FrameInput, ScoreModel
+    from services.tracker.core.types import FrameInput
 
 __all__ = ["Cue", "PairDistances", "Pairing"]
 
@@ -62,7 +62,6 @@ class Pairing:
     u: np.ndarray | None
     p_det: np.ndarray
     confident: np.ndarray
-    score_model: ScoreModel
     moved: bool = False
     gated: np.ndarray | None = None
     appearance: np.ndarray | None = None

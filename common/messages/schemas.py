@@ -44,6 +44,7 @@ __all__ = [
     "IdDecisionState",
     "IdDecisions",
     "Image",
+    "LaserScan",
     "LocalizedDetection",
     "LocalizedDetections",
     "Message",
@@ -363,6 +364,65 @@ class StaticMap(Message):
     def content(self) -> tuple[object, ...]:
         """What makes it this map, its stamp aside: a map sent again has the same content."""
         return (self.header.frame_id, self.resolution, self.width, self.height, self.origin, hash(self.data))
+
+
+# ---------------------------------------------------------------------------- laser
+
+#: ROS drivers disagree by one beam on whether angle_max is the last beam's angle or one past it.
+_BEAM_SLACK = 1
+
+
+@message("perception.LaserScan", 1)
+class LaserScan(Message):
+    """One sweep of a 2-D laser scanner, as ROS's ``sensor_msgs/LaserScan``: beam ``i`` points at
+    ``angle_min + i * angle_increment`` rad (counter-clockwise about z of ``header.frame_id``, the
+    scanner's frame), ``ranges[i]`` m; ``header.stamp_ns`` is the first beam's time and beam ``i``
+    was measured ``i * time_increment`` s later. A range that is NaN, inf or outside
+    (``range_min``, ``range_max``) is no return: kept as sent, counted by the reader, never an
+    error. ``header.source`` names the scanner stream (``front``, ``rear``)."""
+
+    angle_min: float = Field(allow_inf_nan=False)
+    angle_max: float = Field(allow_inf_nan=False)
+    angle_increment: float = Field(gt=0.0, allow_inf_nan=False, description="rad between beams; > 0")
+    time_increment: float = Field(default=0.0, allow_inf_nan=False, description="s between beams")
+    scan_time: float = Field(default=0.0, ge=0.0, allow_inf_nan=False, description="s between scans")
+    range_min: float = Field(ge=0.0, allow_inf_nan=False)
+    range_max: float = Field(gt=0.0, allow_inf_nan=False)
+    ranges: NDArray(np.float32, (None,))  # type: ignore[valid-type]
+    intensities: NDArray(np.float32, (None,)) | None = Field(  # type: ignore[valid-type]
+        default=None, description="one per range when the scanner sends them")
+
+    @model_validator(mode="after")
+    def _check(self) -> LaserScan:
+        if self.range_min >= self.range_max:
+            raise ValueError(f"range_min {self.range_min} must be below range_max {self.range_max}")
+        n = len(self.ranges)
+        if n == 0:
+            raise ValueError("ranges is empty")
+        span = (self.angle_max - self.angle_min) / self.angle_increment
+        if span < -0.5 or abs(span + 1 - n) > _BEAM_SLACK + 1e-3 * n:
+            raise ValueError(f"{n} ranges do not fit angle_min {self.angle_min:.4f} .. angle_max "
+                             f"{self.angle_max:.4f} in steps of {self.angle_increment:.6f} rad "
+                             f"({span + 1:.1f} beams)")
+        if self.intensities is not None and len(self.intensities) not in (0, n):
+            raise ValueError(f"{len(self.intensities)} intensities for {n} ranges")
+        return self
+
+    @classmethod
+    def from_ros(cls, msg: Any, source: str, seq: int = 0) -> LaserScan:
+        """A ``sensor_msgs/LaserScan`` (ROS 1 or 2, as ``rosbags`` or rclpy give it; duck-typed)
+        -> :class:`LaserScan`. Raises ``ValueError`` (pydantic's) naming a bad field."""
+        stamp = msg.header.stamp
+        nanos = getattr(stamp, "nanosec", None)
+        stamp_ns = int(stamp.sec) * 1_000_000_000 + int(getattr(stamp, "nsec", 0) if nanos is None else nanos)
+        intensities = np.asarray(msg.intensities, np.float32)
+        return cls(header=Header(stamp_ns=max(0, stamp_ns), frame_id=str(msg.header.frame_id).lstrip("/"),
+                                 seq=seq, source=source),
+                   angle_min=float(msg.angle_min), angle_max=float(msg.angle_max),
+                   angle_increment=float(msg.angle_increment), time_increment=float(msg.time_increment),
+                   scan_time=max(0.0, float(msg.scan_time)), range_min=float(msg.range_min),
+                   range_max=float(msg.range_max), ranges=np.asarray(msg.ranges, np.float32),
+                   intensities=intensities if len(intensities) else None)
 
 
 # ------------------------------------------------------------------------ detections

@@ -13,8 +13,8 @@ and judged on the ``test`` split (bag 3, ``/rear_scan``), deciding from the scan
   computed per cluster in Python (as ``cluster_features.cpp`` does, less the radius it sets to
   0) and a random forest of 100 trees of depth 20 (scikit-learn, seed 0).
 - ``boosted``: this project's detector (``services/laser/core``): the same clusters, the
-  features computed for all segments at once plus six of its own, 200 boosted trees of depth
-  3, calibrated; trained with ``services.laser.training`` exactly as ``perception train-legs``
+  features computed for all segments at once plus six of its own, 400 boosted trees of depth
+  3, calibrated, trained on every scan and its mirror image; trained with ``services.laser.training`` exactly as ``perception train-legs``
   trains the shipped model, but on the train split only.
 
 Reported per detector, in the "window" view (an empty scan's detections count inside the
@@ -89,13 +89,17 @@ def judge(scans: Sequence[dev_data.DevScan], found: Sequence[tuple[np.ndarray, n
 
 def _curve(scores: np.ndarray, hits: np.ndarray, n_labels: int, empty_scores: np.ndarray,
            n_empty: int) -> dict[str, float]:
+    """Precision and recall at every distinct score (tied detections pass or fail together, as
+    scikit-learn's average_precision_score treats them)."""
     order = np.argsort(-scores, kind="stable")
-    tp = np.cumsum(hits[order])
-    fp = np.cumsum(~hits[order])
-    recall = tp / n_labels
+    s, h = scores[order], hits[order]
+    last = np.r_[np.flatnonzero(s[1:] != s[:-1]), len(s) - 1] if len(s) else np.zeros(0, np.int64)
+    tp = np.cumsum(h)[last]
+    fp = np.cumsum(~h)[last]
+    recall = tp / max(n_labels, 1)
     precision = tp / np.maximum(tp + fp, 1)
-    # average precision: precision at each true positive, over all labels (missed ones add 0)
-    ap = float(precision[hits[order]].sum() / n_labels) if n_labels else 0.0
+    # average precision: the step sum over the distinct thresholds, over all labels
+    ap = float(np.sum(np.diff(np.r_[0.0, recall]) * precision))
     f1 = 2 * precision * recall / np.maximum(precision + recall, 1e-12)
     best = int(np.argmax(f1)) if len(f1) else 0
     allowed = int(np.floor(FALSE_PER_EMPTY * n_empty))
@@ -233,7 +237,7 @@ def boosted_detector(folder: Path) -> Detector:
 
     def run(scan: Any) -> tuple[np.ndarray, np.ndarray]:
         legs = detect(scan.ranges, training.geometry_of(scan), model, p)
-        return legs.xy, legs.probability
+        return legs.xy, legs.log_odds
 
     return run
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from common.messages.schemas import LaserScan
 
-__all__ = ["DevScan", "SPLITS", "WINDOW_DEG", "WINDOW_RANGE_M", "files_digest", "in_window", "load", "read_scans"]
+__all__ = ["DevScan", "SPLITS", "WINDOW_DEG", "WINDOW_RANGE_M", "files_digest", "in_window", "load", "mirrored", "read_scans"]
 
 #: The labelled window: every cluster inside it was labelled, nothing outside it was.
 WINDOW_DEG = 15.0
@@ -38,6 +38,16 @@ class DevScan:
     legs: np.ndarray
     empty: bool
     part: str
+
+
+def mirrored(d: DevScan) -> DevScan:
+    """``d`` seen in a mirror (y -> -y): the beams in reverse order, the labels flipped. A leg
+    looks the same either way; training on both keeps the classifier from learning which side
+    of this robot's scanner the people walked on."""
+    s = d.scan
+    scan = s.model_copy(update={"ranges": s.ranges[::-1].copy(), "angle_min": -s.angle_max, "angle_max": -s.angle_min,
+                                "intensities": None if s.intensities is None else s.intensities[::-1].copy()})
+    return DevScan(scan, d.legs * np.array([1.0, -1.0]), d.empty, d.part + ":mirrored")
 
 
 def in_window(xy: np.ndarray) -> np.ndarray:

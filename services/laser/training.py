@@ -2,7 +2,7 @@
 
 A positive is a segment whose centre is a labelled leg; a negative is any segment of an empty
 room. Segments of labelled scans that carry no label are left out: outside the labelled window
-nothing is known of them.
+nothing is known of them. Every scan is used twice, as recorded and mirrored (``dev_data.mirrored``).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from services.laser.core.features import NAMES, features
 from services.laser.core.legs import LegParams
 from services.laser.core.scan import ScanGeometry, beams
 from services.laser.core.segments import segment
-from services.laser.dev_data import DevScan, files_digest, load
+from services.laser.dev_data import DevScan, files_digest, load, mirrored
 
 __all__ = ["geometry_of", "samples", "train_model"]
 
@@ -60,9 +60,10 @@ def samples(scans: Sequence[DevScan], p: LegParams = LegParams()) -> tuple[np.nd
 def train_model(folder: Path, split: str = "all", boost: BoostParams = BoostParams(),
                 p: LegParams = LegParams()) -> tuple[Boosted, dict[str, Any]]:
     """The classifier trained on ``split`` of the dev data in ``folder``, and what it came from."""
-    x, y, _ = samples(load(folder, split), p)
+    scans = load(folder, split)
+    x, y, _ = samples(scans + [mirrored(d) for d in scans], p)
     model = train(x, y, boost)
     meta = {"features": list(NAMES), "split": split, "data": files_digest(folder, split),
-            "positives": int(y.sum()), "negatives": int(len(y) - y.sum()), "boost": asdict(boost),
+            "mirrored": True, "positives": int(y.sum()), "negatives": int(len(y) - y.sum()), "boost": asdict(boost),
             "segments": {"join_m": p.join_m, "min_points": p.min_points}}
     return model, meta

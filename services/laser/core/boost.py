@@ -12,15 +12,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import expit
 
 __all__ = ["BoostParams", "Boosted", "train"]
 
 
 @dataclass(frozen=True)
 class BoostParams:
-    rounds: int = 200
+    rounds: int = 400
     depth: int = 3
-    rate: float = 0.1
+    rate: float = 0.05
     bins: int = 64
     l2: float = 1.0
     min_hessian: float = 1.0
@@ -57,9 +58,13 @@ class Boosted:
             node = 2 * node + 1 + go_right
         return self.base + self.leaf[trees, node - (self.leaf.shape[1] - 1)].sum(axis=1)
 
-    def probability(self, x: np.ndarray) -> np.ndarray:
+    def log_odds(self, x: np.ndarray) -> np.ndarray:
+        """The calibrated log-odds (no ties where the probability rounds to 1)."""
         a, b = self.platt
-        return 1.0 / (1.0 + np.exp(-(a * self.margin(x) + b)))
+        return a * self.margin(x) + b
+
+    def probability(self, x: np.ndarray) -> np.ndarray:
+        return expit(self.log_odds(x))
 
     def to_json(self) -> dict[str, object]:
         return {"depth": self.depth, "base": self.base, "platt": list(self.platt),
@@ -128,7 +133,7 @@ def _boost(x: np.ndarray, y: np.ndarray, w: np.ndarray, p: BoostParams) -> Boost
     margin = np.full(len(y), base)
     trees = []
     for _ in range(p.rounds):
-        prob = 1.0 / (1.0 + np.exp(-margin))
+        prob = expit(margin)
         feature, threshold, leaf = _grow(codes, edges, w * (prob - y), w * prob * (1 - prob), p)
         trees.append((feature, threshold, leaf))
         model = Boosted(feature[None], threshold[None], leaf[None], 0.0)
@@ -144,7 +149,7 @@ def _platt(m: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     y = np.where(y > 0, (pos + 1) / (pos + 2), 1 / (len(y) - pos + 2))
     a, b = 1.0, 0.0
     for _ in range(50):
-        prob = 1.0 / (1.0 + np.exp(-(a * m + b)))
+        prob = expit(a * m + b)
         r, s = prob - y, np.maximum(prob * (1 - prob), 1e-12)
         grad = np.array([np.dot(r, m), r.sum()])
         hess = np.array([[np.dot(s, m * m), np.dot(s, m)], [np.dot(s, m), s.sum()]]) + 1e-9 * np.eye(2)

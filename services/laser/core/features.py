@@ -21,7 +21,7 @@ LEIGH = ("n_points", "std", "avg_median_dev", "width", "linearity", "circularity
          "boundary_regularity", "mean_curvature", "mean_angular_difference", "iav", "std_iav", "distance",
          "distance_per_point", "occluded_right", "occluded_left")
 #: This project's, after them.
-OURS = ("circle_radius", "bulge", "jump_prev", "jump_next", "width_per_span", "beam_gap")
+OURS = ("circle_radius", "bulge", "jump_near", "jump_far", "width_per_span", "beam_gap")
 NAMES = LEIGH + OURS
 
 
@@ -154,6 +154,7 @@ def features(b: Beams, s: Segments) -> np.ndarray:
     out = np.column_stack([
         n, std, med_dev, width, linearity, circ, length, regularity, curv, ang, iav, std_iav, distance,
         distance / n, occ_right, occ_left,
-        rc, bulge, jump_prev, jump_next, width / np.maximum(arc, 1e-6), span / n,
+        rc, bulge, np.minimum(jump_prev, jump_next), np.maximum(jump_prev, jump_next), width / np.maximum(arc, 1e-6),
+        span / n,
     ])
     return np.nan_to_num(out, nan=0.0, posinf=1e6, neginf=-1e6)

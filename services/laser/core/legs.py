@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.special import expit
 
 from services.laser.core.boost import Boosted
 from services.laser.core.features import NAMES, features
@@ -47,11 +48,13 @@ class LegParams:
 
 @dataclass(frozen=True)
 class Legs:
-    """``xy`` (L, 2) each leg's centre (m), ``probability`` (L,), ``width`` (L,) m, and ``beams``:
+    """``xy`` (L, 2) each leg's centre (m), ``probability`` (L,) and its ``log_odds`` (which
+    rank legs where the probability rounds to 1), ``width`` (L,) m, and ``beams``:
     each leg's beam indices; ``invalid`` the scan's invalid beams by reason."""
 
     xy: np.ndarray
     probability: np.ndarray
+    log_odds: np.ndarray
     width: np.ndarray
     beams: list[np.ndarray] = field(default_factory=list)
     invalid: dict[str, int] = field(default_factory=dict)
@@ -84,15 +87,16 @@ def detect_beams(b: Beams, model: Boosted, p: LegParams) -> Legs:
     seg = segment(b, p.join_m, p.min_points)
     x = features(b, seg)
     if not len(x):
-        return Legs(np.zeros((0, 2)), np.zeros(0), np.zeros(0), [], b.invalid)
+        return Legs(np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0), [], b.invalid)
     width, distance = x[:, NAMES.index("width")], x[:, NAMES.index("distance")]
-    prob = model.probability(x)
-    prob[(width > p.max_width_m) | (distance > p.max_range_m)] = 0.0
+    log_odds = model.log_odds(x)
+    log_odds[(width > p.max_width_m) | (distance > p.max_range_m)] = -np.inf
+    prob = expit(log_odds)
     keep = np.flatnonzero(prob >= p.min_probability)
     xs, ys = b.x[seg.order], b.y[seg.order]
     n = seg.counts.astype(np.float64)
     cx, cy = np.bincount(seg.seg, xs, len(seg)) / n, np.bincount(seg.seg, ys, len(seg)) / n
-    return Legs(np.column_stack([cx[keep], cy[keep]]), prob[keep], width[keep],
+    return Legs(np.column_stack([cx[keep], cy[keep]]), prob[keep], log_odds[keep], width[keep],
                 [seg.beams_of(int(s)) for s in keep], b.invalid)
 
 

@@ -81,7 +81,7 @@ def track_rows(table: TrackTable, bank: GalleryBank) -> list[TrackRow]:
         col = {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in col.items()}
         h, n = stature_of(table, j)
         cols = table.extra.get("classifier")
-        steps = cols.steps[j] if cols is not None else 0  # type: ignore[attr-defined]
+        steps = int(cols.steps[j]) if cols is not None else 0  # type: ignore[attr-defined]
         slot = table.slot[j]
         out.append(TrackRow(**col, clf=trained(table, j), clf_steps=steps,
                             posture=poses.posture[j].copy() if poses else pose.uniform(3),

@@ -10,7 +10,7 @@ whole columns. Pure numpy.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import Protocol
+from typing import Protocol, Self
 
 import numpy as np
 
@@ -20,7 +20,7 @@ from services.tracker.core.recovery import RecoveryState
 from services.tracker.core.types import TrackStatus
 
 
-__all__ = ["FIELDS", "Columns", "RobustTrackerState", "TrackTable"]
+__all__ = ["FIELDS", "ArrayColumns", "Columns", "RobustTrackerState", "TrackTable"]
 
 
 class Columns(Protocol):
@@ -40,6 +40,36 @@ class Columns(Protocol):
 
     def clear(self, j: int) -> None:
         """Track ``j``'s person was forgotten: nothing learnt of them stays."""
+
+
+class ArrayColumns:
+    """:class:`Columns` as a dataclass of arrays, one row per track (None: not started yet): new
+    tracks get :meth:`rows`, dropping and copying treat every array alike, and merging or clearing
+    changes nothing unless the cue says otherwise."""
+
+    def rows(self, k: int) -> tuple[np.ndarray | None, ...]:
+        """One array per field: the rows of ``k`` new tracks, the cue's state of "nothing known"."""
+        raise NotImplementedError
+
+    def _arrays(self) -> list[tuple[str, np.ndarray | None]]:
+        return [(f.name, getattr(self, f.name)) for f in fields(self)]  # type: ignore[arg-type]
+
+    def append(self, k: int) -> None:
+        for (name, v), new in zip(self._arrays(), self.rows(k)):
+            setattr(self, name, None if v is None else np.concatenate([v, new]))
+
+    def keep(self, idx: np.ndarray) -> None:
+        for name, v in self._arrays():
+            setattr(self, name, None if v is None else v[idx])
+
+    def copy(self) -> Self:
+        return type(self)(*(None if v is None else v.copy() for _, v in self._arrays()))
+
+    def merge(self, j: int, old: int) -> None:
+        return None
+
+    def clear(self, j: int) -> None:
+        return None
 
 
 @dataclass

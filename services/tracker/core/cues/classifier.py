@@ -1,23 +1,17 @@
 """Per-track online appearance classifiers (Basso/Munaro's online colour classifier, an equivalent).
 
 Basso and Munaro keep one online AdaBoost per track on colour histograms: the track's own
-detections are its positives, the other people's detections its negatives, and during a
-new track's first frames the classifiers of missing tracks score it, so a person who was
-fully occluded gets their ID back. Here each track keeps an online **logistic
-regression** on the embedder's descriptors instead (any descriptor, not only colour):
-
-* ``score(x) = w . u(x) + b``, with ``u(x) = x / |x|``: the log-odds that descriptor
-  ``x`` shows this track's person. An untrained classifier scores 0, "no information",
-  which is what a missing cue contributes in TU Ilmenau's fusion.
-* One stochastic gradient step per frame in which the track is matched with a descriptor
-  **and** at least one other person is in view with a descriptor: the positive is the
-  track's detection, the negatives are every other detection of the frame; positives and
-  negatives weigh the same in total, and an L2 penalty (``l2``) keeps ``w`` bounded. A
-  person alone in view teaches nothing: there is nobody to tell them from.
-* Where the gallery's nearest-neighbour distance says how like *any* past view of the
-  person a descriptor is, the classifier learns *which* features tell this person from
-  the people around them, e.g. the one colour that differs between two people in
-  similar clothes.
+detections its positives, the other people's its negatives, and a new track's first frames are
+scored by the missing tracks' classifiers, so a person who was fully occluded gets their ID back.
+Here each track keeps an online **logistic regression** on the embedder's descriptors (any
+descriptor, not only colour): ``score(x) = w . u(x) + b`` with ``u(x) = x / |x|``, the log-odds
+that ``x`` shows this track's person (untrained: 0, "no information", as a missing cue in TU
+Ilmenau's fusion). One SGD step per frame in which the track is matched with a descriptor while
+someone else is described too: its detection the positive, the others the negatives, each side
+weighing the same in total, an L2 penalty keeping ``w`` bounded; a person alone in view teaches
+nothing. Where the gallery says how like *any* past view of the person a descriptor is, the
+classifier learns *which* features tell them from the people around them (the one colour that
+differs between two people in similar clothes).
 
 Pure numpy; all tracks' classifiers are trained and evaluated in one matrix product.
 """
@@ -30,6 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from services.tracker.core.cues.base import Cue, Pairing
+from services.tracker.core.tracks import ArrayColumns
 
 if TYPE_CHECKING:
     from services.tracker.core.tracks import RobustTrackerState, TrackTable
@@ -103,26 +98,15 @@ NAME = "classifier"
 
 
 @dataclass
-class ClassifierColumns:
+class ClassifierColumns(ArrayColumns):
     """``weights`` (T, D + 1), rows of zeros while untrained (None until the first is trained),
     and ``steps`` (T,) the training steps each has taken (0: untrained)."""
 
     weights: np.ndarray | None = None
-    steps: list[int] = field(default_factory=list)
+    steps: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
-    def append(self, k: int) -> None:
-        if self.weights is not None:
-            self.weights = np.concatenate([self.weights, np.zeros((k, self.weights.shape[1]))])
-        self.steps += [0] * k
-
-    def keep(self, idx: np.ndarray) -> None:
-        if self.weights is not None:
-            self.weights = self.weights[idx]
-        steps = self.steps
-        self.steps = [steps[j] for j in idx.tolist()]
-
-    def copy(self) -> ClassifierColumns:
-        return ClassifierColumns(None if self.weights is None else self.weights.copy(), list(self.steps))
+    def rows(self, k: int) -> tuple[np.ndarray | None, np.ndarray]:
+        return None if self.weights is None else np.zeros((k, self.weights.shape[1])), np.zeros(k, np.int64)
 
     def merge(self, j: int, old: int) -> None:
         if self.steps[old] and self.steps[j] == 0 and self.weights is not None:
@@ -142,12 +126,12 @@ def trained(t: TrackTable, j: int) -> np.ndarray | None:
     return cols.weights[j].copy()  # type: ignore[attr-defined]
 
 
-def classifier_log_odds(weights: np.ndarray | None, steps: list[int], u: np.ndarray, has_desc: np.ndarray,
+def classifier_log_odds(weights: np.ndarray | None, steps: np.ndarray, u: np.ndarray, has_desc: np.ndarray,
                         clip: float) -> np.ndarray:
     """(N, T) the tracks' online classifiers' log-odds (Basso/Munaro) of the unit descriptors
     ``u`` (one row per detection with ``has_desc``): 0 for an untrained classifier (``steps``
     0: no training step yet) or a detection without a descriptor."""
-    cols = [j for j, k in enumerate(steps) if k]
+    cols = np.flatnonzero(steps).tolist()
     if len(cols) == len(steps) and len(u) == len(has_desc) and weights is not None:
         return scores(weights, u, clip)  # every classifier trained, every detection described
     out = np.zeros((len(has_desc), len(steps)))
@@ -188,13 +172,11 @@ class OnlineClassifierCue(Cue):
         cols: ClassifierColumns = t.extra[NAME]  # type: ignore[assignment]
         dim = u.shape[1]
         if cols.weights is None or cols.weights.shape[1] != dim + 1:
-            cols.weights, cols.steps = np.zeros((len(t), dim + 1)), [0] * len(t)
+            cols.weights, cols.steps = np.zeros((len(t), dim + 1)), np.zeros(len(t), np.int64)
         learners = [j for _, j in pairs]
         positive = np.array([r for r, _ in pairs])
         if learners == list(range(len(t))):  # every track learns: new weights, no gather
             cols.weights = train(cols.weights, u, positive, self.params)
         else:
             cols.weights[learners] = train(cols.weights[learners], u, positive, self.params)
-        steps = cols.steps
-        for j in learners:
-            steps[j] += 1
+        cols.steps[learners] += 1  # distinct tracks: one match each

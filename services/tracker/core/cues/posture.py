@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from services.tracker.core.cues.base import Cue, Pairing
+from services.tracker.core.tracks import ArrayColumns
 from services.tracker.core.types import TrackStatus
 
 if TYPE_CHECKING:
@@ -249,28 +250,17 @@ def _uniform_rows(k: int, n: int) -> np.ndarray:
 
 
 @dataclass
-class PostureColumns:
+class PostureColumns(ArrayColumns):
     """``posture`` (T, 3) and ``orientation`` (T, 8), one distribution per track. A track shown in
-    a view holds its rows: every change makes new arrays, except into arrays of this frame's own."""
+    a view holds its rows: every change makes new arrays, except into arrays of this frame's own.
+    Neither merges nor clears: how a person stands now is the track's own, and says nothing of who
+    they are."""
 
     posture: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     orientation: np.ndarray = field(default_factory=lambda: np.zeros((0, ORIENTATION_BINS)))
 
-    def append(self, k: int) -> None:
-        self.posture = np.concatenate([self.posture, _uniform_rows(k, 3)])
-        self.orientation = np.concatenate([self.orientation, _uniform_rows(k, ORIENTATION_BINS)])
-
-    def keep(self, idx: np.ndarray) -> None:
-        self.posture, self.orientation = self.posture[idx], self.orientation[idx]
-
-    def copy(self) -> PostureColumns:
-        return PostureColumns(self.posture.copy(), self.orientation.copy())
-
-    def merge(self, j: int, old: int) -> None:
-        return None  # how a person stands now is the new track's own
-
-    def clear(self, j: int) -> None:
-        return None  # a posture says nothing of who the person is
+    def rows(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        return _uniform_rows(k, 3), _uniform_rows(k, ORIENTATION_BINS)
 
 
 class PostureCue(Cue):

@@ -1,29 +1,24 @@
 """A person's stature as a cue (a soft biometric of RGB-D Re-ID, Barbosa et al. 2012): the robust
-profile's tracks learn how tall their person stands, and a detection of someone taller or
-shorter weighs against the track.
+profile's tracks learn how tall their person stands, and a detection of someone taller or shorter
+weighs against the track.
 
-The depth detector measures the top of a standing person's points above the floor (``stature_m``
-of a detection: the simulator's people to 1-3 cm; unknown when their head leaves the image or
-they sit). Clothes do not change it, so it tells apart two people whom appearance cannot: one
-who steps into the place another just left, while a person who changes clothes in view keeps
-their track.
+The depth detector measures the top of a standing person's points above the floor (a detection's
+``stature_m``: the simulator's people to 1-3 cm; unknown when the head leaves the image or they
+sit). Clothes do not change it, so it tells apart two people whom appearance cannot (one who steps
+into the place another just left), while a person who changes clothes in view keeps their track.
 
-* Each track keeps the running mean of its confident standing detections' statures (``est``)
-  and their count ``n`` (at most ``window``: an exponential mean after that); once it has
-  ``min_samples``, a measurement farther than ``gate_m`` from it (a raised arm, a head bent
-  down) does not change it.
-* The log-odds that detection d is track t: the measurement under the track's stature
-  (``N(h; est, noise^2 (1 + 1 / n))``) against a stranger's, drawn from the population
-  (``N(h; population_mean_m, population_sd_m^2 + noise^2)``), clipped to ``clip``, times
-  ``weight``. Each side is mixed with the measurements that are not the stature, the same for
-  both: a share
-  ``outlier_low`` up to ``low_range_m`` lower (a tall person sitting on a high seat still
-  passes as standing, a head bent or hidden) and ``outlier_high`` up to ``high_range_m``
-  higher (a raised arm, a hat), uniform there (for a stranger, a population's sd farther
-  on either side as well). A lower measurement thus says little, a higher one much: someone taller
-  than the track's person is someone else. 0 where either side does not know (no
-  measurement, fewer than ``min_samples``): no information, as a missing cue in TU
-  Ilmenau's fusion.
+* A track's ``est`` is the running mean of its confident standing detections' statures over ``n``
+  of them (at most ``window``: an exponential mean after that); from ``min_samples`` on, a
+  measurement farther than ``gate_m`` from it (a raised arm, a head bent down) does not change it.
+* The log-odds that detection d is track t: the measurement under the track's stature,
+  ``N(h; est, noise^2 (1 + 1 / n))``, against a stranger's from the population,
+  ``N(h; population_mean_m, population_sd_m^2 + noise^2)``, clipped to ``clip``, times ``weight``.
+  Both sides are mixed alike with the measurements that are not the stature: ``outlier_low`` of
+  them up to ``low_range_m`` lower (a tall person on a high seat still passes as standing, a head
+  bent or hidden), ``outlier_high`` up to ``high_range_m`` higher (a raised arm, a hat), uniform
+  there (for a stranger, a population's sd wider). A lower measurement thus says little, a higher
+  one much: someone taller than the track's person is someone else. 0 where either side does not
+  know (no measurement, fewer than ``min_samples``): no information.
 
 Pure numpy.
 """
@@ -38,6 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from services.tracker.core.cues.base import Cue, Pairing
+from services.tracker.core.tracks import ArrayColumns
 
 if TYPE_CHECKING:
     from services.tracker.core.tracks import RobustTrackerState, TrackTable
@@ -50,11 +46,8 @@ _BACKGROUND = 0.01 / 3.0
 
 @dataclass(frozen=True)
 class StatureParams:
-    """``noise_m``: one measurement's std; ``population_mean_m``, ``population_sd_m``: adults'
-    statures, men and women together; ``outlier_low``, ``low_range_m``, ``outlier_high``,
-    ``high_range_m``: the measurements that are not the stature; ``gate_m``, ``min_samples``,
-    ``window``: the track's estimate (module doc); ``clip``: bound on the log-odds; ``weight``:
-    of the log-odds in the association."""
+    """The stature cue's settings (the module doc; the README's *Settings*, ``robust.stature``);
+    ``population_*``: adults', men and women together."""
 
     noise_m: float = 0.03
     population_mean_m: float = 1.70
@@ -145,21 +138,14 @@ NAME = "stature"
 
 
 @dataclass
-class StatureColumns:
+class StatureColumns(ArrayColumns):
     """``est`` (T,) each track's stature (m) and ``n`` (T,) how many measurements it holds."""
 
     est: np.ndarray = field(default_factory=lambda: np.zeros(0))
     n: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
-    def append(self, k: int) -> None:
-        self.est = np.concatenate([self.est, np.zeros(k)])
-        self.n = np.concatenate([self.n, np.zeros(k, np.int64)])
-
-    def keep(self, idx: np.ndarray) -> None:
-        self.est, self.n = self.est[idx], self.n[idx]
-
-    def copy(self) -> StatureColumns:
-        return StatureColumns(self.est.copy(), self.n.copy())
+    def rows(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros(k), np.zeros(k, np.int64)
 
     def merge(self, j: int, old: int) -> None:
         n_old, n_new = int(self.n[old]), int(self.n[j])

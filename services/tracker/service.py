@@ -1,29 +1,18 @@
-"""TrackerService: LocalizedDetections + Embeddings in, Tracks out, over any Transport.
+"""TrackerService: LocalizedDetections + Embeddings in, Tracks out, over any Transport
+(services/tracker/README.md, *Inputs and outputs*). It wires four parts around the core
+(:class:`~services.tracker.core.TrackerCore`):
 
-The service wires four parts around the core (:class:`~services.tracker.core.TrackerCore`):
+* **Intake** (:mod:`services.tracker.intake`): inputs joined per source frame, checked and
+  converted once; a frame whose embeddings come after ``join_wait_s`` runs position-only, and is
+  applied again with them while within ``reorder_window_s`` (a rewind: ``late_embeddings_applied``).
+* **Order**: a :class:`ReorderBuffer` applies frames in sensor-time order, rewinding for late ones.
+* **Pacing** (:mod:`services.tracker.pacing`): the output once per frame or at a fixed rate.
+* **The ID ledger** (:mod:`services.tracker.ledger`): the track query, forgetting, retention and
+  the ID memory's file.
 
-* **Intake** (:mod:`services.tracker.intake`): inputs of one source frame are joined on
-  ``Header.join_key``. Localized detections wait up to ``join_wait_s`` for their embeddings;
-  then the frame runs position-only, and if its embeddings come later while it is within
-  ``reorder_window_s`` it is applied again with them (a rewind: ``late_embeddings_applied``);
-  later still they are dropped (``dropped_late_embeddings``). A frame without detections
-  needs no embeddings and runs at once; embeddings of another model are rejected and do
-  not make their frame wait. Each frame is converted once into the core's input.
-* **Order**: joined frames go through a :class:`ReorderBuffer`: applied in sensor-time
-  order, rewinding for late ones within ``reorder_window_s``, dropping (and counting) older ones.
-* **Pacing** (:mod:`services.tracker.pacing`): the tracker's output (the Confirmed tracks,
-  and with the robust profile tracks coasting through a short miss) is published once per
-  frame or at a fixed rate.
-* **The ID ledger** (:mod:`services.tracker.ledger`): ``keys.track_query()`` answers
-  ``?id=K`` with that ID's last known state; forgetting, retention, and the ID memory's
-  file, loaded at start and written atomically when it changes, every
-  ``memory_save_period_s`` with the live tracks' galleries, and at shutdown.
-
-Bad inputs are counted, logged at most once a second per reason, and survived: unusable
-covariances (``bad_covariances``), descriptors of another model or dimension
-(``dropped_wrong_model``, ``dropped_wrong_dimension``), and stamps that jump back by more
-than ``clock_jump_s`` (``clock_jumps``: every track ends, its ID stays remembered, and
-tracking starts over on the new clock).
+Bad inputs are counted, logged at most once a second per reason, and survived; stamps that jump
+back by more than ``clock_jump_s`` end every track (their IDs stay remembered), and tracking starts
+over on the new clock.
 """
 
 from __future__ import annotations

@@ -1,28 +1,9 @@
-"""The robust profile's life cycle, in time: ageing, birth, confirmation, hand-over, the ID
-(Algorithm 2 of Pinto's thesis, open-set: core/recovery.py) and the archive.
-
-* **Ageing.** A confirmed track that misses is *coasting*: it keeps its prediction and is
-  deleted after ``max_coast_s`` without a detection or when its position variance passes
-  ``max_position_var``; the time it spends out of every camera's view does not count, it
-  has the limits ``max_coast_unseen_s`` and ``max_position_var_unseen`` (it cannot be
-  detected there). A tentative track without a hit for ``tentative_timeout_s`` is dropped.
-* **Birth** (Ban et al.'s birth candidates). A confident detection nobody explains starts a
-  tentative track, unless it lies within ``birth_separation_m`` of a detection that went to
-  a track or of a likelier birth (a second report of the same person).
-* **Confirmation** (Basso/Munaro). After ``n_init`` confident hits, with an IsPerson
-  probability of at least ``confirm_is_person``. The ID comes then: by hand-over from a
-  track that left another camera's view (:func:`handover`), else a remembered person's by
-  the open-set decision of core/recovery.py (:func:`identity`), else a new one. For
-  ``recovery.probation_s`` a recovery is checked again and undone when the evidence turns
-  (:func:`probation`).
-* **Archive.** A deleted track's gallery and classifier go to the ID memory, where and when
-  it was last detected to the recovery's departures.
-
-What a matched track learns (its gallery, classifier, stature, posture, where it was seen) is
-each cue's (core/cues/).
-
-Each step is a function of the tracker's state (:class:`RobustTrackerState`) and its
-settings. Pure numpy.
+"""The robust profile's life cycle, in time (services/tracker/README.md, *How it works*, step 6):
+ageing (coasting, the limits out of view), birth (Ban et al.'s candidates), confirmation
+(Basso/Munaro, with IsPerson), the ID (a hand-over, else Algorithm 2 of Pinto's thesis, open-set:
+core/recovery.py, then probation) and the archive into the ID memory. What a matched track learns
+is each cue's (core/cues/). Each step is a function of the tracker's state
+(:class:`RobustTrackerState`) and its settings. Pure numpy.
 """
 
 from __future__ import annotations

@@ -1,41 +1,27 @@
-"""Open-set recovery: is a newly confirmed person someone new, or remembered person k?
+"""Open-set recovery: is a newly confirmed person someone new, or remembered person k? (The
+README's glossary: recovery, probation, rivals, the stranger's level.)
 
-The ID memory (Pinto's Algorithm 2) gives a returning person their old ID. Asked only "which
-remembered person is nearest, and is that near enough?", it also hands old IDs to people it
-has never seen, and the more people it remembers the likelier some stranger looks like one
-of them. Here the question is open-set: the hypotheses are "someone new" and "remembered
-person k" for each of the K remembered people the new track could be, and the ID goes to k
-only when k is more probable than all the others together.
+Asked only "which remembered person is nearest, and is that near enough?", the ID memory (Pinto's
+Algorithm 2) also hands old IDs to people it has never seen, and the more people it remembers the
+likelier some stranger looks like one of them. Here the hypotheses are "someone new" (log-odds 0,
+as Ban et al.'s clutter-or-new-person class) and each remembered person k the track could be, and
+k gets the ID only when more probable than all the others together:
 
-* **Evidence** per candidate: the log-likelihood ratio ``llr[k]`` of "same person" against
-  "different person", from the same cues and the same arithmetic as the association (the TU
-  Ilmenau framework's Bayesian product: log-odds add): the appearance distance through the
-  embedding model's calibrated Fermi function, plus the candidate's online classifier
-  (Basso/Munaro) with its association weight. "New" is the hypothesis at log-odds 0, as Ban
-  et al.'s clutter-or-new-person class of the association.
-* **Prior**: P(new) = ``p_new``, and the rest shared evenly by the K candidates. A larger
-  memory thins every candidate's prior, so it never makes the decision more eager: for the
-  same evidence on the best candidate, one more candidate can only lower its posterior. (An
-  estimate of P(new) online, from the share of newcomers among the recent contested
-  confirmations, was tried and left: it lost the simulator's IDF1, docs/results.md.)
-* **Posterior** ``P(k) = prior_k e^llr[k] / (P(new) + sum_j prior_j e^llr[j])``, and the decision
-  weighs the best candidate against "new" and its *rivals*: the candidates known to be someone
-  else than it, because the two were detected in the same frame. The margin to the second
-  best is in that sum: two different people alike share the probability and neither reaches
-  ``p_recover``. Two remembered IDs never seen together may be one person the memory holds
-  twice (a recovery missed earlier), and then either ID is right: they do not compete.
-* **Reachability**: a person cannot have walked from where and when they were last seen to
-  where the candidate is now faster than ``max_speed``, give or take ``n_sigma`` standard
-  deviations of both positions. Such a candidate's likelihood is 0 (it keeps its share of
-  the prior, which then goes to the other hypotheses in proportion).
-* **Undo**: for ``probation_s`` after a recovery the posterior is computed again every
-  ``check_period_s`` from the track's growing gallery; when it falls below ``p_undo`` the
-  recovery is taken back (the track gets a fresh ID, the remembered person stays
-  remembered).
+* **Evidence** ``llr[k]``: the association's cues and arithmetic (log-odds add), gathered by
+  :mod:`~services.tracker.core.recovery_evidence`.
+* **Prior**: P(new) = ``p_new``, the rest shared evenly by the K candidates: a larger memory never
+  makes the decision more eager. (P(new) estimated online, from the share of newcomers among recent
+  contested confirmations, was tried and left: it lost the simulator's IDF1, docs/results.md.)
+* **Support**: the best candidate's posterior against "new" and its *rivals*, the candidates
+  detected in one frame with it (certainly someone else): two different people alike share the
+  probability and neither reaches ``p_recover``, while two IDs never seen together may be one
+  person remembered twice, and then either is right: they do not compete.
+* **Reachability**: a candidate who could not have walked here since they left (``max_speed``,
+  give or take ``n_sigma``) has likelihood 0 (their share of the prior goes to the others).
+* **Undo**: for ``probation_s`` the support is checked again every ``check_period_s`` as the
+  gallery grows; below ``p_undo`` the track gets a fresh ID, the remembered person stays.
 
-Pure numpy; no tracker state beyond the small :class:`RecoveryState`. The tracker gathers the
-evidence (:mod:`~services.tracker.core.recovery_evidence`), calls :func:`decide` when a track is
-confirmed, and ``recovery_evidence.keeps`` during probation.
+Pure numpy; no tracker state beyond the small :class:`RecoveryState`.
 """
 
 from __future__ import annotations
@@ -53,35 +39,21 @@ __all__ = ["ARRAY_KEYS", "Decision", "Departure", "RecoveryParams", "RecoverySta
 
 @dataclass(frozen=True)
 class RecoveryParams:
-    """How sure the ID memory must be before it gives a remembered ID, and when it takes it back."""
+    """How sure the ID memory must be before it gives a remembered ID, and when it takes it back
+    (the README's *Settings*, ``robust.recovery``, says what each does). ``p_new`` 0.3 by the rule of
+    docs/results.md (*How P(new) was chosen*); ``p_undo`` below ``p_recover``, a hysteresis, so noise
+    about the bar does not flip a recovery; ``max_speed``: brisk walking is about 1.8 to 2.5 m/s (a
+    robot that moves the tracking frame would add its own speed)."""
 
-    #: prior probability that a newly confirmed person is someone new (the rest is shared by the
-    #: remembered candidates); 0.3 by the rule of docs/results.md (*How P(new) was chosen*)
     p_new: float = 0.3
-    #: a remembered ID is given when its posterior reaches this: more probable than "new" and
-    #: every other candidate together
     p_recover: float = 0.5
-    #: during probation, a recovery whose posterior falls below this is undone (hysteresis below
-    #: ``p_recover``, so noise about the bar does not flip it)
     p_undo: float = 0.25
-    #: m/s: the fastest a person walks (brisk walking is about 1.8 to 2.5 m/s; a robot that moves
-    #: the tracking frame would add its own speed)
-    max_speed: float = 2.5
-    #: standard deviations of the two positions allowed on top of the walk
+    max_speed: float = 2.5  # m/s
     n_sigma: float = 3.0
-    #: s: how long after a recovery the decision is checked again; 0: never undone
     probation_s: float = 3.0
-    #: s: how often during probation
     check_period_s: float = 0.5
-    #: the ID memory competes in the association: a detection near a coasting track, or near a
-    #: confirmed one whose person it does not look like, that looks like a remembered person known
-    #: to be someone else counts that as an alternative (core/cues.py's :func:`memory_alternatives`)
-    compete: bool = True
-    #: prior weight of a remembered person who walked out of the cameras' view, against one lost
-    #: inside it (still about); below 1 for an open place, whose people seldom turn straight back
+    compete: bool = True  # the ID memory competes in the association (cues/memory.py)
     left_weight: float = 1.0
-    #: s: a person walked out when their last fix was in view and their walk carried them out of
-    #: it within this time
     exit_horizon_s: float = 1.0
 
     def __post_init__(self) -> None:

@@ -1,44 +1,13 @@
-"""The ``robust`` tracker profile: the thesis's tracker rebuilt from four papers' ideas.
+"""The ``robust`` tracker profile: the thesis's tracker rebuilt from four papers' ideas (Pinto's
+thesis, the TU Ilmenau framework, Basso/Munaro's RGB-D tracker, Ban et al.'s robotic head), in
+time (seconds), not nominal frames, so the same settings hold at 5, 10 or 30 Hz.
 
-One call of :meth:`RobustTracker.update` processes one frame, in time (seconds), not in
-nominal frames, so the same settings hold at 5, 10 or 30 Hz. The papers are Pinto's thesis,
-the TU Ilmenau framework, Basso/Munaro's RGB-D tracker and Ban et al.'s robotic head.
-
-1. **Predict** every track with a constant-velocity model whose process noise is white
-   acceleration (``q_accel``, m^2/s^3) on (x, y) and a random walk on z.
-2. **Score every (detection, track) pair** by the TU Ilmenau framework's cue fusion: each
-   cue gives a probability that the pair is the same person, 0.5 meaning "no information",
-   and the cues combine by the Bayesian product (Eq 1), i.e. their log-odds add:
-
-   * *position*: the log-likelihood ratio of the detection under the track's predicted
-     Gaussian (innovation covariance ``S = HPH^T + R``) against a uniform density
-     ``new_density`` (people per m^2) of someone else or clutter. A track that has coasted
-     long has a wide ``S`` and scores lower everywhere (TU Ilmenau's |Sigma_h| penalty);
-   * *appearance*: the descriptor distance to the track's gallery through a Fermi
-     function placed by the embedding model's calibrated thresholds (0.9 at ``t_lower``,
-     0.1 at ``t_upper``). No descriptor, or a track without one yet, gives 0.5, so a
-     track born while the embedder was down gains appearance later without an ID switch;
-   * *confidence*: the detector's score as P(true person);
-   * *stature* (:mod:`~services.tracker.core.cues.stature`): the measured height of a standing
-     person against the track's, a soft biometric that clothes do not change.
-
-   A detection may also be explained as **clutter or a new person** (Ban et al.'s clutter
-   class), at log-odds 0: a pair is only accepted when its combined log-odds are positive.
-3. **Associate in stages** (ByteTrack's second stage, Basso/Munaro's confirmation):
-   confident detections x confirmed and coasting tracks (Hungarian on the log-odds), then
-   low-score detections x the confirmed tracks left (they keep a track alive, never start
-   one), then the remaining confident detections x the tentative tracks.
-4. **Update** the matched tracks with each detection's own covariance when it has one
-   (the localizer's, which grows with distance^2 as in Basso/Munaro's tracker), else ``sigma_r``.
-5. **Life cycle, in time** (:mod:`~services.tracker.core.lifecycle`): birth candidates (Ban et
-   al.; none on the static map's ``obstacles``), confirmation with IsPerson (TU Ilmenau: a binary
-   Bayes filter over the detections' confidences that fades back to 0.5 with ``is_person_tau_s``),
-   coasting, deletion, hand-over between cameras and the ID memory (Algorithm 2, open-set).
-
-Its parts: ``robust_params`` (the settings), ``cues`` (each cue's log-odds, the measurement
-covariance), ``lifecycle`` and ``tracks`` (the tracks as rows of arrays, their galleries in
-one array); this module runs them in order. Nothing of a frame stays but the state. Pure numpy
-and scipy; no I/O.
+One :meth:`RobustTracker.step` per frame: predict, score every (detection, track) pair by the
+cues' summed log-odds, match in stages, update, learn, then the life cycle
+(services/tracker/README.md, *How it works*, explains each step). Its parts: ``robust_params``
+(the settings), ``cues`` (each cue's log-odds, the measurement covariance), ``lifecycle`` and
+``tracks`` (the tracks as rows of arrays, their galleries in one array); this module runs them in
+order. Nothing of a frame stays but the state. Pure numpy and scipy; no I/O.
 """
 
 from __future__ import annotations
@@ -124,13 +93,8 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
 
     # ------------------------------------------------------------------ update
     def step(self, stamp: float, frame: FrameInput) -> FrameResult:
-        """Process one frame (see :class:`FrameInput`): ``stamp`` in seconds. A coasting track out of
-        ``frame.view`` is kept but not reported; without ``frame.aspects`` posture is not estimated
-        (the positions' z need not be a height above the floor either); ``frame.orientations`` are
-        used while the person is too slow for the walking direction to tell; ``frame.score_model``
-        (None: ``params.scores``) reads this frame's detector's scores, when several detectors feed
-        the tracker; ``frame.camera``: a hand-over by motion (``handover_gate_sq``) joins a track
-        last seen by one camera to a new track born in another's view only."""
+        """Process one frame (``stamp`` in seconds; :class:`FrameInput` says what each of its parts is
+        for). Without ``frame.aspects`` posture is not estimated: z need not be a height then."""
         state = self.state
         if state.last_stamp is None and state.recovery.departures:
             state.recovery.settle(stamp)  # departures from the memory's file, or of the clock before
@@ -281,10 +245,8 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         t.drop(rows)
 
     def forget(self, track_id: int) -> dict[str, int | bool]:
-        """Forget a person: their remembered descriptors and classifier go, and a live track
-        with that ID keeps its ID and position but loses its appearance history and learns
-        none from now on, so the person gets a new ID when they come back. Returns what
-        was removed: ``descriptors`` (remembered and live), ``classifier``, ``live_track``."""
+        """:meth:`TrackerCore.forget`: the descriptors, the classifier and the recovery's state of the
+        person go, and what each cue learnt of a live track's (they get a new ID when they come back)."""
         state, t = self.state, self.state.tracks
         removed = state.memory.forget(track_id)
         had_classifier = state.classifiers.pop(track_id, None) is not None
@@ -301,8 +263,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         return {"descriptors": removed, "classifier": had_classifier, "live_track": bool(rows)}
 
     def predict_reports(self, reports: list[TrackReport], dt: float) -> list[TrackReport]:
-        """``reports`` moved ``dt`` seconds ahead by the constant-velocity model (for output at
-        a fixed rate between frames); the tracker's state does not change."""
+        """:meth:`TrackerCore.predict_reports` by the constant-velocity model."""
         if not reports or dt <= 0:
             return list(reports)
         means, covs = kalman.predict(np.stack([v.mean for v in reports]), np.stack([v.cov for v in reports]), dt,
@@ -310,9 +271,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         return [replace(v, mean=m, cov=c) for v, m, c in zip(reports, means, covs)]
 
     def restart_clock(self) -> list[int]:
-        """End every live track and forget the clock, keeping the ID memory (a clock jump: a replay
-        that loops, a sensor clock reset): a person seen again after the jump gets their ID back.
-        Returns the ended IDs (tentative tracks have none and are dropped)."""
+        """:meth:`TrackerCore.restart_clock`; tentative tracks have no ID and are dropped."""
         t = self.state.tracks
         ended = [j for j, i in enumerate(t.id) if i]
         for j in ended:
@@ -338,17 +297,15 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         self.state = state.copy()
 
     def export_memory(self) -> KeptMemory:
-        """The live tracks' galleries, the classifiers to keep (the remembered people's and the
-        confirmed live tracks') and the recovery's state; a live track counts as having left
-        where and when it was last detected (after a restart that is where the person is)."""
+        """The live tracks' galleries, the classifiers (the remembered people's and the live tracks')
+        and the recovery's state (:func:`lifecycle.kept_recovery`)."""
         t, bank = self.state.tracks, self.state.bank
         live = {i: w for j, i in enumerate(t.id) if i and (w := trained(t, j)) is not None}
         return KeptMemory([(i, bank.descriptors(t.slot[j])) for j, i in enumerate(t.id) if i and bank.size(t.slot[j])],
                           {**self.classifiers, **live}, lifecycle.kept_recovery(self.state))
 
     def import_memory(self, kept: KeptMemory) -> None:
-        """The remembered people's classifiers and the recovery's state, from the ID memory's file
-        (the recovery for the remembered people only; ValueError when inconsistent)."""
+        """The remembered people's classifiers and the recovery's state (:func:`lifecycle.load_recovery`)."""
         if kept.classifiers is not None:
             self.state.classifiers = dict(kept.classifiers)
         if kept.recovery is not None:

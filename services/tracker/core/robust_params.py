@@ -37,35 +37,22 @@ class RobustParams:
     is_person_tau_s: float = 2.0
     tentative_timeout_s: float = 0.25
     report_coast_s: float = 0.3
-    # image border (share of its size) where a coasting person counts as out of view (a floor view: half a body)
     view_margin: float = 0.1
     max_coast_s: float = 2.0
     max_position_var: float = 4.0  # m^2, trace of the (x, y) covariance
-    #: the same two limits for a track coasting out of every camera's view (it cannot be
-    #: detected there, so a miss says nothing about it: a person walking from one camera's
-    #: view into another's through a blind stretch); no view known: the limits above
+    #: the two limits out of every camera's view, where a miss says nothing (a blind stretch between views)
     max_coast_unseen_s: float = 2.0
     max_position_var_unseen: float = 4.0
-    #: hand-over by motion: a track confirmed within this squared Mahalanobis distance (x, y)
-    #: of a track coasting out of view takes that track's ID (the person came back into a
-    #: view elsewhere); None: off
     handover_gate_sq: float | None = None
-    #: two people's centres are never closer than this on the ground (m): a detection this near
-    #: one that went to a track, or to a stronger birth, is a second report of that person (a
-    #: split depth cluster, a double box), not a new track; 0: off
+    #: two people's centres are never closer than this (m): a second report of one (a split cluster)
     birth_separation_m: float = 0.3
-    #: the robot's static map (walls, furniture its laser sees): no track is born on an obstacle or
-    #: within ``birth_clearance_m`` (m) of one (Ban et al.'s birth process, with a place: a wall end
-    #: or a door jamb seen as a person-shaped cluster never starts a track); None: no map
+    #: the robot's static map: no track is born within ``birth_clearance_m`` of an obstacle
     obstacles: ObstacleMap | None = None
     birth_clearance_m: float = 0.1
     gallery_size: int = 100
     memory_size: int = 500
-    #: Basso/Munaro's online per-track appearance classifiers; None: off
+    #: the cues' own settings (core/cues/, and core/recovery.py for the ID memory's); None: that cue is off
     classifier: ClassifierParams | None = field(default_factory=ClassifierParams)
-    #: TU Ilmenau's posture and orientation filters; None: off
     posture: PostureParams | None = field(default_factory=PostureParams)
-    #: the person's stature as a cue (core/cues/stature.py, a soft biometric); None: off
     stature: StatureParams | None = field(default_factory=StatureParams)
-    #: the ID memory's open-set decision (core/recovery.py)
     recovery: RecoveryParams = field(default_factory=RecoveryParams)

@@ -1,22 +1,14 @@
-"""The multi-person tracker of Pinto's thesis (III-C to III-E): Kalman filters, Algorithm 1,
-the Tentative/Confirmed/Deleted life cycle and Algorithm 2 over an ID memory.
+"""The multi-person tracker of Pinto's thesis (III-C to III-E): Kalman filters, Algorithm 1, the
+Tentative/Confirmed/Deleted life cycle and Algorithm 2 over an ID memory (services/tracker/README.md,
+*The thesis profile*). Only Confirmed tracks are its output (:attr:`FrameResult.confirmed`).
 
-One call of :meth:`ThesisTracker.step` processes one frame: predict every track, associate,
-update the matched tracks, age the missed ones, start tracks for the unmatched
-detections. Only Confirmed tracks are the tracker's output (:attr:`FrameResult.confirmed`).
-
-Time step (``ThesisParams.time_step``):
-
-* ``"frame"``: ``dt = 1`` per call and ``Q = diag(sigma_q**2)``, the thesis exactly
-  (velocities in metres per frame, each call one frame, gaps ignored).
-* ``"time"`` (default): ``dt`` is the difference of the stamps in seconds (velocities in
-  m/s) and the process noise is scaled by the elapsed time in nominal frames,
-  ``Q = diag(sigma_q**2) * dt / frame_period_s``: the variance a random walk accumulates
-  grows linearly with time, so a step over three dropped frames adds as much uncertainty
-  as three steps would. A missed update adds ``max(1, round(dt / frame_period_s))`` to the
-  track's miss count, so ``max_misses`` keeps meaning "frames of the nominal stream
-  without an association" (5 frames = 167 ms at 30 Hz) whether frames were seen empty or
-  never arrived. Confirmation counts associated updates, each of which is real evidence.
+Time step (``ThesisParams.time_step``): ``"frame"`` is the thesis exactly (``dt = 1`` per call,
+``Q = diag(sigma_q**2)``, gaps ignored); ``"time"`` (default) takes ``dt`` from the stamps and
+scales ``Q`` by the nominal frames elapsed, ``dt / frame_period_s``, as a random walk's variance
+grows linearly with time: a step over three dropped frames adds the uncertainty of three steps. A
+missed update adds ``max(1, round(dt / frame_period_s))`` misses, so ``max_misses`` keeps meaning
+frames of the nominal stream without an association (5 = 167 ms at 30 Hz) whether frames came
+empty or never arrived; confirmation counts associated updates, each of them real evidence.
 """
 
 from __future__ import annotations
@@ -66,9 +58,8 @@ class ThesisTrack:
     decision: IdDecision | None = None  # why Algorithm 2 gave its ID, told when it is confirmed
 
     def copy(self) -> ThesisTrack:
-        return ThesisTrack(self.id, self.mean.copy(), self.cov.copy(), self.gallery.copy() if self.gallery else None,
-                     self.first_stamp, self.last_update, self.status, self.hits, self.misses, self.total_hits,
-                     self.ever_confirmed, self.decision)
+        return replace(self, mean=self.mean.copy(), cov=self.cov.copy(),
+                       gallery=self.gallery.copy() if self.gallery else None)
 
 
 @dataclass
@@ -92,7 +83,6 @@ class ThesisTracker(TrackerCore[ThesisState]):
         self.last_stamp: float | None = None
         self._pending: list[tuple[int, Gallery]] = []  # galleries of tracks deleted in position-only frames
         self._forgotten: set[int] = set()  # IDs of live tracks whose person was forgotten
-        self._q_frame = np.asarray(params.sigma_q, dtype=np.float64) ** 2
         self._r = np.diag(np.asarray(params.sigma_r, dtype=np.float64) ** 2)
         self._position_gate = chi2_gate(params.position_gate_probability, 2)
 
@@ -124,11 +114,8 @@ class ThesisTracker(TrackerCore[ThesisState]):
 
     # ------------------------------------------------------------------ update
     def step(self, stamp: float, frame: FrameInput) -> FrameResult:
-        """Process one frame (see :class:`FrameInput`): ``stamp`` in seconds (sensor time).
-
-        The thesis uses the positions, the descriptors and each detection's usable covariance
-        as its ``R`` (an unusable one: the fixed ``R``); the rest is the robust profile's: the
-        thesis reports Confirmed tracks only and estimates no posture."""
+        """Process one frame (``stamp`` in seconds): its positions, descriptors and each detection's
+        usable covariance as ``R`` (an unusable one: the fixed ``R``); the rest is the robust profile's."""
         positions, descriptors = frame.positions, frame.descriptors
         appearance = descriptors is not None and self.params.gate is not None
         used = descriptors if appearance else None  # descriptors without thresholds are ignored
@@ -160,7 +147,7 @@ class ThesisTracker(TrackerCore[ThesisState]):
         """Move every track to this frame; returns the means (T, 6) and covariances (T, 6, 6)."""
         if self.tracks and q_scale > 0:
             means, covs = self._states()
-            means, covs = kalman.predict(means, covs, dt, np.diag(self._q_frame * q_scale))
+            means, covs = kalman.predict(means, covs, dt, kalman.process_noise(self.params.sigma_q, q_scale))
             for t, m, c in zip(self.tracks, means, covs):
                 t.mean, t.cov = m, c
         return self._states()
@@ -306,9 +293,7 @@ class ThesisTracker(TrackerCore[ThesisState]):
         self.last_stamp = state.last_stamp
 
     def forget(self, track_id: int) -> dict[str, int | bool]:
-        """Forget a person (see the robust profile's ``forget``): remembered and pending
-        descriptors go; a live track with that ID keeps it but loses its gallery and keeps
-        none from now on."""
+        """:meth:`TrackerCore.forget`: the remembered and pending descriptors, a live track's gallery."""
         removed = self.memory.forget(track_id)
         removed += sum(len(g) for i, g in self._pending if i == track_id)
         self._pending = [(i, g) for i, g in self._pending if i != track_id]
@@ -321,22 +306,17 @@ class ThesisTracker(TrackerCore[ThesisState]):
         return {"descriptors": removed, "classifier": False, "live_track": live}
 
     def predict_reports(self, reports: list[TrackReport], dt: float) -> list[TrackReport]:
-        """``reports`` moved ``dt`` seconds ahead by the motion model (for output at a fixed
-        rate between frames); the tracker's state does not change."""
+        """:meth:`TrackerCore.predict_reports` by the thesis's motion model."""
         if not reports or dt <= 0:
             return list(reports)
-        if self.params.time_step == "frame":
-            step, scale = dt / self.params.frame_period_s, dt / self.params.frame_period_s
-        else:
-            step, scale = dt, dt / self.params.frame_period_s
+        scale = dt / self.params.frame_period_s  # Q per nominal frame; the step in frames or seconds
+        step = scale if self.params.time_step == "frame" else dt
         means, covs = kalman.predict(np.stack([v.mean for v in reports]), np.stack([v.cov for v in reports]), step,
-                                     np.diag(self._q_frame * scale))
+                                     kalman.process_noise(self.params.sigma_q, scale))
         return [replace(v, mean=m, cov=c) for v, m, c in zip(reports, means, covs)]
 
     def restart_clock(self) -> list[int]:
-        """End every live track and forget the clock, keeping the ID memory (a clock jump:
-        a replay that loops, a sensor clock reset). Each track's gallery goes to the memory,
-        so a person seen again after the jump gets their ID back; returns the ended IDs."""
+        """:meth:`TrackerCore.restart_clock`: each track's gallery goes to the memory."""
         ended = [t.id for t in self.tracks]
         for t in self.tracks:
             if t.gallery is not None and len(t.gallery):

@@ -1,19 +1,13 @@
 """The ID memory's file: an ``.npz`` (no pickle) loaded at start and rewritten on change.
 
-Layout (version :data:`FORMAT_VERSION`): ``format_version``, ``model`` (the embedding
-model's name), ``next_id``, ``capacity``, then the memory's blocks as
-:meth:`IdentityMemory.to_blocks` gives them: ``ids`` (K,), ``counts`` (K,) and
-``descriptors`` (sum of counts, D) float32. Optionally (the robust profile's online
-classifiers, :mod:`services.tracker.core.cues.classifier`): ``classifier_ids`` (C,) and
-``classifiers`` (C, D + 1) float64; a file without them reads as no classifiers. And
-``seen_ids`` (S,), ``seen_at`` (S,) float64: when each ID was last seen (Unix time, for
-the retention). And the robust profile's open-set recovery (core/recovery.py), the arrays
-named ``recovery_*``: where and when each person was last detected (the sensors' clock, s)
-and their stature, who was seen with whom, the online P(new) counts; a file without them
-reads as none (one written before the statures: none known).
-
-Saving writes a temporary file next to the target, syncs it and renames it over the
-target, so a crash never leaves a half-written memory behind.
+Layout (version :data:`FORMAT_VERSION`): ``format_version``, ``model`` (the embedding model's
+name), ``next_id``, ``capacity``, the memory's blocks (:meth:`IdentityMemory.to_blocks`: ``ids``
+(K,), ``counts`` (K,), ``descriptors`` (sum of counts, D) float32); optionally the robust profile's
+online classifiers (``classifier_ids`` (C,), ``classifiers`` (C, D + 1) float64), when each ID was
+last seen (``seen_ids`` (S,), ``seen_at`` (S,), Unix time, for the retention) and the open-set
+recovery's arrays (``recovery_*``, core/recovery.py; departures on the sensors' clock, s). A file
+without an optional block reads as none. Saving writes a temporary file next to the target, syncs
+it and renames it over the target: a crash never leaves a half-written memory behind.
 """
 
 from __future__ import annotations
@@ -44,16 +38,10 @@ def save_memory(path: str | Path, memory: IdentityMemory, model: str = "",
                 classifiers: Mapping[int, np.ndarray] | None = None,
                 last_seen: Mapping[int, float] | None = None,
                 recovery: Mapping[str, np.ndarray] | None = None) -> None:
-    """Write ``memory`` atomically to ``path`` (``.npz``).
-
-    ``extra`` adds (ID, descriptors (M, D)) blocks stored next to the memory, e.g. the
-    galleries of the tracks alive now; :func:`read_memory` merges them into their IDs.
-    ``classifiers``: ID -> weights (D + 1,) of trained online classifiers, stored beside
-    (:func:`read_classifiers`). ``last_seen``: ID -> Unix time it was last seen
-    (:func:`read_last_seen`). ``recovery``: the recovery's arrays (``recovery_*``,
-    :func:`read_recovery`). Raises ``OSError``, or ``ValueError`` for descriptors of
-    several dimensions or other array names.
-    """
+    """Write ``memory`` atomically to ``path``, with ``extra`` (ID, descriptors (M, D)) blocks (the
+    live tracks' galleries: :func:`read_memory` merges them into their IDs), ``classifiers`` (ID ->
+    weights (D + 1,)), ``last_seen`` (ID -> Unix time) and the ``recovery``'s arrays. ``OSError``, or
+    ``ValueError`` for descriptors or classifiers of several dimensions, or other array names."""
     blocks = dict(recovery or {})
     if any(not k.startswith("recovery_") for k in blocks):
         raise ValueError(f"recovery arrays must be named recovery_*, got {sorted(blocks)}")
@@ -83,11 +71,8 @@ def save_memory(path: str | Path, memory: IdentityMemory, model: str = "",
 
 
 def read_memory(path: str | Path, capacity: int | None = None) -> tuple[IdentityMemory, str]:
-    """Read a memory written by :func:`save_memory`; returns it and the embedding model's name.
-
-    ``capacity`` overrides the file's. Raises ``ValueError`` naming the file when it is
-    not a valid memory file.
-    """
+    """The memory :func:`save_memory` wrote and the embedding model's name (``capacity`` overrides
+    the file's); ``ValueError`` naming the file when it is not a valid memory file."""
     try:
         with np.load(path, allow_pickle=False) as f:
             version = int(f["format_version"])
@@ -119,10 +104,8 @@ def _optional_pair(path: str | Path, ids_key: str, values_key: str, what: str) -
 
 
 def read_classifiers(path: str | Path) -> dict[int, np.ndarray]:
-    """The online classifiers stored by :func:`save_memory` (empty for a file without them).
-
-    Raises ``ValueError`` naming the file when they are unreadable or inconsistent.
-    """
+    """The online classifiers stored by :func:`save_memory` (empty for a file without them);
+    ``ValueError`` naming the file when they are unreadable or inconsistent."""
     block = _optional_pair(path, "classifier_ids", "classifiers", "classifiers")
     if block is None:
         return {}
@@ -162,10 +145,8 @@ def shift_recovery(arrays: Mapping[str, np.ndarray], seconds: float) -> dict[str
 
 
 def load_memory(config: TrackerConfig) -> tuple[IdentityMemory, str | None]:
-    """The ID memory from ``config.memory_path`` (empty if the file does not exist).
-
-    Raises ``ValueError`` for an unreadable file or one written for another model.
-    """
+    """The ID memory from ``config.memory_path`` (empty if the file does not exist);
+    ``ValueError`` for an unreadable file or one written for another model."""
     path = config.memory_path
     if path is None or not path.exists():
         return IdentityMemory(config.memory_size), None

@@ -1,14 +1,5 @@
-"""Offline tracking of a detections CSV file: the formats of ``perception track``.
-
-Input (header row required): ``frame,stamp,x,y,z,score`` then optionally ``e0,e1,...``;
-positions in the map frame in metres (z up), stamp in seconds, rows sorted by frame, one
-row per detection. Every frame from the first to the last is processed; a frame without
-rows has no detections and its stamp is interpolated from the frame numbers.
-
-Output: ``frame,stamp,id,x,y,z`` (and ``status`` with ``--status``), one row per
-reported track per frame: Confirmed, and with the robust profile also tracks that
-coast through a short miss (status ``coasting``).
-"""
+"""Offline tracking of a detections CSV file: the formats of ``perception track`` (its
+``--help`` and services/tracker/README.md, *Run it*, describe them)."""
 
 from __future__ import annotations
 
@@ -100,12 +91,8 @@ def _first_bad_value(body: str, header: list[str]) -> str:
 
 
 def frame_stamps(dets: Detections) -> tuple[np.ndarray, np.ndarray]:
-    """Every frame number from the first to the last (F,), and its stamp (F,) in seconds.
-
-    A frame with rows takes its first row's stamp; the others are interpolated linearly
-    from the frame numbers (no extrapolation is needed: the first and the last frame
-    always have rows).
-    """
+    """Every frame number from the first to the last (F,), and its stamp (F,) in seconds: its first
+    row's, else interpolated from the frame numbers (the first and the last frame have rows)."""
     if len(dets.frames) == 0:
         return np.zeros(0, np.int64), np.zeros(0)
     known, first_row = np.unique(dets.frames, return_index=True)
@@ -115,14 +102,10 @@ def frame_stamps(dets: Detections) -> tuple[np.ndarray, np.ndarray]:
 
 def track(dets: Detections, tracker: TrackerCore, show_progress: bool = False, view: View | None = None,
           on_result: Callable[[int, FrameResult], None] | None = None) -> list[Row]:
-    """Run ``tracker`` over every frame; one row ``(frame, stamp, id, x, y, z, status)`` per
-    reported track per frame (Confirmed, and for the robust profile recently coasting ones).
-
-    Each detection's score is passed on (the robust profile uses it). ``show_progress``: a
-    bar on a terminal (``common.runtime.progress``). ``view``: what the (fixed) camera sees, in
-    every frame (e.g. a :class:`~services.tracker.core.view.FloorView`; None: not known).
-    ``on_result(frame, result)``: called with each frame's result (e.g. its ID decisions).
-    """
+    """Run ``tracker`` over every frame: a :data:`Row` per reported track per frame. ``show_progress``:
+    a bar on a terminal; ``view``: what the fixed camera sees (e.g. a
+    :class:`~services.tracker.core.view.FloorView`; None: not known); ``on_result(frame, result)``:
+    called with each frame's result (e.g. its ID decisions)."""
     frames, stamps = frame_stamps(dets)
     starts = np.searchsorted(dets.frames, frames, side="left")
     ends = np.searchsorted(dets.frames, frames, side="right")
@@ -144,12 +127,8 @@ def track(dets: Detections, tracker: TrackerCore, show_progress: bool = False, v
 
 def track_config(dets: Detections, config: TrackerConfig, embedding_model: str | None = None,
                  view: View | None = None) -> list[Row]:
-    """Track ``dets`` as ``perception track`` does with ``config`` (its profile included).
-
-    The descriptors, if any, are compared with ``embedding_model``'s thresholds from the
-    config; ValueError if it has none. Without descriptors the tracking is position-only.
-    ``view``: the fixed camera's view, as :func:`track` takes it.
-    """
+    """Track ``dets`` as ``perception track`` does with ``config``: descriptors, if any, with
+    ``embedding_model``'s thresholds (ValueError if it has none), else position-only."""
     thresholds = None
     if dets.descriptors is not None:
         thresholds = config.thresholds(embedding_model or "")

@@ -1,14 +1,12 @@
-"""When the tracker service publishes: once per input frame, or at a fixed rate (TU Ilmenau)
-with the latest update's tracks predicted to the publish time.
+"""When the tracker service publishes: once per input frame, or at a fixed rate (TU Ilmenau) with
+the latest update's tracks predicted to the publish time.
 
-* Once per frame (``output_rate_hz`` 0): after each push of the reorder buffer, the newest
-  result, once per input frame: a late frame applied behind a newer one changes the state
-  the next frame's output will show, not a second output. A frame of the newest instant
-  applied behind another stream's frame of that instant (two detectors on one camera image,
-  the slow one's result first) is published as its own frame, with both applied.
-* At a fixed rate: every period, whatever arrived, the latest result predicted to now in
-  the sensor's clock (the newest frame's stamp plus the time since it was applied). A long
-  frame makes no burst: the next output comes a period on.
+* Once per frame (``output_rate_hz`` 0): the newest result after each push, once per input frame (a
+  late frame applied behind a newer one changes what the next output shows, no second output); a
+  frame of the newest instant applied behind another stream's of that instant (two detectors on
+  one camera image) is published as its own frame.
+* At a fixed rate: every period the latest result predicted to now in the sensor's clock; a long
+  frame makes no burst, the next output comes a period on.
 """
 
 from __future__ import annotations

@@ -1,21 +1,14 @@
 """Out-of-order inputs (TU Ilmenau, section 4): apply in sensor-time order, rewinding if needed.
 
-Inputs are applied at once when they are newer than everything applied so far, so an
-in-order stream costs no latency. An input that arrives late, but within ``window_s`` of
-the newest stamp applied, makes the buffer restore the most recent snapshot taken before
-it and re-apply the logged inputs after it in stamp order. Anything older than the window
-is counted and dropped, never applied out of order.
-
-An input may also be *replaced* while it is still in the log (``push(..., replace=True)``):
-the buffer rewinds to before it and re-applies it, and everything after it, with the new
-version (a frame applied by position alone whose appearance came late).
-
-Snapshots are taken at most every ``snapshot_period_s`` of sensor time (tracker snapshots
-share descriptor storage copy-on-write, so they are cheap), and the log keeps every input
-back to the oldest snapshot still needed.
-
-A stamp far older than its source's newest is no late input but a new clock (a replay
-that loops): :class:`ClockJumps` tells one, and :meth:`ReorderBuffer.reset` starts over.
+An input newer than everything applied is applied at once (an in-order stream costs no latency);
+one that arrives late, but within ``window_s`` of the newest stamp, makes the buffer restore the
+latest snapshot before it and apply the logged inputs from there in stamp order; anything older is
+counted and dropped. An input still in the log may be *replaced* (``push(..., replace=True)``: a
+frame applied by position alone whose appearance came late), with the same rewind. Snapshots are
+taken at most every ``snapshot_period_s`` of sensor time (tracker snapshots share descriptors
+copy-on-write: cheap), and the log keeps every input back to the oldest snapshot still needed.
+A stamp far behind its source's newest is a new clock (a replay that loops), no late input:
+:class:`ClockJumps` tells one, and :meth:`ReorderBuffer.reset` starts over.
 """
 
 from __future__ import annotations
@@ -55,12 +48,9 @@ class ReorderBuffer(Generic[In, S, R]):
         self._snaps.append((_BEFORE_ALL, self.snapshot()))
 
     def push(self, key: InputKey, item: In, replace: bool = False) -> list[R]:
-        """Apply ``item``; returns the results of every input applied (several after a rewind).
-
-        Returns ``[]`` when the input was dropped (too old, or a duplicate key). With
-        ``replace``, an input of the same key still in the log is replaced: everything from
-        it on is applied again (an input no longer in the log is dropped as too old).
-        """
+        """Apply ``item``; the results of every input applied (several after a rewind, ``[]`` when
+        dropped: too old, or a duplicate key). ``replace``: the input of the same key still in the
+        log is replaced and everything from it on applied again (one no longer there: too old)."""
         if self.newest_ns is not None and key[0] < self.newest_ns - self.window_ns:
             self.dropped_old += 1
             return []
@@ -174,11 +164,8 @@ class ClockJumps:
     newest: dict[str, int] = field(default_factory=dict)
 
     def check(self, source: str, stamp_ns: int) -> int:
-        """How far (ns) ``stamp_ns`` is behind its source's newest stamp if that is a jump, else 0.
-
-        After a jump the source's newest stamp is ``stamp_ns`` and the other sources are
-        forgotten (everything starts over).
-        """
+        """How far (ns) ``stamp_ns`` is behind its source's newest stamp if that is a jump, else 0;
+        after a jump the other sources are forgotten (everything starts over)."""
         newest = self.newest.get(source)
         if newest is not None and stamp_ns < newest - self.jump_ns:
             self.newest = {source: stamp_ns}

@@ -1,19 +1,10 @@
-"""Why a track has its ID: the ID decisions of both profiles, explained.
-
-Each time the open-set ID memory (core/recovery.py) decides a newly confirmed person's ID, or
-takes back a recovery during probation, the tracker reports an
-:class:`~services.tracker.core.types.IdDecision`: the ID given, the evidence for the most probable
-remembered people (their log-odds, their support against "someone new" and their rivals, whether
-they could have walked there, whether they had walked out of the view or were last seen inside
-it, how long ago and how far away), the posterior of "someone new" and the stranger's log-odds.
-The service logs them, ``perception track --id-log`` writes them and ``perception evaluate
---identity --id-log`` joins them to the ground truth, so that a wrong ID can be traced to its
-cause (a look-alike, a bar set too low, a walked-out person's weight) rather than guessed at.
-
-Pinto's Algorithm 2 (the thesis profile) is explained by :func:`nearest`: the remembered people it
-weighed, the nearest first, with their descriptor distances against ``t_recover``.
-
-Built from the evidence the decision itself used (no second model). Pure numpy.
+"""Why a track has its ID: the ID decisions of both profiles, explained as
+:class:`~services.tracker.core.types.IdDecision` (the README's *Inputs and outputs*:
+``id_decisions``), from the evidence the decision itself used (no second model): the open-set
+recovery's (core/recovery.py) by :func:`explain`, Pinto's Algorithm 2 (the thesis profile) by
+:func:`nearest`. ``perception track --id-log`` writes them and ``perception evaluate --identity
+--id-log`` joins them to the ground truth, so that a wrong ID can be traced to its cause (a
+look-alike, a bar set too low, a walked-out person's weight) rather than guessed at. Pure numpy.
 """
 
 from __future__ import annotations

@@ -20,8 +20,7 @@ if TYPE_CHECKING:
     from services.tracker.core.view import View
 
 __all__ = ["AppearanceModel", "FrameInput", "FrameResult", "HandOver", "IdCandidate", "IdDecision", "IdOutcome", "IdRule",
-           "KeptMemory",
-           "ScoreModel", "TrackStatus", "TrackReport"]
+           "KeptMemory", "ScoreModel", "TrackStatus", "TrackReport"]
 
 
 class TrackStatus(str, Enum):
@@ -55,12 +54,12 @@ class TrackReport:
 
     @classmethod
     def of_fields(cls, *values: object) -> TrackReport:
-        """A view from all its fields in order, made the way a plain class would be: a frozen
-        dataclass's ``__init__`` sets every field through ``object.__setattr__``, twice as
-        slow, and the robust core makes one view per track per frame."""
-        view = object.__new__(cls)
-        view.__dict__.update(zip(_REPORT_FIELDS, values))
-        return view
+        """A report from all its fields in order, made as a plain class would be: a frozen dataclass's
+        ``__init__`` sets every field through ``object.__setattr__``, twice as slow, and the robust
+        core makes one report per track per frame."""
+        report = object.__new__(cls)
+        report.__dict__.update(zip(_REPORT_FIELDS, values))
+        return report
 
     @property
     def position(self) -> np.ndarray:
@@ -83,13 +82,10 @@ IdRule = Literal["open-set", "nearest"]
 
 @dataclass(frozen=True)
 class IdCandidate:
-    """A remembered person an ID decision weighed: ``log_odds`` that the track is them (the
-    appearance, their classifier and the walked-out prior: recovery's ``llr``), ``support``
-    (their probability against "new" and their rivals: what must reach ``p_recover``),
-    ``reachable`` (could have walked there since they left), and where they left:
-    ``walked_out`` of the cameras' view (False: lost inside it, or the view was not known),
-    ``away_s`` ago, ``distance_m`` from here (all three None when their departure is not
-    known, e.g. remembered from a file written before a clock jump)."""
+    """A remembered person an ID decision weighed: ``log_odds`` that the track is them (recovery's
+    ``llr``), ``support`` (against "new" and their rivals: what must reach ``p_recover``),
+    ``reachable``, and where they left: ``walked_out`` of the cameras' view (False: lost inside it,
+    or the view was not known), ``away_s`` ago, ``distance_m`` from here (None: not known)."""
 
     id: int
     log_odds: float
@@ -98,8 +94,7 @@ class IdCandidate:
     walked_out: bool | None = None
     away_s: float | None = None
     distance_m: float | None = None
-    #: the descriptor distance to their nearest remembered view (Pinto's Algorithm 2: the
-    #: ``nearest`` rule; None for the open-set decision, which weighs ``log_odds``)
+    #: the descriptor distance to their nearest remembered descriptor (the ``nearest`` rule only)
     distance: float | None = None
 
     def describe(self) -> str:
@@ -290,24 +285,18 @@ class ScoreModel:
 
 
 class FrameInput(NamedTuple):
-    """One frame as a core takes it, converted once (:meth:`of`; a named tuple: cheap to make).
-
-    ``positions`` (N, 3) float64 in the tracking frame. ``descriptors`` (N, D) float32 or
-    None for a position-only frame; a row of NaN marks a detection without a descriptor.
-    ``measurement_cov`` (N, 3, 3) each detection's covariance or None, and ``cov_usable``
-    (N,) which of them are finite, symmetric and positive definite when that is known (the
-    one test, :func:`~services.tracker.core.cues.usable_covariances`; None: the core checks). ``scores`` (N,) the detector's
-    confidences (zeros when it gave none). ``view``: what the cameras could see (None:
-    unknown). ``aspects`` (N,) the boxes' height / width (None: no boxes). ``orientations``
-    (N, 8) an orientation classifier's probabilities per detection in the tracking frame's
-    bins (NaN rows: none). ``score_model``: how this frame's detector's scores read (None:
-    the profile's). ``camera``: the camera the frame comes from. ``postures`` (N,) int8 the
-    detector's posture report per detection, the index in ``posture.POSTURES`` (-1: none;
-    None: no report at all). ``statures`` (N,) each standing person's measured stature (m; NaN:
-    not measured, None: no measurement at all; core/cues/stature.py). ``obstacles``: the robot's
-    static map as it is now, when one arrives while tracking (ROS 2's ``/map``; None: the one
-    the profile was built with, if any).
-    """
+    """One frame as a core takes it, converted once (:meth:`of`; a named tuple: cheap to make):
+    ``positions`` (N, 3) float64 in the tracking frame; ``descriptors`` (N, D) float32 (a NaN row:
+    none; None: a position-only frame); ``measurement_cov`` (N, 3, 3) (None: none) and ``cov_usable``
+    (N,) which are usable (:func:`~services.tracker.core.cues.usable_covariances`; None: the core
+    checks); ``scores`` (N,) the detector's (zeros: none); ``view`` what the cameras could see (None:
+    unknown); ``aspects`` (N,) the boxes' height / width (None: no boxes); ``orientations`` (N, 8) an
+    orientation classifier's probabilities in the tracking frame's bins (NaN rows: none);
+    ``score_model`` how this detector's scores read (None: the profile's); ``camera`` the frame's;
+    ``postures`` (N,) int8 the detector's reports, ``posture.POSTURES`` indices (-1: none; None: no
+    reports); ``statures`` (N,) measured statures (m; NaN: not measured; None: none);
+    ``obstacles`` the static map as it is now, when one arrives while tracking (ROS 2's ``/map``;
+    None: the profile's, if any)."""
 
     positions: np.ndarray
     descriptors: np.ndarray | None = None
@@ -357,11 +346,6 @@ class FrameInput(NamedTuple):
             statures = statures.reshape(n)
         return cls(positions, descriptors, measurement_cov, None, scores, view, aspects, orientations, score_model,
                    camera, postures, statures)
-
-    @property
-    def has_descriptors(self) -> bool:
-        """Whether this frame carries descriptors (of some dimension; maybe NaN rows)."""
-        return self.descriptors is not None and self.descriptors.shape[1] > 0
 
 
 @dataclass

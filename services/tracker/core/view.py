@@ -1,19 +1,13 @@
 """What the camera could see at a frame: tells a person out of view from one the detector missed.
 
-A confirmed track that gets no detection coasts. Whether it should be *reported* while
-it coasts depends on why it was missed: a person inside the camera's view whom the
-detector missed for a moment is still there and should be reported (that is what
-coasting is for); a person who walked out of the view, or whom the robot turned away
-from, cannot be seen by this camera, and reporting their prediction as a person seen
-now is a false positive for every consumer that reads the output as "people in view".
-Such a track is kept (their ID is still theirs when they come back), but not reported.
-
-:class:`FieldOfView` is a pinhole camera's view in the tracking frame: its pose, its
-intrinsics and image size, and the range its depth reaches. :class:`FloorView` is a fixed camera's
-view of the floor from its floor homography (no intrinsics needed). :class:`Views` is what several
-cameras see together (TU Ilmenau's two cameras): a person is in view when any of them could
-see them, so a person behind the robot, seen by the back camera a moment ago, stays
-reported while the head camera's frames come in. Pure numpy.
+A confirmed track missed inside the view is still there and is reported while it coasts; one who
+walked out of the view, or whom the robot turned away from, cannot be seen by this camera, and
+reporting their prediction as a person seen now would be a false positive for every consumer that
+reads the output as "people in view": it is kept (their ID stays theirs) but not reported.
+:class:`FieldOfView` is a pinhole camera's view, :class:`FloorView` a fixed camera's view of the
+floor through its floor homography, :class:`Views` several cameras' together (TU Ilmenau's two
+cameras: a person behind the robot, seen by the back camera a moment ago, stays reported while the
+head camera's frames come in). Pure numpy.
 """
 
 from __future__ import annotations
@@ -66,16 +60,12 @@ class FieldOfView:
 
 @dataclass(frozen=True)
 class FloorView:
-    """A fixed camera's view of the floor, from its floor homography: ``image_to_floor`` (3, 3)
-    maps a foot pixel ``(u, v, 1)`` to the floor ``(x, y, w)`` (the localizer's
-    ``FloorHomography.H``), ``width`` x ``height`` pixels. A point is in view when its foot
-    (its ``x, y``; the height is not used) projects inside the image.
-
-    The border a coasting person must be inside to count as in view is measured on the person,
-    not the image: ``half_width_m`` (half a body's width) at their place in the image. A wide
-    view's people are a few per cent of its width, so a share of the image would hide people
-    still in full view (the pinhole :class:`FieldOfView` keeps the share: its frames are
-    narrow)."""
+    """A fixed camera's view of the floor: ``image_to_floor`` (3, 3) maps a foot pixel ``(u, v, 1)``
+    to the floor ``(x, y, w)`` (the localizer's ``FloorHomography.H``), ``width`` x ``height``
+    pixels; a point is in view when its foot (``x, y``) projects inside the image. The border is
+    measured on the person, ``half_width_m`` at their place in the image: a wide view's people are a
+    few per cent of its width, so a share of the image (the narrow :class:`FieldOfView`'s) would hide
+    people still in full view."""
 
     image_to_floor: np.ndarray
     width: int

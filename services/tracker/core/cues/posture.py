@@ -1,25 +1,17 @@
 """Posture and upper-body orientation per track (TU Ilmenau): two discrete Bayes filters.
 
-* **Posture**: standing, sitting, lying. The evidence is a detection's body height (the
-  localized point's height above the floor, ``z`` in the map frame: the torso's centre)
-  and its box's height-to-width ratio in the image. Each posture has a Gaussian
-  likelihood on both (a standing torso centre is about 1.1 m up and its box about 2.7
-  times as tall as wide; sitting 0.7 m and 1.6; lying 0.3 m and 0.6). A detector that
-  tells the posture from the person's shape (the depth detector: standing or seated, as
-  the TU Ilmenau framework reads posture from the point cloud) adds its report, through
-  the likelihood of that report under each posture (``reported_likelihood``). The depth
-  detector's "sitting" comes only from a seated shape and is nearly always right; its
-  "standing" is Basso/Munaro's height rule, which also takes about half the seated people
-  together with the back of their chair (the simulator's ``chairs``: 215 of 396 seated
-  detections), so it says little.
-* **Orientation**: 8 bins of 45 degrees in the map frame (bin k is centred on k * 45
-  degrees, 0 along +x). The evidence is the walking direction when the person moves: a
-  von Mises likelihood around the velocity's heading whose concentration grows with the
-  speed; below ``min_speed`` the walking direction says nothing and the distribution
-  keeps its last estimate, slowly spreading.
-* Between updates both drift towards uniform (a person may sit down or turn around),
-  with time constants ``posture_tau_s`` and ``orientation_tau_s``; orientation also
-  diffuses to the neighbouring bins. A uniform distribution means unknown.
+* **Posture** (standing, sitting, lying): a Gaussian likelihood of each on the detection's height
+  above the floor (``z`` in the map frame: the torso's centre) and its box's height / width (a
+  standing torso centre is about 1.1 m up and its box 2.7 times as tall as wide; sitting 0.7 m and
+  1.6; lying 0.3 m and 0.6), times ``reported_likelihood`` of a detector's own report. The depth
+  detector's "sitting" comes only from a seated shape and is nearly always right; its "standing"
+  is Basso/Munaro's height rule, which also takes about half the seated people with the back of
+  their chair (the simulator's ``chairs``: 215 of 396 seated detections), so it says little.
+* **Orientation**: 8 bins of 45 degrees in the map frame (bin k centred on k * 45 degrees, 0 along
+  +x), from a von Mises likelihood around the walking direction whose concentration grows with the
+  speed; below ``min_speed`` walking says nothing (an orientation classifier's report, if any).
+* Between updates both drift towards uniform, "unknown" (a person may sit down or turn around),
+  with ``posture_tau_s`` and ``orientation_tau_s``; orientation also spreads to the neighbouring bins.
 
 Pure numpy; every function takes and returns probability vectors.
 """
@@ -55,10 +47,7 @@ _ASPECT = np.array([[2.7, 0.7], [1.6, 0.5], [0.6, 0.3]])
 
 @dataclass(frozen=True)
 class PostureParams:
-    """``posture_tau_s`` / ``orientation_tau_s``: time constants of the drift to uniform;
-    ``min_speed``: m/s below which walking says nothing of the orientation; ``kappa_per_mps``:
-    von Mises concentration per m/s of speed (capped at ``max_kappa``); ``reported_likelihood``:
-    the likelihood of each posture given a detector's report (:func:`reported_evidences`)."""
+    """The posture filters' settings (the module doc; the README's *Settings*, ``robust.posture``)."""
 
     posture_tau_s: float = 5.0
     orientation_tau_s: float = 5.0
@@ -251,8 +240,8 @@ def _uniform_rows(k: int, n: int) -> np.ndarray:
 
 @dataclass
 class PostureColumns(ArrayColumns):
-    """``posture`` (T, 3) and ``orientation`` (T, 8), one distribution per track. A track shown in
-    a view holds its rows: every change makes new arrays, except into arrays of this frame's own.
+    """``posture`` (T, 3) and ``orientation`` (T, 8), one distribution per track. A track's report
+    holds its rows: every change makes new arrays, except into arrays of this frame's own.
     Neither merges nor clears: how a person stands now is the track's own, and says nothing of who
     they are."""
 

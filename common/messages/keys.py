@@ -15,7 +15,7 @@ from typing import Literal, NamedTuple
 
 from common.messages.registry import NODES
 
-__all__ = ["COMMANDS", "DEFAULT_PREFIX", "DEFAULT_ROBOT", "STREAMS", "AliveKey", "Delivery", "Keys", "MAPS", "Stream", "stream", "validate_chunk"]
+__all__ = ["COMMANDS", "DEFAULT_PREFIX", "DEFAULT_ROBOT", "SCANS", "STREAMS", "AliveKey", "Delivery", "Keys", "MAPS", "Stream", "stream", "validate_chunk"]
 
 DEFAULT_PREFIX = "pp"
 DEFAULT_ROBOT = "robot"
@@ -58,6 +58,9 @@ class Delivery:
 
 
 FRAMES = Delivery(latest=True, queue=1, congestion="drop", express=True)
+#: A laser's scans: small and frequent, each one counts (a leg seen in every scan), but a stale
+#: one is worth less than the next: a short FIFO, dropped on congestion.
+SCANS = Delivery(latest=False, queue=16, congestion="drop", express=True)
 #: The robot's map: only the newest counts, and none is lost to congestion.
 MAPS = Delivery(latest=True, queue=1, congestion="block")
 RELIABLE = Delivery(latest=False, queue=256, congestion="block")
@@ -101,6 +104,7 @@ class Stream:
 
 STREAMS: tuple[Stream, ...] = (
     Stream("frames", "frames/{camera}", "RGBDFrame", "camera driver, simulator, replay", "", FRAMES),
+    Stream("scans", "scans/{laser}", "LaserScan", "ros2 (/scan), replay, simulator", "", SCANS),
     Stream("detections", "detections/{camera}", "Detections", "", "simulator (paces itself with --max)", RELIABLE),
     Stream("localized", "localized/{camera}", "LocalizedDetections", "", "", RELIABLE),
     Stream("embeddings", "embeddings/{camera}", "Embeddings", "", "", RELIABLE),
@@ -164,6 +168,10 @@ class Keys:
 
     def frames(self, camera: str) -> str:
         return self._join("frames", camera)
+
+    def scans(self, laser: str) -> str:
+        """A 2-D laser's scans (:class:`~common.messages.schemas.LaserScan`)."""
+        return self._join("scans", laser)
 
     def detections(self, camera: str) -> str:
         return self._join("detections", camera)
@@ -230,7 +238,7 @@ class Keys:
     def pattern(self, stream_name: str) -> str:
         """The key expression of every key of the stream ``stream_name`` (``frames/*``, ``status/*/*``)."""
         template = stream(stream_name).template
-        return f"{self.base}/" + template.format(camera="*", service="*", instance="*")
+        return f"{self.base}/" + template.format(camera="*", laser="*", service="*", instance="*")
 
     def all(self) -> str:
         return self._join("**")

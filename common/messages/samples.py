@@ -34,6 +34,7 @@ from common.messages.schemas import (
     TrackState,
     Tracks,
     Transform,
+    LaserScan,
     StaticMap,
     TransformBatch,
 )
@@ -213,4 +214,7 @@ def example_messages(stamp_ns: int = 1_700_000_000_000_000_000, n_people: int = 
         ),
         StaticMap(header=Header(stamp_ns=stamp_ns, frame_id="map", source="ros2"), resolution=0.05, width=4, height=3,
                   origin=(-1.0, -2.0, 0.0), data=bytes([0, 0, 100, 255] * 3)),
+        LaserScan(header=Header(stamp_ns=stamp_ns, frame_id="base_laser", source="front"), angle_min=-0.5,
+                  angle_max=0.5, angle_increment=0.25, time_increment=1e-4, scan_time=0.1, range_min=0.05,
+                  range_max=10.0, ranges=np.array([1.0, 0.0, float("nan"), 2.5, 30.0], np.float32)),
     ]

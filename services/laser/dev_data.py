@@ -7,13 +7,12 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
-
 import numpy as np
 
 from common.messages.schemas import LaserScan
+from services.laser.files import read_scans
 
-__all__ = ["DevScan", "SPLITS", "WINDOW_DEG", "WINDOW_RANGE_M", "files_digest", "in_window", "load", "mirrored", "read_scans"]
+__all__ = ["DevScan", "SPLITS", "WINDOW_DEG", "WINDOW_RANGE_M", "files_digest", "in_window", "load", "mirrored"]
 
 #: The labelled window: every cluster inside it was labelled, nothing outside it was.
 WINDOW_DEG = 15.0
@@ -54,26 +53,6 @@ def in_window(xy: np.ndarray) -> np.ndarray:
     """Which of the points ``xy`` (N, 2) lie inside the labelled window."""
     xy = np.asarray(xy, np.float64).reshape(-1, 2)
     return (np.abs(np.degrees(np.arctan2(xy[:, 1], xy[:, 0]))) <= WINDOW_DEG) & (np.hypot(xy[:, 0], xy[:, 1]) <= WINDOW_RANGE_M)
-
-
-def read_scans(path: Path, topic: str | None = None) -> Iterator[tuple[str, LaserScan]]:
-    """Every ``sensor_msgs/LaserScan`` of a ROS 1 or ROS 2 bag (of ``topic``, or of every laser
-    topic), as (topic, scan) in the bag's order. Raises ``ValueError`` naming the topics when
-    ``topic`` holds no scans."""
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
-
-    with AnyReader([Path(path)], default_typestore=get_typestore(Stores.ROS1_NOETIC)) as reader:
-        lasers = [c for c in reader.connections if c.msgtype in ("sensor_msgs/msg/LaserScan", "sensor_msgs/LaserScan")]
-        chosen = [c for c in lasers if topic is None or c.topic == topic]
-        if not chosen:
-            found = ", ".join(sorted({c.topic for c in lasers})) or "none"
-            raise ValueError(f"{path}: no LaserScan on topic {topic!r} (laser topics: {found})")
-        seq: dict[str, int] = {}
-        for conn, _, raw in reader.messages(connections=chosen):
-            name = conn.topic.strip("/").replace("/", "_") or "scan"
-            seq[name] = seq.get(name, -1) + 1
-            yield conn.topic, LaserScan.from_ros(reader.deserialize(raw, conn.msgtype), name, seq[name])
 
 
 def _labels(path: Path) -> list[np.ndarray]:

@@ -21,7 +21,7 @@ def main(args: argparse.Namespace) -> int:
         print(keys.markdown_table())
         return 0
     for s in STREAMS:
-        key = f"{keys.base}/" + s.template.format(camera="{camera}", service="{service}", instance="{instance}")
+        key = f"{keys.base}/" + s.template.format(camera="{camera}", laser="{laser}", service="{service}", instance="{instance}")
         policy = s.delivery.describe() if s.delivery else s.kind
         print(f"{key}\n    {s.message}: {s.publishers} -> {s.subscribers}; {policy}")
     return 0

@@ -90,22 +90,41 @@ def _edges(x: np.ndarray, bins: int) -> list[np.ndarray]:
     return [np.unique(np.quantile(col, q, method="lower")) for col in x.T]
 
 
-def _grow(codes: np.ndarray, edges: list[np.ndarray], g: np.ndarray, h: np.ndarray,
+def _histograms(codes_t: np.ndarray, slot: np.ndarray, rows: np.ndarray | None, g: np.ndarray, h: np.ndarray,
+                width: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
+    """(F, width, nb) sums of ``g`` and ``h`` by node slot and bin, over ``rows`` (None: all)."""
+    if rows is not None:
+        codes_t, slot, g, h = codes_t[:, rows], slot[rows], g[rows], h[rows]
+    base = slot * nb
+    hg = np.stack([np.bincount(base + c, g, width * nb) for c in codes_t])
+    hh = np.stack([np.bincount(base + c, h, width * nb) for c in codes_t])
+    return hg.reshape(len(codes_t), width, nb), hh.reshape(len(codes_t), width, nb)
+
+
+def _grow(codes_t: np.ndarray, edges: list[np.ndarray], g: np.ndarray, h: np.ndarray,
           p: BoostParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One tree: (feature, threshold, leaf values) for the gradients ``g`` and hessians ``h``."""
-    n, f = codes.shape
+    """One tree: (feature, threshold, leaf values) for the gradients ``g`` and hessians ``h``
+    (``codes_t`` (F, N): each feature's bin codes). Below the root only the left children's
+    histograms are summed; the right ones are their parent's less them (LightGBM's trick)."""
+    f, n = codes_t.shape
     inner = 2 ** p.depth - 1
     feature, threshold = np.zeros(inner, np.int64), np.full(inner, np.inf)
     split = np.full(inner, 1 << 30, np.int64)  # each node's bin: right when the code is above
     node = np.zeros(n, np.int64)
     nb = p.bins
+    hg = hh = np.zeros(0)
     for level in range(p.depth):
         first, width = 2 ** level - 1, 2 ** level
         local = node - first
-        gh_g = np.stack([np.bincount(local * nb + codes[:, j], g, width * nb) for j in range(f)])
-        gh_h = np.stack([np.bincount(local * nb + codes[:, j], h, width * nb) for j in range(f)])
-        cg = gh_g.reshape(f, width, nb).cumsum(axis=2)
-        ch = gh_h.reshape(f, width, nb).cumsum(axis=2)
+        if level == 0:
+            hg, hh = _histograms(codes_t, local, None, g, h, 1, nb)
+        else:
+            lg, lh = _histograms(codes_t, local // 2, np.flatnonzero(local % 2 == 0), g, h, width // 2, nb)
+            pg, ph = hg, hh
+            hg, hh = np.empty((f, width, nb)), np.empty((f, width, nb))
+            hg[:, 0::2], hg[:, 1::2] = lg, pg - lg
+            hh[:, 0::2], hh[:, 1::2] = lh, ph - lh
+        cg, ch = hg.cumsum(axis=2), hh.cumsum(axis=2)
         tg, th = cg[:, :, -1:], ch[:, :, -1:]
         rg, rh = tg - cg, th - ch
         gain = cg ** 2 / (ch + p.l2) + rg ** 2 / (rh + p.l2) - tg ** 2 / (th + p.l2)
@@ -114,7 +133,7 @@ def _grow(codes: np.ndarray, edges: list[np.ndarray], g: np.ndarray, h: np.ndarr
             j, b = np.unravel_index(np.argmax(gain[:, k, :]), (f, nb))
             if gain[j, k, b] > 1e-12 and b < len(edges[j]):
                 feature[first + k], threshold[first + k], split[first + k] = j, edges[j][b], b
-        node = 2 * node + 1 + (codes[np.arange(n), feature[node]] > split[node])
+        node = 2 * node + 1 + (codes_t[feature[node], np.arange(n)] > split[node])
     leaves = node - inner
     lg = np.bincount(leaves, g, inner + 1)
     lh = np.bincount(leaves, h, inner + 1)
@@ -122,7 +141,8 @@ def _grow(codes: np.ndarray, edges: list[np.ndarray], g: np.ndarray, h: np.ndarr
 
 
 def _codes(x: np.ndarray, edges: list[np.ndarray]) -> np.ndarray:
-    return np.column_stack([np.searchsorted(e, col, side="left") for e, col in zip(edges, x.T)]).astype(np.int64)
+    """(F, N): each feature's bin codes (code c: edges[c - 1] < x <= edges[c])."""
+    return np.stack([np.searchsorted(e, col, side="left") for e, col in zip(edges, x.T)]).astype(np.int64)
 
 
 def _boost(x: np.ndarray, y: np.ndarray, w: np.ndarray, p: BoostParams) -> Boosted:

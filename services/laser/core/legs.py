@@ -132,3 +132,22 @@ def _covariance(xy: np.ndarray, p: LegParams) -> np.ndarray:
         return np.eye(2) * p.lone_sigma_m ** 2
     d = xy[1] - xy[0]
     return np.eye(2) * p.pair_sigma_m ** 2 + np.outer(d, d) / 12.0
+
+
+def in_frame(people: People, rotation: np.ndarray, translation: np.ndarray, z: float,
+             z_sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """``people``'s positions (P, 3) and covariances (P, 3, 3) in another frame: ``rotation``
+    (3, 3) and ``translation`` (3,) map the scanner's frame into it; the height is not measured
+    by a 2-D scan, so z is the prior ``z`` with standard deviation ``z_sigma`` (the TU Ilmenau
+    framework gives its laser's people a prior height the same way)."""
+    k = len(people)
+    local = np.column_stack([people.xy, np.zeros(k)]) if k else np.zeros((0, 3))
+    pos = local @ rotation.T + translation
+    pos[:, 2] = z
+    cov = np.zeros((k, 3, 3))
+    cov[:, :2, :2] = people.cov
+    cov = rotation @ cov @ rotation.T
+    cov[:, 2, :] = 0.0
+    cov[:, :, 2] = 0.0
+    cov[:, 2, 2] = z_sigma ** 2
+    return pos, cov

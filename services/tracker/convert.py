@@ -37,45 +37,35 @@ def positions_of(loc: LocalizedDetections) -> tuple[np.ndarray, np.ndarray]:
 def descriptors_for(loc: LocalizedDetections, emb: Embeddings) -> np.ndarray:
     """Descriptors (N, D) float32 in the order of ``loc.detections``; NaN rows where the
     embedder gave none for a detection index."""
-    out = np.full((len(loc.detections), emb.model.dim), np.nan, np.float32)
-    row_of = {int(i): r for r, i in enumerate(emb.indices.tolist())}
-    for n, det in enumerate(loc.detections):
-        r = row_of.get(det.index)
-        if r is not None:
-            out[n] = emb.vectors[r]
-    return out
+    return _per_detection(loc, emb, emb.vectors, np.full((len(loc.detections), emb.model.dim), np.nan, np.float32))
 
 
 def orientations_for(loc: LocalizedDetections, emb: Embeddings | None) -> np.ndarray | None:
-    """The embedder's orientation probabilities (N, 8) in the order of ``loc.detections``,
-    turned from camera-relative bins into the tracking frame's (bin j centred on j * 45
-    degrees), NaN rows where there is none; None without orientations or a camera view.
-
-    Camera bin k faces k * 45 degrees anticlockwise from "towards the camera", i.e. the
-    direction ``view_yaw + 180 + k * 45`` degrees in the map, ``view_yaw`` being the
-    heading of the camera's optical axis: a roll of the bins by that offset, rounded to
-    the nearest bin.
-    """
+    """The embedder's orientation probabilities (N, 8) in the order of ``loc.detections`` (NaN rows:
+    none; None without orientations or a camera view), from camera-relative bins to the tracking
+    frame's (bin j centred on j * 45 degrees): camera bin k faces ``yaw + 180 + k * 45`` degrees in
+    the map, ``yaw`` the optical axis's heading, a roll of the bins rounded to the nearest bin."""
     if emb is None or emb.orientation is None or loc.view is None:
         return None
     axis = loc.view.camera_to_frame[:3, 2]
     towards_camera = np.arctan2(axis[1], axis[0]) + np.pi
     shift = int(np.round(towards_camera / (np.pi / 4))) % 8
-    out = np.full((len(loc.detections), 8), np.nan)
+    return _per_detection(loc, emb, np.roll(emb.orientation, shift, axis=1), np.full((len(loc.detections), 8), np.nan))
+
+
+def _per_detection(loc: LocalizedDetections, emb: Embeddings, rows: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``out`` (N, K) with each detection's row of ``rows`` (one per embedded index of ``emb``)."""
     row_of = {int(i): r for r, i in enumerate(emb.indices.tolist())}
     for n, det in enumerate(loc.detections):
         r = row_of.get(det.index)
         if r is not None:
-            out[n] = np.roll(emb.orientation[r], shift)
+            out[n] = rows[r]
     return out
 
 
 def track_state(view: TrackReport, appearance: bool, epoch_ns: int = 0) -> TrackState:
-    """A core track as a :class:`TrackState`; core stamps are seconds since ``epoch_ns``.
-
-    ``appearance`` says whether this frame had descriptors; the track's own flag is also
-    False while it has none in its gallery.
-    """
+    """A core track as a :class:`TrackState` (core stamps are seconds since ``epoch_ns``); its
+    ``appearance_available`` needs the frame's descriptors (``appearance``) and a gallery."""
     return TrackState(
         id=view.id,
         status=view.status.value,

@@ -11,12 +11,13 @@ from pathlib import Path
 import numpy as np
 
 from common.runtime.progress import progress
-from services.tracker.config import TrackerConfig
+from services.tracker.config import AppearanceConfig, TrackerConfig
 from services.tracker.core import TrackerCore
 from services.tracker.core.types import FrameInput, FrameResult
 from services.tracker.core.view import View
 
-__all__ = ["Detections", "OUTPUT_HEADER", "Row", "read_detections", "track", "track_config", "write_tracks"]
+__all__ = ["Detections", "OUTPUT_HEADER", "Row", "read_detections", "thresholds_for", "track", "track_config",
+           "write_tracks"]
 
 INPUT_COLUMNS = ("frame", "stamp", "x", "y", "z", "score")
 #: One output row: (frame, stamp, id, x, y, z, status), status "confirmed" or "coasting".
@@ -129,13 +130,19 @@ def track_config(dets: Detections, config: TrackerConfig, embedding_model: str |
                  view: View | None = None) -> list[Row]:
     """Track ``dets`` as ``perception track`` does with ``config``: descriptors, if any, with
     ``embedding_model``'s thresholds (ValueError if it has none), else position-only."""
-    thresholds = None
-    if dets.descriptors is not None:
-        thresholds = config.thresholds(embedding_model or "")
-        if thresholds is None:
-            known = ", ".join(sorted(config.appearance)) or "none"
-            raise ValueError(f"no appearance thresholds for embedding model {embedding_model!r} (configured: {known})")
-    return track(dets, config.build_tracker(thresholds), view=view)
+    return track(dets, config.build_tracker(thresholds_for(dets, config, embedding_model)), view=view)
+
+
+def thresholds_for(dets: Detections, config: TrackerConfig, model: str | None) -> AppearanceConfig | None:
+    """The appearance thresholds of ``model`` when ``dets`` have descriptors (ValueError: none
+    configured), else None: position-only."""
+    if dets.descriptors is None:
+        return None
+    thresholds = config.thresholds(model or "")
+    if thresholds is None:
+        known = ", ".join(sorted(config.appearance)) or "none"
+        raise ValueError(f"no appearance thresholds for embedding model {model!r} (configured: {known})")
+    return thresholds
 
 
 def write_tracks(path: str | Path, rows: list[Row], status: bool = False) -> None:

@@ -17,7 +17,7 @@ from services.tracker import flags
 from services.tracker.config import DEFAULT_EMBEDDING_MODEL, PROFILES, AppearanceConfig, TrackerConfig
 from services.tracker.core.types import FrameResult
 from services.tracker.core.view import FloorView
-from services.tracker.offline import Detections, FormatError, Row, read_detections, track, write_tracks
+from services.tracker.offline import Detections, FormatError, Row, read_detections, thresholds_for, track, write_tracks
 
 log = logging.getLogger(__name__)
 
@@ -102,18 +102,14 @@ def _detections(path: Path) -> Detections:
 
 
 def _thresholds(config: TrackerConfig, dets: Detections, model: str) -> AppearanceConfig | None:
-    """The appearance thresholds of ``model`` when the detections have descriptors (CliError: none
-    configured), else None: position-only."""
+    """:func:`thresholds_for`, saying what to do when there are none (CliError)."""
     if dets.descriptors is None:
         log.info("no embedding columns: tracking position-only")
-        return None
-    thresholds = config.thresholds(model)
-    if thresholds is None:
-        known = ", ".join(sorted(config.appearance)) or "none"
-        raise CliError(f"no appearance thresholds for embedding model {model!r} (configured: {known}); "
-                       f"add t_lower, t_upper and t_recover under appearance.{model} in --service-config FILE, "
-                       "or pick another --embedding-model")
-    return thresholds
+    try:
+        return thresholds_for(dets, config, model)
+    except ValueError as exc:
+        raise CliError(f"{exc}; add t_lower, t_upper and t_recover under appearance.{model} in --service-config "
+                       "FILE, or pick another --embedding-model") from None
 
 
 def _write(args: argparse.Namespace, rows: list[Row], decisions: list[dict[str, object]], described: bool) -> None:

@@ -1,13 +1,9 @@
-"""TrackerConfig: the tracker's settings. Each profile has its section, ``robust:`` and
-``thesis:``, with the core's defaults (:class:`RobustParams`, :class:`ThesisParams`,
-written there only); the service's settings and the ID memory's are at the top.
-
-Appearance thresholds depend on the embedding model's distance scale, so they live under
-the model's name in ``appearance``. :data:`DEFAULT_APPEARANCE` below is the one place the
-shipped per-model values are written.
-
-The thesis profile's settings used to sit at the top (``n_init: 3``); such files still load:
-those keys are moved under ``thesis:``, with a warning that names the new place.
+"""TrackerConfig: the tracker's settings (services/tracker/README.md, *Settings*): each profile's
+section, ``robust:`` and ``thesis:``, its defaults the core's (:class:`RobustParams`,
+:class:`ThesisParams`), the service's and the ID memory's settings at the top. Appearance
+thresholds depend on the embedding model's distance scale, so they live under the model's name in
+``appearance`` (:data:`DEFAULT_APPEARANCE`: the shipped ones). The thesis's settings at the top (an
+older file's ``n_init: 3``) still load: moved under ``thesis:``, with a warning naming the place.
 """
 
 from __future__ import annotations

@@ -1,14 +1,10 @@
-"""The tracker service's inputs: localized detections and embeddings joined per source frame,
-the embedding model checked, stamps watched for clock jumps, and each frame converted once
-into the core's input (:class:`~services.tracker.core.types.FrameInput`).
-
-* A localized detections message is converted when it arrives (positions, covariances and
-  their one check, scores, the boxes' aspects: :class:`Arrival`); its joined frame adds the
-  descriptors, orientations, the cameras' view, the detector's score model and the camera
-  (:class:`Frame`). The reorder buffer keeps that :class:`Frame`, so a rewind replays it
-  as it is; embeddings that come late give a new :class:`Frame` of the same arrival.
-* Descriptors of a model other than the one tracked, or of another dimension, are refused;
-  the first accepted model card gives its thresholds when the settings have none.
+"""The tracker service's inputs: localized detections and embeddings joined per source frame, the
+embedding model checked, stamps watched for clock jumps, and each frame converted once into the
+core's input (:class:`~services.tracker.core.types.FrameInput`): a localized detections message
+when it arrives (:class:`Arrival`), its joined frame with the descriptors, orientations, view,
+score model and camera (:class:`Frame`, what the reorder buffer keeps, so a rewind replays it as it
+is). Descriptors of another model or dimension than the tracked one are refused; the first
+accepted model card gives its thresholds when the settings have none.
 """
 
 from __future__ import annotations
@@ -44,11 +40,8 @@ R_EPS = np.eye(3) * 1e-6
 
 @dataclass(frozen=True)
 class Arrival:
-    """A localized detections message, converted on arrival: ``positions`` (N, 3),
-    ``covs`` (N, 3, 3) (plus :data:`R_EPS`), ``usable`` (N,) the covariance check's
-    verdicts, ``scores`` (N,), ``aspects`` (N,) the boxes' height / width, ``postures`` (N,)
-    the detector's posture reports as codes (None: none), ``statures`` (N,) the detector's
-    statures (NaN: not measured; None: none measured)."""
+    """A localized detections message converted on arrival, as :class:`FrameInput` takes it (``covs``
+    plus :data:`R_EPS`, ``usable`` their check's verdicts)."""
 
     loc: LocalizedDetections
     positions: np.ndarray
@@ -95,12 +88,10 @@ def _completion(no_embeddings: frozenset[str]) -> Callable[[Mapping[str, Any]], 
 
 
 class Intake:
-    """Joins, model checks, clock jumps and the conversion of frames for the tracker service.
-
-    ``model``: the embedding model to track (None: the first whose card is accepted);
-    ``dim``/``dim_why``: the descriptors' dimension and where it comes from (the ID memory's);
-    ``on_thresholds(thresholds, metric)``: called with the first accepted card's thresholds.
-    """
+    """Joins, model checks, clock jumps and the conversion of frames for the tracker service:
+    ``model`` the embedding model to track (None: the first whose card is accepted), ``dim``/``dim_why``
+    the descriptors' dimension and where it comes from, ``on_thresholds(thresholds, metric)`` called
+    with the first accepted card's thresholds."""
 
     def __init__(self, config: TrackerConfig, counters: Counters, ratelog: RateLimitedLog, model: str | None,
                  dim: int | None, dim_why: str, on_thresholds: Callable[[AppearanceConfig, str | None], None]) -> None:
@@ -135,10 +126,8 @@ class Intake:
         return arrival, self.clock_jumps.check(loc.header.source, loc.header.stamp_ns)
 
     def _count_covariances(self, arrival: Arrival) -> None:
-        """Count (and log) detections whose covariance is not symmetric positive definite.
-
-        Non-finite ones never get here: decoding refuses them (the subscription's ``invalid``).
-        """
+        """Count (and log) detections whose covariance is not symmetric positive definite (non-finite
+        ones never get here: decoding refuses them, the subscription's ``invalid``)."""
         bad = int((~arrival.usable).sum())
         if bad:
             self.counters.count("bad_covariances", bad)

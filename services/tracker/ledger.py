@@ -1,12 +1,8 @@
-"""The IDs the tracker service knows: the track query's table, when each ID was last seen
-(retention), forgetting a person, and the ID memory's file.
-
-* The query answers for confirmed and coasting tracks, and the last state of one that ended
-  after being confirmed; never for a tentative one, nor a forgotten one.
-* The memory file is written when the memory changes, every ``memory_save_period_s`` while
-  tracks are updated (with the live tracks' galleries and classifiers) and at shutdown.
-* A remembered ID not seen for ``retention_s`` is forgotten; ``forget`` forgets one person
-  or everyone on request, and the file is rewritten at once.
+"""The IDs the tracker service knows: the track query's table (confirmed and coasting tracks, and
+the last state of one that ended after being confirmed; never a tentative or a forgotten one),
+when each ID was last seen (``retention_s``), forgetting a person, and the ID memory's file
+(written when the memory changes, every ``memory_save_period_s`` while tracking, on a forget and at
+shutdown).
 """
 
 from __future__ import annotations
@@ -35,11 +31,9 @@ _ANSWERED = (TrackStatus.CONFIRMED, TrackStatus.COASTING)
 
 
 class IdLedger:
-    """The query table, last-seen times, forgetting and persistence around ``tracker``.
-
-    ``lock``: held while the tracker changes (frames, forget requests from query threads);
-    ``rebase()``: makes the tracker's state now the only one a rewind may go back to;
-    ``model()``: the embedding model's name, for the memory file."""
+    """The query table, last-seen times, forgetting and persistence around ``tracker``: ``lock`` held
+    while the tracker changes, ``rebase()`` makes its state now the only one a rewind may go back to,
+    ``model()`` the embedding model's name for the memory file."""
 
     def __init__(self, config: TrackerConfig, tracker: TrackerCore, counters: Counters, ratelog: RateLimitedLog,
                  lock: threading.RLock, rebase: Callable[[], None], model: Callable[[], str],

@@ -171,12 +171,9 @@ class ThesisConfig(AdvancedBlock):
         return v
 
     def params(self, appearance: AppearanceModel | None, memory_size: int) -> ThesisParams:
-        """The core's parameters; ``appearance`` None means position-only association.
-
-        ``gate`` and ``t_recover`` come from the embedding model's thresholds, not from the
-        core's defaults (the core's ``t_recover`` 400 is TriNet's): position-only, there is
-        no gate and ``t_recover`` is 0 (unused: no descriptor is ever compared).
-        """
+        """The core's parameters (``appearance`` None: position-only). ``gate`` and ``t_recover`` come
+        from the model's thresholds, not the core's defaults (its ``t_recover`` 400 is TriNet's);
+        position-only there is no gate, and ``t_recover`` 0 is never compared."""
         params = ThesisParams(
             sigma0=self.sigma0, sigma_q=self.sigma_q, sigma_r=self.sigma_r, gate=None, t_recover=0.0,
             n_init=self.n_init, max_misses=self.max_misses, time_step=self.time_step,

@@ -176,10 +176,8 @@ class TrackerService(Node):
         return published
 
     def _apply_late(self, key: InputKey, emb: Embeddings, now: float) -> list[Tracks] | None:
-        """Embeddings of a frame already tracked by position alone (they came after
-        ``join_wait_s``): the frame is applied again with them, and every frame after it
-        (a rewind), while it is within ``reorder_window_s``. None when it is not (they
-        are then dropped as late, as before)."""
+        """Embeddings that came after ``join_wait_s``: their frame, tracked by position alone, is
+        applied again with them (a rewind) while within ``reorder_window_s``; None when it is not."""
         logged = self.buffer.get(key)
         if logged is None or logged.with_embeddings:
             return None
@@ -305,10 +303,9 @@ class TrackerService(Node):
         return published
 
     def _after_push(self, key: InputKey, frame: Frame, results: list[FrameResult], now: float) -> list[Tracks]:
-        """Publish (or keep for the fixed rate) the newest result after the push of ``frame``:
-        as that frame's output when it is of the newest instant (another stream's frame of
-        the same stamp may have been applied first: a slow detector's result that came before
-        the fast one's embeddings), else as the newest frame's (:class:`Pacing`)."""
+        """Publish (or keep for the fixed rate) the newest result after the push of ``frame``: as that
+        frame's output when it is of the newest instant (another stream's frame of that stamp, a slow
+        detector's, may have been applied first), else as the newest frame's (:class:`Pacing`)."""
         newest = self.buffer.latest()
         assert newest is not None
         if key[0] < newest[0][0]:

@@ -1,8 +1,6 @@
-"""Data association: Algorithm 1 of Pinto's thesis (III-D), the position-only fallback, and
-the robust profile's assignment on log-odds (:func:`match_log_odds`).
-
-All cost matrices are (N detections, T tracks) and come from broadcasting; the only Python
-loop is over tracks' galleries (thesis), each handled with one matrix product.
+"""Data association: Algorithm 1 of Pinto's thesis (III-D), the position-only fallback, and the
+robust profile's assignment on log-odds (:func:`match_log_odds`). Cost matrices are (N detections,
+T tracks), from broadcasting; the one Python loop is over the thesis's galleries, a product each.
 """
 
 from __future__ import annotations
@@ -31,11 +29,8 @@ __all__ = [
 
 @dataclass(frozen=True)
 class AppearanceGate:
-    """Algorithm 1's thresholds, on the embedding model's distance scale.
-
-    ``s_max`` bounds the squared Mahalanobis distance on (x, y); ``inf`` is the cost that
-    marks an inadmissible pair (1e5 in the thesis).
-    """
+    """Algorithm 1's thresholds, on the embedding model's distance scale: ``s_max`` bounds the squared
+    Mahalanobis distance on (x, y); ``inf`` is the cost of an inadmissible pair (1e5 in the thesis)."""
 
     t_lower: float
     t_upper: float
@@ -50,11 +45,8 @@ class AppearanceGate:
 
 
 def appearance_cost(descriptors: np.ndarray, galleries: Sequence[Gallery]) -> np.ndarray:
-    """``C[d, t]``: smallest Euclidean distance from detection d to track t's gallery.
-
-    ``descriptors`` (N, D). Returns (N, T) float64; ``nan`` where a detection's descriptor
-    row is not finite (no descriptor) or a gallery is empty.
-    """
+    """``C[d, t]`` (N, T): the smallest Euclidean distance from ``descriptors[d]`` (N, D) to track t's
+    gallery; ``nan`` for a detection without a (finite) descriptor or an empty gallery."""
     n = len(descriptors)
     cost = np.full((n, len(galleries)), np.nan)
     if n == 0 or not galleries:
@@ -70,34 +62,25 @@ def appearance_cost(descriptors: np.ndarray, galleries: Sequence[Gallery]) -> np
 
 
 def spatial_distance(positions_xy: np.ndarray, means_xy: np.ndarray, covs_xy: np.ndarray) -> np.ndarray:
-    """``S[d, t]``: squared Mahalanobis distance on (x, y) with the track's covariance.
-
-    ``positions_xy`` (N, 2), ``means_xy`` (T, 2), ``covs_xy`` (T, 2, 2). Returns (N, T).
-    """
+    """``S[d, t]`` (N, T): the squared Mahalanobis distance on (x, y) of ``positions_xy`` (N, 2) from
+    ``means_xy`` (T, 2) with the tracks' covariances ``covs_xy`` (T, 2, 2)."""
     diff = positions_xy[:, None, :] - means_xy[None, :, :]  # (N, T, 2)
     inv = np.linalg.inv(covs_xy) if len(covs_xy) else np.zeros((0, 2, 2))
     return np.einsum("ntj,tjk,ntk->nt", diff, inv, diff)
 
 
 def innovation_distance(positions: np.ndarray, means: np.ndarray, covs: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Squared Mahalanobis distance on (x, y) with the innovation covariance ``S = HPH^T + R``.
-
-    ``positions`` (N, 3), ``means`` (T, 6), ``covs`` (T, 6, 6), ``r`` (3, 3). Returns (N, T).
-    """
+    """:func:`spatial_distance` (N, T) with the innovation covariance ``S = HPH^T + R`` (``covs`` (T, 6,
+    6), ``r`` (3, 3))."""
     s = covs[:, :2, :2] + r[:2, :2]
     return spatial_distance(positions[:, :2], means[:, :2], s)
 
 
 def gate_appearance(cost: np.ndarray, spatial: np.ndarray, gate: AppearanceGate) -> np.ndarray:
-    """Algorithm 1, lines 7-12, on a copy of ``cost``.
-
-    * ``t_lower < C < t_upper`` and ``S > s_max``: inadmissible (the ambiguous band needs
-      spatial confirmation);
-    * ``C >= t_upper``: inadmissible.
-
-    A ``nan`` cost (no descriptor, or a track without any descriptor yet) is treated as
-    the middle of the ambiguous band, so only spatial closeness can admit the pair.
-    """
+    """Algorithm 1, lines 7-12, on a copy of ``cost``: inadmissible where ``C >= t_upper``, or in the
+    ambiguous band ``t_lower < C < t_upper`` without spatial confirmation (``S > s_max``). A ``nan``
+    cost (no descriptor, or a track without one yet) counts as the band's middle: only spatial
+    closeness can admit the pair."""
     c = np.where(np.isnan(cost), 0.5 * (gate.t_lower + gate.t_upper), cost)
     band = (c > gate.t_lower) & (c < gate.t_upper) & (spatial > gate.s_max)
     return np.where(band | (c >= gate.t_upper), gate.inf, c)
@@ -114,11 +97,8 @@ def gate_position(spatial: np.ndarray, threshold: float, inf: float = 1e5) -> np
 
 
 def match(cost: np.ndarray, inf: float = 1e5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Hungarian assignment on ``cost`` (N, T), then pairs costing ``inf`` are undone.
-
-    Returns ``matches`` (K, 2) int64 rows of (detection, track), ``unmatched_detections``
-    and ``unmatched_tracks`` (int64, ascending).
-    """
+    """Hungarian assignment on ``cost`` (N, T), pairs costing ``inf`` undone: ``matches`` (K, 2) rows
+    of (detection, track), the unmatched detections and the unmatched tracks (ascending)."""
     n, t = cost.shape
     if n == 0 or t == 0:
         return np.zeros((0, 2), np.int64), np.arange(n, dtype=np.int64), np.arange(t, dtype=np.int64)

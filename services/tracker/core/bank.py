@@ -1,11 +1,8 @@
 """Every track's gallery in one contiguous array: :class:`GalleryBank`, the robust profile's
-galleries (see :mod:`~services.tracker.core.tracks` for the tracks themselves).
-
-A gallery here is Pinto's track gallery with a bound (the TU Ilmenau framework's): at most
-``capacity`` descriptors; a full one drops the stored descriptor nearest to the new one
-(``Gallery(prune="nearest")``, whose behaviour this reproduces descriptor for descriptor).
-One batched matrix product measures every compared (detection, track) pair against every
-descriptor of the track's gallery. Pure numpy.
+galleries. A gallery is Pinto's track gallery with the TU Ilmenau framework's bound: at most
+``capacity`` descriptors, a full one dropping the stored descriptor nearest to the new one (as
+``Gallery(prune="nearest")``, descriptor for descriptor). One batched matrix product measures every
+compared (detection, track) pair against the track's whole gallery. Pure numpy.
 """
 
 from __future__ import annotations
@@ -53,15 +50,12 @@ def _stream_bytes() -> int:
 
 
 class GalleryBank:
-    """Galleries of at most ``capacity`` descriptors each, in slots of one array.
-
-    ``data`` (S, D, capacity) float32, a column per descriptor (the layout a vector-by-matrix
-    product reads fastest), ``sq`` (S, capacity) their squared norms (``inf`` where a slot
-    holds no descriptor, so a distance to it is ``inf``), ``age`` the order they came in,
-    ``n`` (S,) how many each slot holds. A track holds a slot from its first
-    descriptor on; a freed slot is reused. Copies share the arrays until either side
-    changes them (copy-on-write), so a tracker snapshot costs almost nothing.
-    """
+    """Galleries of at most ``capacity`` descriptors each, in slots of one array: ``data`` (S, D,
+    capacity) float32, a column per descriptor (the layout a vector-by-matrix product reads
+    fastest), ``sq`` (S, capacity) their squared norms (``inf`` where a slot holds none, so a
+    distance to it is ``inf``), ``age`` the order they came in, ``n`` (S,) how many each holds. A
+    track holds a slot from its first descriptor on; a freed slot is reused. Copies share the arrays
+    until either side changes them (copy-on-write): a tracker snapshot costs almost nothing."""
 
     def __init__(self, capacity: int) -> None:
         if capacity <= 0:

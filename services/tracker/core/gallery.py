@@ -1,16 +1,11 @@
 """Bounded appearance galleries (Pinto's track gallery, with the TU Ilmenau framework's bound).
 
-A :class:`Gallery` holds at most ``capacity`` descriptors (default 500, as TU Ilmenau's
-appearance sample sets). When a new descriptor arrives at a full gallery, the two most
-similar descriptors among the stored ones and the new one are found, and the older of the
-two is pruned: redundant samples go first, the newest appearance is always kept.
-
-The closest pair is found in O(n * D) per insertion by keeping, for every stored
-descriptor, its nearest neighbour in the gallery (squared distance and index). That
-bookkeeping starts when the gallery fills up; before, an insertion is a plain copy.
-
-Copies are copy-on-write: :meth:`copy` shares the arrays until either side changes, so
-a snapshot of a tracker costs almost nothing.
+A :class:`Gallery` holds at most ``capacity`` descriptors (500 by default, as TU Ilmenau's sample
+sets). A full one prunes the older of the two most similar among the stored ones and the new one:
+redundant samples go first, the newest appearance is always kept. The closest pair costs O(n * D)
+per insertion by keeping every stored descriptor's nearest neighbour, from when the gallery fills
+up (before, an insertion is a plain copy). :meth:`Gallery.copy` is copy-on-write: a tracker's
+snapshot costs almost nothing.
 """
 
 from __future__ import annotations
@@ -21,10 +16,8 @@ __all__ = ["Gallery", "pairwise_sq_distances"]
 
 
 def pairwise_sq_distances(a: np.ndarray, b: np.ndarray, b_sq: np.ndarray | None = None) -> np.ndarray:
-    """Squared Euclidean distances between rows of ``a`` (N, D) and ``b`` (M, D): (N, M).
-
-    Uses ``|a|^2 + |b|^2 - 2 a.b`` (one matrix product), clipped at 0.
-    """
+    """Squared Euclidean distances (N, M) between rows of ``a`` (N, D) and ``b`` (M, D):
+    ``|a|^2 + |b|^2 - 2 a.b`` (one matrix product), clipped at 0."""
     a_sq = np.einsum("ij,ij->i", a, a)
     if b_sq is None:
         b_sq = np.einsum("ij,ij->i", b, b)
@@ -74,10 +67,8 @@ class Gallery:
         return np.maximum(d2, 0.0, out=d2)
 
     def min_distances(self, x: np.ndarray) -> np.ndarray:
-        """Smallest Euclidean distance from each row of ``x`` (N, dim) to the gallery: (N,).
-
-        ``inf`` for every row when the gallery is empty.
-        """
+        """Smallest Euclidean distance (N,) from each row of ``x`` (N, dim) to the gallery (``inf``
+        when it is empty)."""
         x = np.asarray(x, dtype=np.float32)
         if self.n == 0:
             return np.full(len(x), np.inf)
@@ -105,11 +96,8 @@ class Gallery:
         self._shared = False
 
     def add(self, x: np.ndarray, d2: np.ndarray | None = None) -> None:
-        """Insert one descriptor ``x`` (dim,), pruning one descriptor when full.
-
-        ``d2``: its squared distances to the stored descriptors (:meth:`sq_distances`), if
-        already known; it saves the one matrix-vector product an insertion costs.
-        """
+        """Insert one descriptor ``x`` (dim,), pruning one when full; ``d2``: its squared distances to
+        the stored ones (:meth:`sq_distances`) if known, saving an insertion's one product."""
         x = np.asarray(x, dtype=np.float32).reshape(self.dim)
         xx = float(x @ x)
         if not np.isfinite(xx):

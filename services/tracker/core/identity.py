@@ -1,15 +1,10 @@
 """The ID memory and Algorithm 2 of Pinto's thesis (III-E): recovering a person's old ID.
 
-The thesis keeps, for every ID, the list of galleries of the past tracks that carried it,
-and measures a detection against an ID by the smallest distance to any descriptor of any
-of those galleries. The smallest distance over a list of galleries equals the smallest
-distance over their union, so each ID here keeps one bounded :class:`Gallery` (at most
-``capacity`` descriptors, pruned like a track gallery) that absorbs every archived
-gallery of that ID.
-
-The memory turns into plain arrays and back (:meth:`IdentityMemory.to_blocks`,
-:meth:`IdentityMemory.from_blocks`); writing them to a file and reading them back is the
-service's business (``services/tracker/memory_file.py``): the core does no I/O.
+The thesis keeps, for every ID, the galleries of the past tracks that carried it and measures a
+detection against an ID by the smallest distance to any of their descriptors: the smallest over
+their union, so each ID here keeps one bounded :class:`Gallery` that absorbs every archived
+gallery of that ID. The memory turns into plain arrays and back (:meth:`IdentityMemory.to_blocks`,
+:meth:`IdentityMemory.from_blocks`); the file is the service's (``memory_file.py``).
 """
 
 from __future__ import annotations
@@ -79,10 +74,8 @@ class IdentityMemory:
         return len(entry)
 
     def distances(self, descriptor: np.ndarray, exclude: Iterable[int] = ()) -> tuple[np.ndarray, np.ndarray]:
-        """Appearance distance from ``descriptor`` (D,) to every remembered ID not in ``exclude``.
-
-        Returns ``ids`` (K,) int64 and ``distances`` (K,) float64, in ID order.
-        """
+        """``ids`` (K,) int64 and ``distances`` (K,): from ``descriptor`` (D,) to every remembered ID not
+        in ``exclude``, in ID order."""
         skip = set(exclude)
         ids = np.array(sorted(k for k in self.entries if k not in skip), dtype=np.int64)
         x = np.asarray(descriptor, dtype=np.float32)[None]
@@ -90,11 +83,8 @@ class IdentityMemory:
         return ids, dist
 
     def assign(self, descriptor: np.ndarray | None, live_ids: Iterable[int], t_recover: float) -> tuple[int, bool]:
-        """Algorithm 2: the ID for a new track, and whether it was recovered from memory.
-
-        IDs held by live tracks are skipped. If the closest remembered ID is nearer than
-        ``t_recover`` it is reused; otherwise (or without a descriptor) ``next_id`` is taken.
-        """
+        """Algorithm 2: the ID for a new track, and whether it was recovered: the nearest remembered ID
+        not held by a live track if nearer than ``t_recover``, else (or without a descriptor) a new one."""
         track_id, recovered, _, _ = self.assign_weighed(descriptor, live_ids, t_recover)
         return track_id, recovered
 
@@ -121,12 +111,9 @@ class IdentityMemory:
 
     # ------------------------------------------------------- plain-array form
     def to_blocks(self, extra: Iterable[tuple[int, np.ndarray]] = ()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The remembered descriptors as plain arrays: ``ids`` (K,) int64, ``counts`` (K,)
-        int64 and ``descriptors`` (sum of counts, D) float32, block k holding ``counts[k]``
-        rows of ID ``ids[k]``; the IDs in order, then the ``extra`` (ID, descriptors (M, D))
-        blocks, e.g. the galleries of the tracks alive now. :meth:`from_blocks` merges
-        blocks of the same ID.
-        """
+        """The remembered descriptors as plain arrays: ``ids`` (K,), ``counts`` (K,) and ``descriptors``
+        (sum of counts, D) float32, block k the ``counts[k]`` rows of ID ``ids[k]``; the IDs in order,
+        then the ``extra`` (ID, descriptors (M, D)) blocks (:meth:`from_blocks` merges an ID's blocks)."""
         blocks = [(k, g.descriptors) for k, g in sorted(self.entries.items())]
         blocks += [(int(k), np.asarray(d, np.float32)) for k, d in extra if len(d)]
         dims = {d.shape[1] for _, d in blocks}
@@ -141,10 +128,8 @@ class IdentityMemory:
     @classmethod
     def from_blocks(cls, capacity: int, next_id: int, ids: np.ndarray, counts: np.ndarray,
                     descriptors: np.ndarray) -> IdentityMemory:
-        """A memory holding the blocks of :meth:`to_blocks` (its ``version`` is 0).
-
-        Raises ``ValueError`` when the counts do not add up to the descriptors.
-        """
+        """A memory holding the blocks of :meth:`to_blocks` (``version`` 0); ``ValueError`` when the
+        counts do not add up to the descriptors."""
         if counts.sum() != len(descriptors) or len(ids) != len(counts):
             raise ValueError(f"inconsistent blocks ({len(ids)} ids, {counts.sum()} counted, {len(descriptors)} stored)")
         memory = cls(capacity, next_id)

@@ -1,12 +1,8 @@
-"""The Kalman filter of Pinto's thesis (III-C) as pure functions.
-
-State ``(x, y, z, vx, vy, vz)`` in the tracking frame. x and y follow a constant-velocity
-model; z is a random walk (the z-velocity row of the transition is zero, so ``vz`` is
-0 after every predict). The measurement is the position ``(x, y, z)``.
-
-Every function takes and returns plain arrays and never mutates its inputs. Leading batch
-dimensions are allowed: ``mean`` (..., 6), ``cov`` (..., 6, 6), ``z`` (..., 3),
-``R`` (3, 3) or (..., 3, 3), so all tracks can be predicted or updated at once.
+"""The Kalman filter of Pinto's thesis (III-C) as pure functions: state ``(x, y, z, vx, vy, vz)``
+in the tracking frame, x and y at constant velocity, z a random walk (``vz`` is 0 after every
+predict), the position ``(x, y, z)`` measured. No function mutates its inputs; leading batch
+dimensions are allowed (``mean`` (..., 6), ``cov`` (..., 6, 6), ``z`` (..., 3), ``R`` (3, 3) or
+(..., 3, 3)), so all tracks are predicted or updated at once.
 """
 
 from __future__ import annotations
@@ -53,10 +49,8 @@ def white_acceleration(dt: float, q_accel: float, q_z: float) -> np.ndarray:
 
 
 def initiate(position: np.ndarray, sigma0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A new track at ``position`` (..., 3) with zero velocity and ``P0 = diag(sigma0**2)``.
-
-    Returns ``mean`` (..., 6) and ``cov`` (..., 6, 6).
-    """
+    """``mean`` (..., 6) and ``cov`` (..., 6, 6) of a new track at ``position`` (..., 3), at rest,
+    ``P0 = diag(sigma0**2)``."""
     pos = np.asarray(position, dtype=np.float64)
     mean = np.concatenate([pos, np.zeros_like(pos)], axis=-1)
     cov = np.broadcast_to(np.diag(np.asarray(sigma0, dtype=np.float64) ** 2), pos.shape[:-1] + (6, 6)).copy()
@@ -77,11 +71,8 @@ def project(cov: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def update(mean: np.ndarray, cov: np.ndarray, z: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The measurement update with position ``z`` (..., 3) and noise ``r``.
-
-    ``y = z - H x``, ``S = H P H^T + R``, ``K = P H^T S^-1``, ``x' = x + K y``,
-    ``P' = (I - K H) P``.
-    """
+    """The measurement update with position ``z`` (..., 3) and noise ``r``: ``y = z - H x``,
+    ``S = H P H^T + R``, ``K = P H^T S^-1``, ``x' = x + K y``, ``P' = (I - K H) P``."""
     s = project(cov, r)
     ph_t = cov[..., :, :3]  # P H^T, (..., 6, 3)
     # K = P H^T S^-1  <=>  K^T = S^-1 (H P)  (S is symmetric)

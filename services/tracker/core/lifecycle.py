@@ -175,11 +175,10 @@ def confirm(state: RobustTrackerState, p: RobustParams, result: FrameResult) -> 
 
 
 def handover(state: RobustTrackerState, j: int, removed: set[int], gate: float | None) -> tuple[int, float] | None:
-    """Hand-over by motion: the track coasting out of view, last seen by another camera than the
-    one track ``j`` was born in, whose prediction the newly confirmed ``j`` is nearest (squared
-    Mahalanobis distance on (x, y) within ``gate``), which ``j`` replaces (it takes its gallery,
-    what each cue learnt of the person too; ``removed`` gets it): (its row, that distance), None when there is none.
-    A person leaving one camera's view and coming back into it is left to appearance."""
+    """Hand-over by motion: (the row, the squared Mahalanobis distance on (x, y)) of the track coasting
+    out of another camera's view nearest the newly confirmed ``j``'s prediction within ``gate``
+    (None: none), which ``j`` replaces: it takes its gallery and what each cue learnt of the person,
+    ``removed`` gets the row. Back into the same camera's view is appearance's business."""
     if gate is None:
         return None
     t, bank = state.tracks, state.bank

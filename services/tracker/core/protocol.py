@@ -1,13 +1,9 @@
-"""The one interface of a tracker core: what the service, ``perception track``, the config
-and the benchmarks may ask of either profile (the thesis's
-:class:`~services.tracker.core.thesis.Tracker`, the robust
-:class:`~services.tracker.core.robust.RobustTracker`), so nothing outside the core needs
-to tell them apart. Each profile implements every member; none is optional.
-
-A frame goes in as a :class:`~services.tracker.core.types.FrameInput` (``FrameInput.of``
-converts loose arrays once), the static map at construction (the settings' ``obstacles``) or
-with the frames (``FrameInput.obstacles``, a map that arrives while tracking); what the ID
-memory's file keeps beside the remembered galleries goes out and back in as one
+"""The one interface of a tracker core: what the service, ``perception track``, the config and
+the benchmarks may ask of either profile (:class:`~services.tracker.core.thesis.ThesisTracker`,
+:class:`~services.tracker.core.robust.RobustTracker`), so nothing outside the core tells them
+apart; each implements every member. A frame goes in as a
+:class:`~services.tracker.core.types.FrameInput`, the static map with the settings or with a frame;
+what the ID memory's file keeps beside the galleries, as one
 :class:`~services.tracker.core.types.KeptMemory`.
 """
 

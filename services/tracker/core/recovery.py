@@ -72,10 +72,9 @@ class RecoveryParams:
 
 @dataclass(frozen=True)
 class Departure:
-    """Where and when a remembered person was last detected: ``stamp`` (s), ``x``, ``y`` (m) and
-    the variance ``var`` (m^2, per axis) of that position; ``left``: they walked out of the
-    cameras' view there (else they were lost inside it, or the view was not known); their
-    ``stature`` (m) from ``stature_n`` measurements (0: not known; core/cues/stature.py)."""
+    """Where and when a remembered person was last detected (``stamp`` s, ``x``, ``y`` m, ``var`` m^2
+    per axis); ``left``: they walked out of the cameras' view there; their ``stature`` (m) from
+    ``stature_n`` measurements (0: not known)."""
 
     stamp: float
     x: float

@@ -1,9 +1,7 @@
-"""The evidence of open-set recovery (:mod:`~services.tracker.core.recovery`): for each
-remembered person a newly confirmed track could be, the log-likelihood ratio of "same person"
-from the association's cues (appearance through the calibrated model, the remembered online
-classifier, the stature), whether they could have walked there, and what a stranger reaches.
-
-Pure numpy.
+"""The evidence of open-set recovery (:mod:`~services.tracker.core.recovery`): for each remembered
+person a newly confirmed track could be, the log-likelihood ratio of "same person" from the
+association's cues (appearance, the remembered classifier, the stature), whether they could have
+walked there, and what a stranger reaches. Pure numpy.
 """
 
 from __future__ import annotations
@@ -27,9 +25,8 @@ __all__ = ["Candidate", "Evidence", "evidence", "keeps", "min_distance"]
 
 @dataclass(frozen=True)
 class Candidate:
-    """The newly confirmed track as recovery sees it: its ``descriptors`` (M, D) (its gallery), and where it
-    is: ``stamp``, ``x``, ``y`` and the variance ``var`` per axis of that position; its
-    ``stature`` (m) from ``stature_n`` measurements (0: not known; core/cues/stature.py)."""
+    """The newly confirmed track as recovery sees it: its gallery's ``descriptors`` (M, D), where it is
+    (``stamp``, ``x``, ``y``, ``var`` per axis) and its ``stature`` from ``stature_n`` measurements."""
 
     descriptors: np.ndarray
     stamp: float
@@ -69,14 +66,12 @@ def min_distance(x: np.ndarray, gallery: np.ndarray) -> float:
 def evidence(track: Candidate, memory: IdentityMemory, exclude: set[int], pair_llr: Callable[[np.ndarray], np.ndarray],
              others: list[np.ndarray], classifiers: dict[int, np.ndarray], classifier: ClassifierParams | None,
              state: RecoveryState, params: RecoveryParams, stature: StatureParams | None = None) -> Evidence:
-    """The evidence for each remembered person (not in ``exclude``, e.g. the live IDs) that
-    ``track`` could be, from the association's cues: ``pair_llr`` turns Euclidean descriptor
-    distances into the model's weighted log-odds, here the distance of the track's mean view to
-    the remembered gallery (Algorithm 2's); the remembered person's classifier (``classifiers``,
-    weighted by ``classifier.weight``) adds its mean log-odds over the track's descriptors. The same
-    appearance measure against ``others`` ((M, D) arrays), the galleries of the people in view now, gives the
-    stranger's log-odds (:func:`stranger_llr`). With ``stature``, the track's stature against
-    each remembered one's (their departures') adds the association's stature log-odds."""
+    """The evidence for each remembered person (not in ``exclude``, e.g. the live IDs) ``track`` could
+    be, by the association's cues: ``pair_llr`` (Euclidean distances -> the model's weighted log-odds)
+    of the track's mean descriptor to the remembered gallery (Algorithm 2's distance), plus their
+    classifier's weighted mean log-odds over the track's descriptors and, with ``stature``, the
+    stature's log-odds against their departure's. The same measure against ``others`` (the
+    galleries of the people in view now) gives the stranger's log-odds (:func:`stranger_llr`)."""
     mean = np.asarray(track.descriptors, np.float32).mean(axis=0)
     ids_a, dist = memory.distances(mean, exclude=exclude)
     ids = ids_a.tolist()

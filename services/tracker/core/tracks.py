@@ -1,10 +1,8 @@
 """The robust profile's state: every track as a row of a few arrays (:class:`TrackTable`), what
-each cue keeps per track beside them (its :class:`Columns`),
-their galleries in one contiguous array (:class:`~services.tracker.core.bank.GalleryBank`).
-
-With the tracks in arrays a frame costs a handful of array operations whatever the number
-of people: the predict, the gates, the Kalman update and the life cycle's tests run on
-whole columns. Pure numpy.
+each cue keeps per track beside them (its :class:`Columns`), their galleries in one array
+(:class:`~services.tracker.core.bank.GalleryBank`). A frame then costs a handful of array
+operations whatever the number of people: the predict, the gates, the Kalman update and the life
+cycle's tests run on whole columns. Pure numpy.
 """
 
 from __future__ import annotations
@@ -74,15 +72,12 @@ class ArrayColumns:
 
 @dataclass
 class TrackTable:
-    """The tracks, one row each, in the order they were born. The filter's state is in arrays
-    (one product moves every track): ``mean`` (T, S) and ``cov`` (T, S, S). The bookkeeping a
-    frame reads a few entries of is in lists: ``id`` (0 while tentative), ``is_person`` (IsPerson,
-    a probability), ``status``, the stamps, the hit counts, ``in_view`` (None: not known),
-    ``camera``, ``slot`` the gallery's in the :class:`GalleryBank` (-1: none yet), and for the ID
-    memory's recovery (core/recovery.py) ``fix`` (x, y, variance per axis) at the last detection,
-    ``probation`` (the recovered ID, its end, the next check).
-    ``extra``: each cue's own per-track state by the cue's name (the online classifiers, the
-    statures, the postures), kept in step with the rows."""
+    """The tracks, one row each, in the order they were born: the filter's state in arrays (one
+    product moves every track), ``mean`` (T, S) and ``cov`` (T, S, S); the bookkeeping a frame reads
+    a few entries of in lists: ``id`` (0 while tentative), ``is_person`` (IsPerson), ``in_view``
+    (None: not known), ``slot`` the gallery's in the :class:`GalleryBank` (-1: none yet), ``fix`` (x,
+    y, variance per axis at the last detection) and ``probation`` (the recovered ID, its end, the
+    next check) for core/recovery.py; ``extra`` each cue's :class:`Columns` by the cue's name."""
 
     mean: np.ndarray
     cov: np.ndarray

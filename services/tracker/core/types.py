@@ -229,12 +229,10 @@ class FrameResult:
 
 @dataclass(frozen=True)
 class AppearanceModel:
-    """An embedding model's calibrated distances: 0.9 same-person probability at
-    ``t_lower``, 0.1 at ``t_upper``; ``t_recover`` for the ID memory. ``metric`` says how
-    descriptors compare (``euclidean``, or ``cosine``: 1 - cos on unit vectors; the thesis
-    profile compares Euclidean distances whatever it says). ``s_max``: the model's own bound
-    on the squared Mahalanobis distance in Algorithm 1's ambiguous band (thesis profile;
-    None: the profile's)."""
+    """An embedding model's calibrated distances: same-person probability 0.9 at ``t_lower``, 0.1 at
+    ``t_upper``; ``t_recover`` for the ID memory; ``metric`` ``euclidean`` or ``cosine`` (1 - cos on
+    unit vectors; the thesis profile compares Euclidean distances whatever it says); ``s_max`` its own
+    Algorithm 1 bound (thesis profile; None: the profile's)."""
 
     t_lower: float
     t_upper: float
@@ -261,12 +259,9 @@ class AppearanceModel:
 
 @dataclass(frozen=True)
 class ScoreModel:
-    """Detector score -> P(true person): ``sigmoid((score - center) / scale)``.
-
-    ``center`` None means the scores carry no calibrated meaning: every detection is
-    confident with probability ``default_p``. ``birth_score``: detections below it may
-    update tracks but never start one (None: every detection may).
-    """
+    """Detector score -> P(true person): ``sigmoid((score - center) / scale)``; ``center`` None: the
+    scores are not calibrated, every detection has ``default_p``. ``birth_score``: detections below
+    it may update tracks but never start one (None: every detection may)."""
 
     center: float | None = None
     scale: float = 1.0
@@ -350,11 +345,9 @@ class FrameInput(NamedTuple):
 
 @dataclass
 class KeptMemory:
-    """What the ID memory's file keeps beside the remembered galleries: ``live_galleries`` (ID,
-    descriptors (M, D)) of the people tracked now, the trained appearance ``classifiers`` by ID,
-    and the open-set recovery's state as named arrays (``recovery``: where and when each person
-    was last seen, who was seen with whom). A profile without classifiers or recovery keeps
-    them empty; on import, None leaves a part as it is."""
+    """What the ID memory's file keeps beside the remembered galleries: the ``live_galleries`` (ID,
+    descriptors (M, D)), the trained ``classifiers`` by ID and the open-set recovery's named arrays
+    (empty for a profile without them); on import, None leaves a part as it is."""
 
     live_galleries: list[tuple[int, np.ndarray]] = field(default_factory=list)
     classifiers: dict[int, np.ndarray] | None = None

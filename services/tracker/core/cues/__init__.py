@@ -1,9 +1,6 @@
-"""The robust tracker's cues, one module each (the TU Ilmenau framework's cue fusion: each gives
-every (detection, track) pair a log-odds that the pair is the same person, and the tracker adds
-them). :func:`build` lists the cues a tracker's settings turn on, in the order they are summed.
-
-Adding a cue is its module (a :class:`~services.tracker.core.cues.base.Cue`) and one line in
-:func:`build`.
+"""The robust tracker's cues, one module each (services/tracker/README.md, *How it works*, step 2);
+:func:`build` lists the cues a tracker's settings turn on, in the order they are summed. Adding a
+cue is its module (a :class:`~services.tracker.core.cues.base.Cue`) and one line in :func:`build`.
 """
 
 from __future__ import annotations

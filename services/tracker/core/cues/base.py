@@ -1,11 +1,9 @@
 """What a cue of the robust tracker is: :class:`Cue`, the frame's evidence it reads
-(:class:`Pairing`), and the per-track state it may keep in the track table
-(:class:`~services.tracker.core.tracks.Columns`).
-
-A cue gives every (detection, track) pair of a frame a log-odds that the pair is the same
-person (0: no information; the TU Ilmenau framework's Bayesian product, Eq 1: the cues' log-odds
-add), and learns from the frame's matches. The tracker calls every cue's hooks in the order of
-its cue list; a cue overrides the hooks it needs. Pure numpy; no I/O.
+(:class:`Pairing`) and the per-track state it may keep in the track table
+(:class:`~services.tracker.core.tracks.Columns`). A cue gives every (detection, track) pair a
+log-odds that the pair is the same person (0: no information; the cues' log-odds add, TU
+Ilmenau's Bayesian product, Eq 1) and learns from the frame's matches; the tracker calls the
+cues' hooks in the order of its cue list. Pure numpy; no I/O.
 """
 
 from __future__ import annotations
@@ -43,15 +41,13 @@ class PairDistances:
 
 @dataclass
 class Pairing:
-    """One frame's evidence, as every cue reads it: the detections' ``positions`` (N, 3) and their
-    measurement covariances ``r`` (N, 3, 3); ``descriptors`` (N, D), None when the frame has no
-    appearance (no descriptors, or no embedding model's calibration); ``has_desc`` (N,) which rows
-    are described; ``u`` those rows as unit vectors (None: none); the detector's ``p_det`` (N,) as
-    P(true person) and which detections are ``confident`` (may start a track). What the cues
-    compute on the way for the others: ``gated`` (N, T) (the position cue's gate), ``appearance``
-    (N, T) (the appearance cue's log-odds, before its weight) and ``distances`` (the squared
-    descriptor distances of the pairs compared, for the galleries' insertion). ``moved``: the
-    tracks' arrays are this frame's own (the predict made new ones), so a cue may write into them."""
+    """One frame's evidence as every cue reads it: ``positions`` (N, 3), measurement covariances ``r``
+    (N, 3, 3), ``descriptors`` (N, D) (None: no appearance: no descriptors or no calibration),
+    ``has_desc`` (N,) the described rows, ``u`` those as unit vectors, ``p_det`` (N,) P(true person),
+    ``confident`` (N,) (may start a track). What cues compute for the others: ``gated`` (N, T) (the
+    position cue's gate), ``appearance`` (N, T) (the appearance cue's unweighted log-odds),
+    ``distances`` (for the galleries' insertion). ``moved``: the tracks' arrays are this frame's own
+    (the predict made new ones), so a cue may write into them."""
 
     stamp: float
     frame: FrameInput
@@ -69,15 +65,11 @@ class Pairing:
 
 
 class Cue:
-    """One source of evidence about who is who. Subclasses set ``name`` and override the hooks
-    they need; each hook is called with the tracker's state (its tracks, galleries and memory).
-
-    * :meth:`columns`: its per-track state (None: it keeps none), created once with the table;
-    * :meth:`predict`: the tracks moved ``dt`` seconds ahead (a cue whose state drifts in time);
-    * :meth:`log_odds`: (N, T) its log-odds of every pair, or None for "no information";
-    * :meth:`learn`: the frame's matches (``rows``: (2, M) detections and tracks);
-    * :meth:`born`: new tracks at rows ``first`` on, one per detection of ``dets``.
-    """
+    """One source of evidence about who is who: a subclass sets ``name`` and overrides the hooks it
+    needs, each called with the tracker's state: :meth:`columns` (its per-track state, None: none),
+    :meth:`predict` (the tracks moved ``dt`` s ahead), :meth:`log_odds` ((N, T), None: no
+    information), :meth:`learn` (the matches, ``rows`` (2, M) detections and tracks), :meth:`born`
+    (new tracks from row ``first`` on, one per detection of ``dets``)."""
 
     name = ""
 

@@ -67,12 +67,9 @@ def scores(weights: np.ndarray, u: np.ndarray, clip: float) -> np.ndarray:
 
 
 def train(weights: np.ndarray, u: np.ndarray, positive: np.ndarray, params: ClassifierParams) -> np.ndarray:
-    """One SGD step of every classifier; returns the new weights (K, D + 1).
-
-    ``u`` (N, D): the frame's unit descriptors; ``positive`` (K,): the row of ``u`` that is
-    classifier k's own detection. Rows other than a classifier's positive are its
-    negatives; a classifier with no negative (N == 1) is returned unchanged.
-    """
+    """The weights (K, D + 1) after one SGD step of every classifier on the frame's unit descriptors
+    ``u`` (N, D): row ``positive[k]`` classifier k's own detection, the others its negatives (none,
+    N == 1: unchanged)."""
     k, n = len(weights), len(u)
     if k == 0 or n < 2:
         return weights

@@ -67,22 +67,15 @@ def _reachable_llr(state: RobustTrackerState, rp: RecoveryParams, weigh: _Weigh,
 def memory_alternatives(state: RobustTrackerState, model: AppearanceModel, weight: float, rp: RecoveryParams,
                         positions: np.ndarray, r: np.ndarray, descriptors: np.ndarray, has_desc: np.ndarray,
                         gated: np.ndarray, appearance: np.ndarray) -> np.ndarray:
-    """(N, T) what to take off the log-odds of the gated pairs of a detection and a track whose
-    person may not be the one detected: a coasting track, or a confirmed one the detection does not
-    look like (``appearance`` (N, T), the pairs' appearance log-odds, below 0): the ID memory's
-    alternative. A remembered person (not live, reachable from where they left) known to be
-    someone else than the track's person (the two were detected in one frame; a remembered ID
-    never seen with it may be the same person remembered twice) competes with the track, by the
-    association's appearance log-odds to their gallery (``model``, ``weight``) less what a
-    stranger reaches here (:func:`recovery.stranger_llr
-    <services.tracker.core.recovery.stranger_llr>` of the detection against the other live
-    tracks' galleries, certainly other people if the detection is the track's person); at least
-    0. A person back in view then keeps their own ID instead of continuing a look-alike's
-    coasting track, or the track of someone who walked out where they walked in. A detection that
-    looks like the track's own person leaves that track no alternative to weigh: where everyone
-    looks alike, remembered look-alikes would otherwise tax every correct continuation. Only the
-    remembered people known to differ from a compared track's person are measured, and the
-    stranger only where one of them outweighs "no alternative" (its log-odds is never below 0)."""
+    """(N, T) what to take off the log-odds of the gated pairs whose track's person may not be the one
+    detected (a coasting track, or one the detection does not look like: ``appearance`` (N, T) below
+    0): the best of the track's rivals (remembered, not live, reachable, known to be someone else
+    than its person) by the association's appearance log-odds (``model``, ``weight``), less the
+    stranger's level against the other live galleries (:func:`~services.tracker.core.recovery.stranger_llr`);
+    at least 0. A person back in view then keeps their own ID instead of continuing a look-alike's
+    coasting track, or that of someone who walked out where they walked in; a detection that looks
+    like the track's person is left alone, or where everyone looks alike remembered look-alikes would
+    tax every correct continuation. The stranger is measured only where a rival outweighs 0."""
     t = state.tracks
     out = np.zeros(gated.shape)
     rivals_of = _rivals(state)

@@ -1,9 +1,7 @@
-"""The position cue: where the track predicts the person, against someone else or clutter
-anywhere (the TU Ilmenau framework's position likelihood), and the gate of every pair; with the
-detections' measurement covariance (Basso/Munaro's sigma^2 = sigma_v^2 + sigma_d^2).
-
-:func:`usable_covariances` is the project's one test of a detection's covariance: the tracker
-service counts the bad ones with it, the cores replace them.
+"""The position cue: where the track predicts the person, against someone else or clutter anywhere
+(the TU Ilmenau framework's position likelihood), and the gate of every pair, with the detections'
+measurement covariance (Basso/Munaro's sigma^2 = sigma_v^2 + sigma_d^2). :func:`usable_covariances`
+is the project's one test of a detection's covariance (the service counts, the cores replace).
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ import numpy as np
 from common.messages.schemas import LaserScan
 from services.laser.files import read_scans
 
-__all__ = ["DevScan", "SPLITS", "WINDOW_DEG", "WINDOW_RANGE_M", "files_digest", "in_window", "load", "mirrored"]
+__all__ = ["DevScan", "SPLITS", "WINDOW_DEG", "WINDOW_RANGE_M", "files_digest", "in_window", "load", "mirrored", "noisy"]
 
 #: The labelled window: every cluster inside it was labelled, nothing outside it was.
 WINDOW_DEG = 15.0
@@ -47,6 +47,24 @@ def mirrored(d: DevScan) -> DevScan:
     scan = s.model_copy(update={"ranges": s.ranges[::-1].copy(), "angle_min": -s.angle_max, "angle_max": -s.angle_min,
                                 "intensities": None if s.intensities is None else s.intensities[::-1].copy()})
     return DevScan(scan, d.legs * np.array([1.0, -1.0]), d.empty, d.part + ":mirrored")
+
+
+def _normal(n: int, seed: int) -> np.ndarray:
+    """``n`` standard normal draws from PCG64's raw stream by Box-Muller: the same on every numpy
+    (numpy keeps its bit generators' streams, not its distributions', from version to version)."""
+    raw = np.random.PCG64(seed).random_raw(2 * n).reshape(2, n)
+    u1, u2 = ((raw >> np.uint64(11)).astype(np.float64) + 0.5) / 2.0 ** 53
+    return np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)
+
+
+def noisy(d: DevScan, sigma_m: float, seed: int) -> DevScan:
+    """``d`` with Gaussian noise of ``sigma_m`` on every valid range: a scanner noisier than the
+    one that recorded the dev scans, so that the classifier does not learn this one's smoothness."""
+    s = d.scan
+    r = s.ranges.astype(np.float64)
+    ok = np.isfinite(r) & (r > s.range_min) & (r < s.range_max)
+    r = np.where(ok, r + sigma_m * _normal(len(r), seed), r).astype(np.float32)
+    return DevScan(s.model_copy(update={"ranges": r}), d.legs, d.empty, d.part + ":noisy")
 
 
 def in_window(xy: np.ndarray) -> np.ndarray:

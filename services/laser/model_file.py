@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from services.laser.core.boost import Boosted
-from services.laser.core.features import NAMES
+from services.laser.core.features import MODEL
 
 __all__ = ["DEFAULT_MODEL", "ModelFileError", "load_model", "write_model"]
 
@@ -43,13 +43,13 @@ def load_model(path: Path | None = None) -> tuple[Boosted, dict[str, Any]]:
         raise ModelFileError(f"leg model {path} has version {doc.get('version')}, this code reads {VERSION}: {fix}")
     meta = doc.get("meta") or {}
     names = meta.get("features")
-    if names != list(NAMES):
+    if names != list(MODEL):
         raise ModelFileError(f"leg model {path} was trained on other features ({names}); retrain it with "
                              "'perception train-legs'")
     try:
         model = Boosted.from_json(doc["model"])
     except (KeyError, TypeError, ValueError) as exc:
         raise ModelFileError(f"leg model {path} is damaged ({exc}): {fix}") from None
-    if model.feature.size and (model.feature.min() < 0 or model.feature.max() >= len(NAMES)):
-        raise ModelFileError(f"leg model {path} names a feature outside 0..{len(NAMES) - 1}: {fix}")
+    if model.feature.size and (model.feature.min() < 0 or model.feature.max() >= len(MODEL)):
+        raise ModelFileError(f"leg model {path} names a feature outside 0..{len(MODEL) - 1}: {fix}")
     return model, meta

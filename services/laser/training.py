@@ -2,7 +2,9 @@
 
 A positive is a segment whose centre is a labelled leg; a negative is any segment of an empty
 room. Segments of labelled scans that carry no label are left out: outside the labelled window
-nothing is known of them. Every scan is used twice, as recorded and mirrored (``dev_data.mirrored``).
+nothing is known of them. Every scan is used four times: as recorded, mirrored (``dev_data.mirrored``),
+and both again with 1 cm of range noise (``dev_data.noisy``), so that the classifier holds on
+scanners noisier than the one that recorded the dev scans.
 """
 
 from __future__ import annotations
@@ -14,17 +16,27 @@ from typing import Any, Sequence
 import numpy as np
 
 from services.laser.core.boost import Boosted, BoostParams, train
-from services.laser.core.features import NAMES, features
+from services.laser.core.features import MODEL, MODEL_COLUMNS, features
 from services.laser.core.legs import LegParams
 from services.laser.core.scan import ScanGeometry, beams
 from services.laser.core.segments import segment
-from services.laser.dev_data import DevScan, files_digest, load, mirrored
+from services.laser.dev_data import DevScan, files_digest, load, mirrored, noisy
 
-__all__ = ["geometry_of", "samples", "train_model"]
+__all__ = ["augmented", "geometry_of", "samples", "train_model"]
 
 #: how near a segment's centre must lie to a label to be that label (the labels are the same
 #: clusters' centres, to float precision)
 LABEL_MATCH_M = 0.01
+
+
+#: the range noise of the noisy copies (m)
+NOISE_M = 0.01
+
+
+def augmented(scans: list[DevScan]) -> list[DevScan]:
+    """``scans``, their mirror images, and both with :data:`NOISE_M` of noise (seeded by position)."""
+    both = scans + [mirrored(d) for d in scans]
+    return both + [noisy(d, NOISE_M, k) for k, d in enumerate(both)]
 
 
 def geometry_of(scan: Any) -> ScanGeometry:
@@ -60,10 +72,9 @@ def samples(scans: Sequence[DevScan], p: LegParams = LegParams()) -> tuple[np.nd
 def train_model(folder: Path, split: str = "all", boost: BoostParams = BoostParams(),
                 p: LegParams = LegParams()) -> tuple[Boosted, dict[str, Any]]:
     """The classifier trained on ``split`` of the dev data in ``folder``, and what it came from."""
-    scans = load(folder, split)
-    x, y, _ = samples(scans + [mirrored(d) for d in scans], p)
-    model = train(x, y, boost)
-    meta = {"features": list(NAMES), "split": split, "data": files_digest(folder, split),
-            "mirrored": True, "positives": int(y.sum()), "negatives": int(len(y) - y.sum()), "boost": asdict(boost),
+    x, y, _ = samples(augmented(load(folder, split)), p)
+    model = train(x[:, MODEL_COLUMNS], y, boost)
+    meta = {"features": list(MODEL), "split": split, "data": files_digest(folder, split),
+            "augmented": {"mirrored": True, "noise_m": NOISE_M}, "positives": int(y.sum()), "negatives": int(len(y) - y.sum()), "boost": asdict(boost),
             "segments": {"join_m": p.join_m, "min_points": p.min_points}}
     return model, meta

@@ -14,7 +14,7 @@ import numpy as np
 from services.laser.core.scan import Beams
 from services.laser.core.segments import Segments
 
-__all__ = ["LEIGH", "NAMES", "features"]
+__all__ = ["BACKGROUND", "LEIGH", "MODEL", "MODEL_COLUMNS", "NAMES", "features"]
 
 #: Leigh et al.'s features, in their order.
 LEIGH = ("n_points", "std", "avg_median_dev", "width", "linearity", "circularity", "boundary_length",
@@ -23,6 +23,14 @@ LEIGH = ("n_points", "std", "avg_median_dev", "width", "linearity", "circularity
 #: This project's, after them.
 OURS = ("circle_radius", "bulge", "jump_near", "jump_far", "width_per_span", "beam_gap")
 NAMES = LEIGH + OURS
+#: What depends on the scan beside the segment, not on the segment: in Leigh et al.'s training
+#: scans most legs have no return beside them (an open hall past the range) while the empty rooms
+#: have walls, so a classifier that reads these learns the recording, and misses a person in
+#: front of a wall (benchmarks/legs.py, "background filled"). Computed, never classified on.
+BACKGROUND = ("occluded_right", "occluded_left", "jump_near", "jump_far")
+#: The features the leg classifier reads, and their columns in :func:`features`.
+MODEL = tuple(n for n in NAMES if n not in BACKGROUND)
+MODEL_COLUMNS = [NAMES.index(n) for n in MODEL]
 
 
 def _sum(v: np.ndarray, where: np.ndarray, seg: np.ndarray, n: int) -> np.ndarray:

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.special import expit
 
 from services.laser.core.boost import Boosted
-from services.laser.core.features import NAMES, features
+from services.laser.core.features import MODEL_COLUMNS, NAMES, features
 from services.laser.core.scan import Beams, ScanGeometry, beams
 from services.laser.core.segments import segment
 
@@ -89,7 +89,7 @@ def detect_beams(b: Beams, model: Boosted, p: LegParams) -> Legs:
     if not len(x):
         return Legs(np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0), [], b.invalid)
     width, distance = x[:, NAMES.index("width")], x[:, NAMES.index("distance")]
-    log_odds = model.log_odds(x)
+    log_odds = model.log_odds(x[:, MODEL_COLUMNS])
     log_odds[(width > p.max_width_m) | (distance > p.max_range_m)] = -np.inf
     prob = expit(log_odds)
     keep = np.flatnonzero(prob >= p.min_probability)

@@ -10,7 +10,7 @@ COMMANDS = {
         "the legs and people in a bag's or recording's laser scans, one JSON line a scan",
     ),
     "train-legs": (
-        "services.laser.train_cli",
+        "services.laser.train_legs_cli",
         "train the leg classifier on the labelled dev scans (rebuilds the shipped model)",
     ),
 }

@@ -92,8 +92,11 @@ class LaserService(Node):
     def poll(self, now: float) -> list[LocalizedDetections]:
         take_transforms(self.buffer, ((self.sub_tf_static, True), (self.sub_tf, False)), self.counters, self._log)
         while (got := self.sub_map.try_recv()) is not None:
-            self.obstacles = obstacles_from_map(got.msg) if got.msg.header.frame_id in ("", self.config.target_frame) \
-                else self._wrong_map(got.msg)
+            if got.msg.header.frame_id in ("", self.config.target_frame):
+                self.obstacles = obstacles_from_map(got.msg)
+            else:
+                self._drop("map_wrong_frame", "the static map is in %r, the people in %r: map ignored",
+                           got.msg.header.frame_id, self.config.target_frame)
         while (got := self.sub_scans.try_recv()) is not None:
             frame = got.msg.header.frame_id or self.config.laser_frame
             if not frame:
@@ -113,11 +116,6 @@ class LaserService(Node):
                 self.pub.put(msg)
                 out.append(msg)
         return out
-
-    def _wrong_map(self, grid: StaticMap) -> ObstacleMap | None:
-        self._drop("map_wrong_frame", "the static map is in %r, the people in %r: map ignored",
-                   grid.header.frame_id, self.config.target_frame)
-        return self.obstacles
 
     def _drop(self, reason: str, fmt: str, *args: object) -> None:
         self.counters.drop(reason)

@@ -19,7 +19,7 @@ from services.laser.core.boost import Boosted, BoostParams, train
 from services.laser.core.features import MODEL, MODEL_COLUMNS, features
 from services.laser.core.legs import LegParams
 from services.laser.core.scan import ScanGeometry, beams
-from services.laser.core.segments import segment
+from services.laser.core.segments import centres, segment
 from services.laser.dev_data import DevScan, files_digest, load, mirrored, noisy
 
 __all__ = ["augmented", "geometry_of", "samples", "train_model"]
@@ -54,8 +54,7 @@ def samples(scans: Sequence[DevScan], p: LegParams = LegParams()) -> tuple[np.nd
         x = features(b, seg)
         if not len(x):
             continue
-        n = seg.counts.astype(np.float64)
-        centre = np.column_stack([np.bincount(seg.seg, b.x[seg.order]) / n, np.bincount(seg.seg, b.y[seg.order]) / n])
+        centre = centres(b, seg)
         if d.empty:
             y = np.zeros(len(x))
             keep = np.ones(len(x), bool)

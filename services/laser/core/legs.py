@@ -16,8 +16,8 @@ from scipy.special import expit
 
 from services.laser.core.boost import Boosted
 from services.laser.core.features import MODEL_COLUMNS, NAMES, features
-from services.laser.core.scan import Beams, ScanGeometry, beams
-from services.laser.core.segments import segment
+from services.laser.core.scan import ScanGeometry, beams
+from services.laser.core.segments import centres, segment
 
 __all__ = ["LegParams", "Legs", "People", "detect", "pair"]
 
@@ -80,10 +80,6 @@ class People:
 def detect(ranges: np.ndarray, geometry: ScanGeometry, model: Boosted, p: LegParams = LegParams()) -> Legs:
     """The legs in one scan's ``ranges``."""
     b = beams(ranges, geometry)
-    return detect_beams(b, model, p)
-
-
-def detect_beams(b: Beams, model: Boosted, p: LegParams) -> Legs:
     seg = segment(b, p.join_m, p.min_points)
     x = features(b, seg)
     if not len(x):
@@ -93,10 +89,7 @@ def detect_beams(b: Beams, model: Boosted, p: LegParams) -> Legs:
     log_odds[(width > p.max_width_m) | (distance > p.max_range_m)] = -np.inf
     prob = expit(log_odds)
     keep = np.flatnonzero(prob >= p.min_probability)
-    xs, ys = b.x[seg.order], b.y[seg.order]
-    n = seg.counts.astype(np.float64)
-    cx, cy = np.bincount(seg.seg, xs, len(seg)) / n, np.bincount(seg.seg, ys, len(seg)) / n
-    return Legs(np.column_stack([cx[keep], cy[keep]]), prob[keep], log_odds[keep], width[keep],
+    return Legs(centres(b, seg)[keep], prob[keep], log_odds[keep], width[keep],
                 [seg.beams_of(int(s)) for s in keep], b.invalid)
 
 

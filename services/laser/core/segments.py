@@ -17,7 +17,7 @@ from scipy.spatial import cKDTree
 
 from services.laser.core.scan import Beams
 
-__all__ = ["Segments", "segment"]
+__all__ = ["Segments", "centres", "segment"]
 
 
 @dataclass(frozen=True)
@@ -77,3 +77,9 @@ def segment(b: Beams, join_m: float = 0.13, min_points: int = 3) -> Segments:
     counts = np.bincount(seg)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     return Segments(order.astype(np.int64), starts, counts, seg.astype(np.int64))
+
+
+def centres(b: Beams, s: Segments) -> np.ndarray:
+    """(S, 2) each segment's mean point."""
+    n = s.counts.astype(np.float64)
+    return np.column_stack([np.bincount(s.seg, b.x[s.order], len(s)) / n, np.bincount(s.seg, b.y[s.order], len(s)) / n])

@@ -8,7 +8,7 @@ cycle's tests run on whole columns. Pure numpy.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import Protocol, Self
+from typing import Protocol, TypeVar
 
 import numpy as np
 
@@ -40,6 +40,9 @@ class Columns(Protocol):
         """Track ``j``'s person was forgotten: nothing learnt of them stays."""
 
 
+_A = TypeVar("_A", bound="ArrayColumns")
+
+
 class ArrayColumns:
     """:class:`Columns` as a dataclass of arrays, one row per track (None: not started yet): new
     tracks get :meth:`rows`, dropping and copying treat every array alike, and merging or clearing
@@ -60,7 +63,7 @@ class ArrayColumns:
         for name, v in self._arrays():
             setattr(self, name, None if v is None else v[idx])
 
-    def copy(self) -> Self:
+    def copy(self: _A) -> _A:
         return type(self)(*(None if v is None else v.copy() for _, v in self._arrays()))
 
     def merge(self, j: int, old: int) -> None:

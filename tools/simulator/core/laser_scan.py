@@ -60,11 +60,12 @@ def legs_of(xy: np.ndarray, heading: np.ndarray, speed: np.ndarray, t: float, se
     walking = speed > 0.05
     swing = np.where(walking, 0.5 * stride_m * np.minimum(speed / 1.2, 1.0), 0.0)
     phase = 2 * np.pi * 0.75 * np.maximum(speed, 0.0) / 0.6 * t
-    ahead = swing * np.sin(phase)
+    ahead = swing * np.sin(phase)  # the left foot's; the right one's is opposite
+    other = -ahead
     if seated is not None:
-        ahead = np.where(seated, 0.35, ahead)
+        ahead, other = np.where(seated, 0.35, ahead), np.where(seated, 0.35, other)
     left = xy + side * HIP_HALF_M + fwd * ahead[:, None]
-    right = xy - side * HIP_HALF_M - fwd * np.where(seated if seated is not None else False, -ahead, ahead)[:, None]
+    right = xy - side * HIP_HALF_M + fwd * other[:, None]
     out = np.empty((2 * len(xy), 3))
     out[0::2, :2], out[1::2, :2] = left, right
     out[:, 2] = LEG_RADIUS_M

@@ -4,7 +4,7 @@ Topics are routed by a :class:`~tools.replay.core.mapping.TopicPlan`. Colour and
 depth images of a camera are paired by stamp into :class:`RGBDFrame` with the latest
 camera info of that camera (frames wait, up to :attr:`BagOptions.max_waiting_frames`,
 for the first camera info). TF, static TF and odometry become TransformBatch messages
-on the tf / tf_static keys.
+on the tf / tf_static keys; each laser's scans LaserScan messages on scans/{laser}.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Iterator
 
 from common.messages.keys import Keys
-from common.messages.schemas import CameraInfo, Image, Message, RGBDFrame, TransformBatch
+from common.messages.schemas import CameraInfo, Image, LaserScan, Message, RGBDFrame, TransformBatch
 from common.runtime.pairing import Pair, StampPairer
 from tools.replay import rosconv
 from tools.replay.core.mapping import TopicPlan, plan_topics
@@ -33,6 +33,7 @@ _TYPES = {
     "tf": ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage"),
     "tf_static": ("tf2_msgs/msg/TFMessage",),
     "odom": ("nav_msgs/msg/Odometry",),
+    "scan": ("sensor_msgs/msg/LaserScan",),
 }
 
 
@@ -43,6 +44,8 @@ class BagOptions:
     keys: Keys = field(default_factory=Keys)
     cameras: dict[str, dict[str, str]] = field(default_factory=dict)
     lists: dict[str, list[str]] = field(default_factory=dict)
+    #: laser -> scan topic; None: every LaserScan topic (``/scan`` as ``front``, see ``plan_topics``)
+    lasers: dict[str, str] | None = None
     default_camera: str = "head"
     pair_tolerance_ns: int = 20_000_000
     max_waiting_frames: int = 30
@@ -75,8 +78,9 @@ class BagSource(Source):
             self._reader.close()
             raise SourceError(path, "the bag holds no messages")
         topics = self._reader.topics
+        scans = [t for t, info in topics.items() if (info.msgtype or "") in _TYPES["scan"]]
         self.plan: TopicPlan = plan_topics(list(topics), options.cameras or None, options.lists or None,
-                                           options.default_camera)
+                                           options.default_camera, options.lasers, scans)
         for topic, route in list(self.plan.routes.items()):
             msgtype = topics[topic].msgtype or ""
             if msgtype not in _TYPES[route.role]:
@@ -96,6 +100,8 @@ class BagSource(Source):
                 out[keys.tf()] = TransformBatch
             elif route.role == "tf_static":
                 out[keys.tf_static()] = TransformBatch
+            elif route.role == "scan":
+                out[keys.scans(route.laser)] = LaserScan
         return out
 
     def items(self) -> Iterator[Item]:
@@ -108,6 +114,7 @@ class BagSource(Source):
             pairer: StampPairer[tuple[Image, int], tuple[Image, int]] = StampPairer(
                 self.options.pair_tolerance_ns, hold_ns=1_000_000_000, expect_depth="depth" in roles)
             cams[name] = _Camera(name, pairer)
+        scan_seq: dict[str, int] = {}
         conns = [c for c in self._reader.connections if c.topic in self.plan.routes]
         try:
             for conn, log_ns, raw in self._reader.messages(connections=conns):
@@ -128,6 +135,10 @@ class BagSource(Source):
                     elif route.role == "odom":
                         batch = rosconv.odometry(msg)
                         yield Item(batch.header.stamp_ns, log_ns, keys.tf(), TransformBatch, message=batch)
+                    elif route.role == "scan":
+                        scan = rosconv.laser_scan(msg, route.laser, scan_seq.get(route.laser, 0))
+                        scan_seq[route.laser] = scan.header.seq + 1
+                        yield Item(scan.header.stamp_ns, log_ns, keys.scans(route.laser), LaserScan, message=scan)
                     elif cam is None:
                         continue  # depth or camera info of a camera without colour topic
                     elif route.role == "camera_info":
@@ -189,8 +200,12 @@ class BagSource(Source):
         streams = []
         for topic, info in sorted(r.topics.items()):
             route = self.plan.routes.get(topic)
-            note = (f"-> {route.role}" + (f" of camera {route.camera}" if route.camera else "")) if route else \
-                f"skipped: {self.plan.skipped.get(topic, '')}"
+            if route is None:
+                note = f"skipped: {self.plan.skipped.get(topic, '')}"
+            elif route.role == "scan":
+                note = f"-> scans/{route.laser}"
+            else:
+                note = f"-> {route.role}" + (f" of camera {route.camera}" if route.camera else "")
             streams.append(StreamSummary(topic, info.msgtype or "?", info.msgcount, note))
         kind = "ROS 2 bag" if self.path.is_dir() or self.path.suffix == ".mcap" else "ROS 1 bag"
         return Summary(kind, streams, r.start_time, r.end_time)

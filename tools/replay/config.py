@@ -10,11 +10,15 @@ A YAML file (``--topic-map``), for example::
     tf: [/tf]
     tf_static: [/tf_static]
     odom: [/odom]                 # nav_msgs/Odometry -> transform odom -> base_link on tf
+    lasers:                       # laser name: sensor_msgs/LaserScan go to .../scans/{name}
+      front: /scan
+      rear: /rear_scan
     pair_tolerance_ms: 20
 
 The ``--rgb-topic``/``--depth-topic``/... flags override the file for the camera named
-by ``--camera``. Anything left out takes the defaults of
-:data:`tools.replay.core.mapping.DEFAULT_TOPICS`.
+by ``--camera``; ``--scan-topic TOPIC[=NAME]`` names lasers over the file's. Anything left
+out takes the defaults of :data:`tools.replay.core.mapping.DEFAULT_TOPICS` (lasers: every
+laser scan topic, ``/scan`` as ``front``, see :func:`tools.replay.core.mapping.plan_topics`).
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from pydantic import ConfigDict, field_validator
 
 from common.runtime.settings import AdvancedBlock, setting
 
-from common.runtime.config import load_config
+from common.runtime.config import ConfigError, load_config
 from common.messages.keys import validate_chunk
 
 __all__ = ["CameraTopics", "TopicMapConfig", "load_topic_map"]
@@ -60,6 +64,9 @@ class TopicMapConfig(AdvancedBlock):
     tf_static: list[str] | None = setting(None, "topics replayed on tf_static; none: the default topics")
     odom: list[str] | None = setting(None, "nav_msgs/Odometry topics replayed on tf as odom -> base_link; none: the "
                                      "default topics")
+    lasers: dict[str, str] | None = setting(None, "per laser name (scans/{name}): its sensor_msgs/LaserScan topic; "
+                                            "none: every LaserScan topic, /scan (or /base_scan) as front, the others "
+                                            "by their names (/rear_scan: rear); {}: no scans")
     pair_tolerance_ms: float = setting(20.0, "largest stamp difference of paired colour and depth images",
                                        unit="ms", gt=0.0, le=1000.0)
 
@@ -68,6 +75,18 @@ class TopicMapConfig(AdvancedBlock):
     def _camera_names(cls, v: dict[str, CameraTopics]) -> dict[str, CameraTopics]:
         for name in v:
             validate_chunk(name, "camera name")
+        return v
+
+    @field_validator("lasers")
+    @classmethod
+    def _lasers(cls, v: dict[str, str] | None) -> dict[str, str] | None:
+        seen: dict[str, str] = {}
+        for name, topic in (v or {}).items():
+            validate_chunk(name, "laser name")
+            _topic(topic)
+            if topic.strip("/") in seen:
+                raise ValueError(f"topic {topic!r} is named for lasers {seen[topic.strip('/')]!r} and {name!r}")
+            seen[topic.strip("/")] = name
         return v
 
     @field_validator("tf", "tf_static", "odom")
@@ -85,7 +104,9 @@ class TopicMapConfig(AdvancedBlock):
 
 
 def load_topic_map(path: Path | None, camera: str, flags: dict[str, Any]) -> TopicMapConfig:
-    """File, then flags (``rgb``/``depth``/``camera_info`` for ``camera``, ``tf``... lists)."""
+    """File, then flags (``rgb``/``depth``/``camera_info`` for ``camera``, ``tf``... lists,
+    ``scan``: (topic, laser) pairs added to the file's lasers, replacing any of the same name
+    or topic)."""
     cfg = load_config(TopicMapConfig, path)
     cam_flags = {k: flags.get(k) for k in ("rgb", "depth", "camera_info") if flags.get(k)}
     data = cfg.model_dump()
@@ -94,6 +115,15 @@ def load_topic_map(path: Path | None, camera: str, flags: dict[str, Any]) -> Top
     for k in ("tf", "tf_static", "odom"):
         if flags.get(k):
             data[k] = flags[k]
+    if flags.get("scan"):
+        given: dict[str, str] = {}
+        for topic, name in flags["scan"]:
+            if name in given:
+                raise ConfigError(f"--scan-topic: laser {name!r} is named for {given[name]} and {topic}")
+            given[name] = topic
+        topics = {t.strip("/") for t in given.values()}
+        kept = {n: t for n, t in (data["lasers"] or {}).items() if n not in given and t.strip("/") not in topics}
+        data["lasers"] = {**kept, **given}
     if flags.get("pair_tolerance_ms") is not None:
         data["pair_tolerance_ms"] = flags["pair_tolerance_ms"]
     return load_config(TopicMapConfig, None, overrides=data)

@@ -16,8 +16,8 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Iterator, Protocol, Sequence
 
-from common.messages.keys import FRAMES, RELIABLE, STATUS, Delivery
-from common.messages.schemas import RGBDFrame, ServiceStatus
+from common.messages.keys import FRAMES, RELIABLE, SCANS, STATUS, Delivery
+from common.messages.schemas import LaserScan, RGBDFrame, ServiceStatus
 from common.transport.base import Publisher, Transport
 from tools.replay.core.mapping import remap_key
 from tools.replay.core.timeline import DEFAULT_REORDER_WINDOW_NS, Pacer, Reorderer, TimeWindow
@@ -62,7 +62,7 @@ class ReplayStats:
 
 def delivery_for(model: type, as_fast_as_possible: bool) -> Delivery:
     """The live stream's delivery; ``--max`` makes every publisher block on congestion."""
-    base = FRAMES if model is RGBDFrame else STATUS if model is ServiceStatus else RELIABLE
+    base = {RGBDFrame: FRAMES, ServiceStatus: STATUS, LaserScan: SCANS}.get(model, RELIABLE)
     return dataclasses.replace(base, congestion="block") if as_fast_as_possible else base
 
 

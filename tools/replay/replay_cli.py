@@ -13,7 +13,7 @@ from common.runtime.service import ServiceRuntime, Shutdown
 from common.transport.zenoh_config import add_zenoh_arguments
 from tools.replay.bag_source import BagOptions
 from tools.replay.config import load_topic_map
-from tools.replay.core.mapping import parse_remap
+from tools.replay.core.mapping import parse_remap, parse_scan_topic
 from tools.replay.core.timeline import TimeWindow
 from tools.replay.engine import ReplayOptions, Replayer, ReplayStats
 from tools.replay.progress import Progress
@@ -26,14 +26,17 @@ DESCRIPTION = """Publish every stream of FILE on its key, in stamp order, keepin
 FILE is an MCAP recording from `perception record`, a ROS 1 .bag, or a ROS 2 bag folder
 (sqlite3 or mcap storage). Bags are converted: colour + depth images are paired by stamp
 into RGBDFrame on frames/CAMERA with the latest camera info; /tf, /tf_static and
-/odom (as the transform odom -> base_link) go to the tf and tf_static keys. Topics
-without a stream are listed and skipped. Timing follows the message stamps.
+/odom (as the transform odom -> base_link) go to the tf and tf_static keys; laser scans
+(sensor_msgs/LaserScan) to scans/LASER: /scan as front, /rear_scan as rear...
+(--scan-topic names them). Topics without a stream are listed and skipped. Timing
+follows the message stamps.
 
 examples:
   perception replay run.mcap --rate 0.5
   perception replay office.bag --camera head --max
   perception replay rosbag2_folder --topic-map topics.yaml --start 10 --end 40 --loop
-  perception replay run.mcap --remap pp/robot=pp/sim"""
+  perception replay run.mcap --remap pp/robot=pp/sim
+  perception replay robot.bag --scan-topic /left_scan=front --scan-topic /rear_scan=rear"""
 
 
 def add_topic_arguments(parser: argparse.ArgumentParser) -> None:
@@ -47,6 +50,10 @@ def add_topic_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--tf-static-topic", action="append", default=None, metavar="TOPIC", help="static TF topic, repeatable")
     g.add_argument("--odom-topic", action="append", default=None, metavar="TOPIC",
                    help="nav_msgs/Odometry topic, repeatable (published as the transform odom -> base_link on tf)")
+    g.add_argument("--scan-topic", action="append", default=None, metavar="TOPIC[=NAME]",
+                   help="sensor_msgs/LaserScan topic replayed on scans/NAME (default NAME: /scan -> front, "
+                        "/rear_scan -> rear), repeatable; given, only these laser topics are replayed "
+                        "(default: every one)")
     g.add_argument("--pair-tolerance-ms", type=float, default=None, metavar="MS",
                    help="largest stamp gap of paired colour and depth images (default 20)")
     add_key_arguments(parser)
@@ -74,15 +81,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def bag_options_from_args(args: argparse.Namespace) -> BagOptions:
+    try:
+        scans = [parse_scan_topic(rule) for rule in args.scan_topic or []]
+    except ValueError as exc:
+        raise CliError(str(exc)) from exc
     flags = {"rgb": args.rgb_topic, "depth": args.depth_topic, "camera_info": args.camera_info_topic,
              "tf": args.tf_topic, "tf_static": args.tf_static_topic, "odom": args.odom_topic,
-             "pair_tolerance_ms": args.pair_tolerance_ms}
+             "scan": scans, "pair_tolerance_ms": args.pair_tolerance_ms}
     try:
         cfg = load_topic_map(args.topic_map, args.camera, flags)
     except ConfigError as exc:
         raise CliError(f"topic map: {exc}") from exc
     return BagOptions(keys=keys_from_args(args), cameras=cfg.camera_dict(), lists=cfg.list_dict(),
-                      default_camera=args.camera, pair_tolerance_ns=int(cfg.pair_tolerance_ms * 1e6))
+                      lasers=cfg.lasers, default_camera=args.camera, pair_tolerance_ns=int(cfg.pair_tolerance_ms * 1e6))
 
 
 def report(source: Source, stats: ReplayStats) -> None:

@@ -11,6 +11,8 @@ Every function raises :class:`ConversionError` naming the problem; nothing else.
   Frame ids lose a leading ``/`` (ROS 1 tf).
 * ``nav_msgs/Odometry``: the pose as one transform ``header.frame_id`` (odom) ->
   ``child_frame_id`` (base_link), in a TransformBatch for the tf stream.
+* ``sensor_msgs/LaserScan``: :class:`LaserScan` (:meth:`LaserScan.from_ros`: every field, the
+  frame id without a leading ``/``, ranges and intensities as float32).
 """
 
 from __future__ import annotations
@@ -19,9 +21,10 @@ from typing import Any
 
 import numpy as np
 
-from common.messages.schemas import CameraInfo, Header, Image, Transform, TransformBatch
+from common.messages.schemas import CameraInfo, Header, Image, LaserScan, Transform, TransformBatch
 
-__all__ = ["ConversionError", "camera_info", "compressed_image", "image", "odometry", "stamp_ns", "tf_message"]
+__all__ = ["ConversionError", "camera_info", "compressed_image", "image", "laser_scan", "odometry", "stamp_ns",
+           "tf_message"]
 
 _RAW: dict[str, tuple[str, str, int]] = {  # ROS encoding -> (our encoding, dtype, channels)
     "rgb8": ("rgb8", "uint8", 3),
@@ -38,6 +41,15 @@ _DISTORTION = {"plumb_bob": "plumb_bob", "rational_polynomial": "rational_polyno
 
 class ConversionError(ValueError):
     """A ROS message that cannot become a perception message."""
+
+
+def _reason(exc: ValueError) -> str:
+    """A rejected message's reason in one line: pydantic's errors (field: why), else the text."""
+    errors = getattr(exc, "errors", None)
+    if callable(errors):
+        return "; ".join(("/".join(map(str, e["loc"])) + ": " if e["loc"] else "")
+                         + str(e["msg"]).removeprefix("Value error, ") for e in errors())
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
 def stamp_ns(header: Any) -> int:
@@ -111,7 +123,7 @@ def camera_info(msg: Any, source: str, seq: int = 0) -> CameraInfo:
         return CameraInfo(header=_header(msg, source, seq), width=int(msg.width), height=int(msg.height),
                           K=k.reshape(3, 3), D=d, distortion_model=model)  # type: ignore[arg-type]
     except ValueError as exc:  # pydantic's ValidationError is a ValueError
-        raise ConversionError(f"camera info rejected: {str(exc).splitlines()[-1].strip() or exc}") from exc
+        raise ConversionError(f"camera info rejected: {_reason(exc)}") from exc
 
 
 def _transform(parent: str, child: str, stamp: int, t: Any, q: Any, static: bool) -> Transform:
@@ -144,5 +156,13 @@ def odometry(msg: Any, source: str = "odom") -> TransformBatch:
     try:
         tr = _transform(parent, child, stamp, msg.pose.pose.position, msg.pose.pose.orientation, False)
     except ValueError as exc:
-        raise ConversionError(f"odometry pose rejected: {str(exc).splitlines()[-1].strip() or exc}") from exc
+        raise ConversionError(f"odometry pose rejected: {_reason(exc)}") from exc
     return TransformBatch(header=Header(stamp_ns=max(0, stamp), frame_id=parent, source=source), transforms=[tr])
+
+
+def laser_scan(msg: Any, source: str, seq: int = 0) -> LaserScan:
+    """``sensor_msgs/LaserScan`` -> :class:`LaserScan` of the laser ``source``."""
+    try:
+        return LaserScan.from_ros(msg, source, seq)
+    except ValueError as exc:  # pydantic's ValidationError is a ValueError
+        raise ConversionError(f"laser scan rejected: {_reason(exc)}") from exc

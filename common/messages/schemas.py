@@ -52,6 +52,7 @@ __all__ = [
     "PeopleGroundTruth",
     "PersonGroundTruth",
     "RGBDFrame",
+    "ScanCoverage",
     "ServiceStatus",
     "TrackState",
     "Tracks",
@@ -526,6 +527,28 @@ class FloorCameraView(_Model):
         return self
 
 
+class ScanCoverage(_Model):
+    """What a 2-D laser could see in one sweep, in the frame of the positions: ``scanner_to_frame``
+    (4, 4) the scanner's pose at the scan's stamp, beam ``i`` at ``angle_min + i * angle_increment``
+    about the scanner's z returned at ``ranges[i]`` m (no return: ``max_range_m``, free as far as the
+    detector looks). The tracker tells a person hidden behind a nearer return, or beyond the
+    detector's range, from one the laser missed."""
+
+    scanner_to_frame: NDArray(np.float64, (4, 4))  # type: ignore[valid-type]
+    angle_min: float = Field(allow_inf_nan=False)
+    angle_increment: float = Field(gt=0.0, allow_inf_nan=False)
+    ranges: NDArray(np.float32, (None,))  # type: ignore[valid-type]
+    max_range_m: float = Field(gt=0.0, allow_inf_nan=False, description="farthest range the detector looks at")
+
+    @model_validator(mode="after")
+    def _check(self) -> ScanCoverage:
+        _finite(self.scanner_to_frame, "scanner_to_frame")
+        _finite(self.ranges, "ranges")
+        if not len(self.ranges):
+            raise ValueError("ranges is empty")
+        return self
+
+
 @message("perception.LocalizedDetections", 1)
 class LocalizedDetections(Message):
     """People positions of one source frame.
@@ -542,6 +565,8 @@ class LocalizedDetections(Message):
     view: CameraView | None = Field(default=None, description="the camera's view at this frame (None: not known)")
     floor_view: FloorCameraView | None = Field(
         default=None, description="a fixed camera's view through its floor homography (None: not placed by one)")
+    scan_view: ScanCoverage | None = Field(
+        default=None, description="a 2-D laser's view at this scan (None: not a laser's frame)")
     detector: str = Field(default="", description="the detector whose boxes these are (Detections.detector)")
 
 

@@ -6,7 +6,8 @@ wall). Output: ``localized/{laser}``, :class:`LocalizedDetections` the tracker f
 camera's, position only: one detection per person (a pair of legs, or a lone leg with a wider
 covariance), ``score`` the probability that it is a person's leg, ``depth_m`` its range from the
 scanner, ``valid_pixels`` its beams, no image box (``bbox_xyxy`` all zeros) and ``detector``
-``laser-legs``. A scan waits up to ``transform_wait_s`` for its transform, then is dropped and
+``laser-legs``, and the scan's coverage (``scan_view``: whom the laser could have seen, so the tracker
+does not count a person hidden behind another as missed). A scan waits up to ``transform_wait_s`` for its transform, then is dropped and
 counted; invalid beams (no return) are counted by reason, never an error.
 """
 
@@ -27,6 +28,7 @@ from common.messages.schemas import (
     LaserScan,
     LocalizedDetection,
     LocalizedDetections,
+    ScanCoverage,
     StaticMap,
     TransformBatch,
 )
@@ -39,13 +41,27 @@ from services.laser.core.boost import Boosted
 from services.laser.core.legs import detect, in_frame, pair
 from services.laser.core.scan import ScanGeometry
 
-__all__ = ["DETECTOR", "LaserService"]
+__all__ = ["DETECTOR", "LaserService", "coverage"]
 
 log = logging.getLogger(__name__)
 
 #: ``LocalizedDetections.detector`` of the laser's people.
 DETECTOR = "laser-legs"
 NO_BOX = (0.0, 0.0, 0.0, 0.0)
+
+
+def coverage(scan: LaserScan, rotation: np.ndarray, translation: np.ndarray, max_range_m: float) -> ScanCoverage:
+    """What the scan could see, for the tracker: the scanner's pose in the target frame and its
+    ranges, no return (NaN, inf, outside the scanner's limits) and beyond ``max_range_m`` as
+    ``max_range_m`` (free as far as the detector looks)."""
+    pose = np.eye(4)
+    pose[:3, :3], pose[:3, 3] = rotation, translation
+    r = np.asarray(scan.ranges, np.float32)
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(r) & (r > scan.range_min) & (r < scan.range_max)
+    reach = np.where(valid, np.minimum(r, max_range_m), max_range_m).astype(np.float32)
+    return ScanCoverage(scanner_to_frame=pose, angle_min=scan.angle_min, angle_increment=scan.angle_increment,
+                        ranges=reach, max_range_m=max_range_m)
 
 
 @dataclass
@@ -152,7 +168,7 @@ class LaserService(Node):
                                    cov=cov[k], depth_m=max(float(np.hypot(*people.xy[k])), 1e-3),
                                    valid_pixels=int(sum(len(legs.beams[j]) for j in people.legs[k])))
                 for i, k in enumerate(np.flatnonzero(keep))]
-        header = Header(stamp_ns=s.header.stamp_ns, frame_id=c.target_frame, seq=s.header.seq,
-                        source=s.header.source or c.laser)
+        header = Header(stamp_ns=s.header.stamp_ns, frame_id=c.target_frame, seq=s.header.seq, source=c.laser)
         return LocalizedDetections(header=header, camera_frame=w.frame, detections=dets,
-                                   rejected={k: v for k, v in rejected.items() if v}, detector=DETECTOR)
+                                   rejected={k: v for k, v in rejected.items() if v}, detector=DETECTOR,
+                                   scan_view=coverage(s, rotation, translation, c.max_range_m))

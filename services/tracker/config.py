@@ -112,6 +112,10 @@ class TrackerConfig(AdvancedBlock):
     # --- service
     camera: str = setting("head", "camera whose localized and embeddings streams to track (--camera); '*' for all",
                           min_length=1)
+    lasers: list[str] = setting(
+        default_factory=lambda: ["front", "rear"],
+        description="2-D lasers whose people (localized/{laser}, 'perception laser') are fused with the camera's, "
+                    "by position (--laser; none: the camera alone)")
     frame_id: str = setting("map", "tracking frame; inputs in another frame are dropped and counted", min_length=1)
     output_rate_hz: float = setting(10.0, "Tracks are published at this rate, predicted to the publish time (TU "
                                     "Ilmenau; --output-rate); 0: once per input frame", unit="Hz", ge=0.0, le=1000.0)
@@ -184,6 +188,14 @@ class TrackerConfig(AdvancedBlock):
     def _camera(cls, v: str) -> str:
         if v != "*" and any(c in v for c in "/*$?# "):
             raise ValueError(f"camera {v!r} must be a name without '/', '*', '$', '?', '#' or spaces, or '*'")
+        return v
+
+    @field_validator("lasers")
+    @classmethod
+    def _lasers(cls, v: list[str]) -> list[str]:
+        for name in v:
+            if not name or any(c in name for c in "/*$?# "):
+                raise ValueError(f"laser {name!r} must be a name without '/', '*', '$', '?', '#' or spaces")
         return v
 
     def thresholds(self, model: str) -> AppearanceConfig | None:

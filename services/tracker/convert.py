@@ -9,20 +9,22 @@ import numpy as np
 from common.messages.schemas import (Embeddings, Header, IdDecisions, IdDecisionState, LocalizedDetections, TrackState,
                                      Tracks)
 from services.tracker.core.types import FrameResult, IdDecision, TrackReport
-from services.tracker.core.view import FieldOfView, FloorView
+from services.tracker.core.view import FieldOfView, FloorView, ScanView
 
 __all__ = ["descriptors_for", "field_of_view", "id_decisions_message", "orientations_for", "positions_of", "track_state",
            "tracks_message"]
 
 
-def field_of_view(loc: LocalizedDetections) -> FieldOfView | FloorView | None:
-    """The camera's view at a frame, if the localizer sent it: its pinhole view, else the view
-    of a fixed camera through its floor homography."""
-    v, f = loc.view, loc.floor_view
+def field_of_view(loc: LocalizedDetections) -> FieldOfView | FloorView | ScanView | None:
+    """The sensor's view at a frame, if its node sent it: a camera's pinhole view, else the view
+    of a fixed camera through its floor homography, else a 2-D laser's sweep."""
+    v, f, s = loc.view, loc.floor_view, loc.scan_view
     if v is not None:
         return FieldOfView(v.camera_to_frame, v.K, v.width, v.height, v.max_range_m)
     if f is not None:
         return FloorView(f.image_to_frame, f.width, f.height)
+    if s is not None:
+        return ScanView(s.scanner_to_frame, s.angle_min, s.angle_increment, s.ranges, s.max_range_m)
     return None
 
 

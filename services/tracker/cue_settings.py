@@ -41,8 +41,16 @@ class ScoreConfig(AdvancedBlock):
     birth_score: float | None = setting(_SC.birth_score, "detections scoring below this update tracks but never "
                                         "start one (perception track --birth-score); none: all may", advanced=True)
 
+    max_is_person: float = setting(_SC.max_is_person, "the most this detector's own IsPerson belief of a track may "
+                                   "reach; below confirm_is_person it never confirms a track alone (a laser's legs)",
+                                   gt=0.5, le=1.0, advanced=True)
+    is_person_tau_s: float | None = setting(_SC.is_person_tau_s, "time constant of this detector's IsPerson "
+                                            "belief's drift back to 0.5; none: is_person_tau_s", unit="s", gt=0.0,
+                                            advanced=True)
+
     def model(self) -> ScoreModel:
-        return ScoreModel(self.center, self.scale, self.default_p, self.birth_score)
+        return ScoreModel(self.center, self.scale, self.default_p, self.birth_score, self.max_is_person,
+                          self.is_person_tau_s)
 
 
 class ClassifierConfig(AdvancedBlock):

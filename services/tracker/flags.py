@@ -45,6 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--no-embeddings", action="append", default=None, metavar="STREAM",
                    help="a stream no embedder reads (a second detector's, e.g. head-hog): tracked by position at "
                         "once; repeat for several (use with --camera '*')")
+    g.add_argument("--laser", action="append", default=None, metavar="LASER", dest="lasers",
+                   help="a 2-D laser whose people (localized/LASER, 'perception laser') are fused by position; "
+                        "repeat for several (default: front and rear); --laser none: the camera alone")
     g.add_argument("--static-map", type=Path, default=None, metavar="MAP.yaml",
                    help=flag_help(TrackerConfig, "robust.static_map.path", "robust: the robot's static map (a ROS "
                                   "map_server / Nav2 map_saver YAML file, in the tracking frame): no track is born on "
@@ -59,7 +62,8 @@ def overrides(args: argparse.Namespace) -> dict[str, Any]:
     return {"camera": args.camera, "profile": args.profile, "embedding_model": args.embedding_model,
             "thesis": {"time_step": args.time_step}, "robust": {"static_map": {"path": args.static_map}},
             "memory_path": args.memory, "output_rate_hz": args.output_rate,
-            "no_embeddings": args.no_embeddings}
+            "no_embeddings": args.no_embeddings,
+            "lasers": None if args.lasers is None else [x for x in args.lasers if x != "none"]}
 
 
 def adjust(args: argparse.Namespace) -> Any:

@@ -24,7 +24,7 @@ from services.tracker.convert import descriptors_for, field_of_view, orientation
 from services.tracker.core import FrameInput
 from services.tracker.core.cues import usable_covariances
 from services.tracker.core.cues.posture import codes as posture_codes
-from services.tracker.core.view import FieldOfView, FloorView, View, Views
+from services.tracker.core.view import FieldOfView, FloorView, ScanView, View, Views
 from services.tracker.reorder import ClockJumps, InputKey
 
 __all__ = ["Arrival", "Frame", "Intake"]
@@ -48,7 +48,7 @@ class Arrival:
     covs: np.ndarray
     usable: np.ndarray
     scores: np.ndarray
-    aspects: np.ndarray
+    aspects: np.ndarray | None
     postures: np.ndarray | None
     statures: np.ndarray | None
 
@@ -58,7 +58,9 @@ class Arrival:
         covs = covs + R_EPS
         scores = np.array([d.score for d in loc.detections], np.float64)
         boxes = np.array([d.bbox_xyxy for d in loc.detections], np.float64).reshape(-1, 4)
-        aspects = (boxes[:, 3] - boxes[:, 1]) / np.maximum(boxes[:, 2] - boxes[:, 0], 1e-6)  # for posture
+        aspects: np.ndarray | None = (boxes[:, 3] - boxes[:, 1]) / np.maximum(boxes[:, 2] - boxes[:, 0], 1e-6)
+        if len(boxes) and not boxes.any():  # no image boxes (a laser's): no posture evidence, not even the height
+            aspects = None
         statures = np.array([np.nan if d.stature_m is None else d.stature_m for d in loc.detections], np.float64)
         return cls(loc, positions, covs, usable_covariances(covs), scores, aspects,
                    posture_codes([d.posture for d in loc.detections]), statures if np.isfinite(statures).any() else None)
@@ -81,9 +83,10 @@ class Frame:
 def _completion(no_embeddings: frozenset[str]) -> Callable[[Mapping[str, Any]], bool]:
     def complete(items: Mapping[str, Any]) -> bool:
         """A frame is ready with its embeddings (or their known absence), with no detections,
-        or when its stream has no embedder."""
+        when its stream has no embedder, or when it is a laser's (no image to describe)."""
         loc = items["localized"].loc
-        return "embeddings" in items or not loc.detections or loc.header.source in no_embeddings
+        return ("embeddings" in items or not loc.detections or loc.header.source in no_embeddings
+                or loc.scan_view is not None)
     return complete
 
 
@@ -106,11 +109,11 @@ class Intake:
         self.join: Joiner[Arrival] = Joiner(
             ("localized", "embeddings"), wait_s=config.join_wait_s, on_timeout="release",
             orphan_s=config.join_wait_s + config.reorder_window_s, buffer=256, max_waiting=256, ordered=True,
-            complete=_completion(frozenset(config.no_embeddings)))
+            complete=_completion(frozenset(config.no_embeddings) | frozenset(config.lasers)))
         self.clock_jumps = ClockJumps(int(config.clock_jump_s * 1e9))
         self._score_models = config.score_models()  # by Detections.detector
         #: each camera's newest view, (stamp_ns, view): a coasting track in any recent one is in view
-        self._views: dict[str, tuple[int, FieldOfView | FloorView]] = {}
+        self._views: dict[str, tuple[int, FieldOfView | FloorView | ScanView]] = {}
 
     # ------------------------------------------------------------- arrival
     def localized(self, loc: LocalizedDetections) -> tuple[Arrival | None, int]:
@@ -202,7 +205,8 @@ class Intake:
         frame = FrameInput(arrival.positions, descriptors, arrival.covs if use_cov else None,
                            arrival.usable if use_cov else None, arrival.scores,
                            self.view(loc) if view is None else view, arrival.aspects, orientations_for(loc, emb),
-                           self._score_models.get(loc.detector), loc.camera_frame, arrival.postures, arrival.statures)
+                           self._score_models.get(loc.detector), loc.camera_frame, arrival.postures, arrival.statures,
+                           detector=loc.detector)
         return Frame(arrival, emb is not None, frame)
 
     def view(self, loc: LocalizedDetections) -> View | None:

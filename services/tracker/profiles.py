@@ -38,6 +38,15 @@ __all__ = ["ClassifierConfig", "PostureConfig", "RecoveryConfig", "RobustConfig"
 _D = ThesisParams()
 _R = RobustParams()
 
+#: The shipped score models of named detectors. ``laser-legs`` (services/laser: a 2-D laser's people)
+#: scores the classifier's calibrated probability that a leg is a leg; chair and table legs imitate
+#: legs, so its own IsPerson belief stops at 0.7, below ``confirm_is_person`` (0.75): the laser keeps
+#: and supports the people a camera confirmed, and never confirms anyone alone (the TU Ilmenau
+#: framework's IsPerson per detector).
+DETECTOR_SCORES: dict[str, ScoreConfig] = {
+    "laser-legs": ScoreConfig(center=0.5, scale=0.2, max_is_person=0.7),
+}
+
 
 class RobustConfig(AdvancedBlock):
     """The ``robust`` profile's settings (services/tracker/README.md, *Settings*)."""
@@ -62,9 +71,10 @@ class RobustConfig(AdvancedBlock):
                                        advanced=True)
     scores: ScoreConfig = setting(description="the detectors' scores as P(true person)", default_factory=ScoreConfig)
     detector_scores: dict[str, ScoreConfig] = setting(
-        default_factory=dict, advanced=True,
-        description="score models of named detectors (Detections.detector: depth, hog, yolo-onnx, ...) when several "
-                    "feed the tracker; the others use scores")
+        default_factory=lambda: dict(DETECTOR_SCORES), advanced=True,
+        description="score models of named detectors (Detections.detector: depth, hog, yolo-onnx, laser-legs, ...) "
+                    "when several feed the tracker; the others use scores. A file's are added to (or override) the "
+                    "shipped one: laser-legs, whose belief stops at 0.7, below confirm_is_person")
     n_init: int = setting(_R.n_init, "confident hits that confirm a track", ge=1, le=100, advanced=True)
     confirm_is_person: float = setting(_R.confirm_is_person, "P(IsPerson) a track needs to be confirmed", ge=0.5,
                                        lt=1.0, advanced=True)
@@ -104,6 +114,11 @@ class RobustConfig(AdvancedBlock):
     stature: StatureConfig = setting(description="the stature cue", default_factory=StatureConfig)
     recovery: RecoveryConfig = setting(description="the ID memory's decision", default_factory=RecoveryConfig)
     static_map: StaticMapConfig = setting(description="the robot's static map", default_factory=StaticMapConfig)
+
+    @field_validator("detector_scores", mode="after")
+    @classmethod
+    def _shipped_scores(cls, v: dict[str, ScoreConfig]) -> dict[str, ScoreConfig]:
+        return {**DETECTOR_SCORES, **v}
 
     @model_validator(mode="after")
     def _report_within_coast(self) -> RobustConfig:

@@ -96,6 +96,9 @@ class TrackerService(Node):
         self._obstacles: ObstacleMap | None = None  # the static_map stream's, once one came
         self.loc_sub = self.io.subscribe(keys.localized(config.camera), LocalizedDetections, RELIABLE)
         self.emb_sub = self.io.subscribe(keys.embeddings(config.camera), Embeddings, RELIABLE)
+        self.laser_subs = [] if config.camera == "*" else [  # '*' has them already
+            self.io.subscribe(keys.localized(laser), LocalizedDetections, RELIABLE)
+            for laser in dict.fromkeys(config.lasers) if laser != config.camera]
         self.publisher = self.io.publisher(keys.tracks(), Tracks, RELIABLE)
         self.decisions_pub = self.io.publisher(keys.id_decisions(), IdDecisions, RELIABLE)
         self.io.serve(keys.track_query(), self.ledger.answer_query)
@@ -121,7 +124,9 @@ class TrackerService(Node):
                  else "") if sm.path is None else (
             f", static map {sm.path} (no birth within {sm.birth_clearance_m:g} m of its obstacles)"
             if self.config.profile == "robust" else f", static map {sm.path} unused (the thesis profile has none)")
-        return (f"tracking camera {self.config.camera!r} in frame {self.config.frame_id!r}, "
+        lasers = f" and laser{'s' * (len(self.laser_subs) > 1)} " + ", ".join(
+            repr(s.key.rsplit("/", 1)[-1]) for s in self.laser_subs) if self.laser_subs else ""
+        return (f"tracking camera {self.config.camera!r}{lasers} in frame {self.config.frame_id!r}, "
                 f"memory {self.config.memory_path or 'off'}{where}")
 
     def _thresholds(self, thresholds: AppearanceConfig, metric: str | None) -> None:
@@ -156,13 +161,14 @@ class TrackerService(Node):
         published: list[Tracks] = []
         if self.map_sub is not None:
             self._take_map()
-        while (got := self.loc_sub.try_recv()) is not None:
-            arrival, back_ns = self.intake.localized(got.msg)
-            if arrival is None:
-                continue
-            if back_ns:
-                published += self._restart_clock(arrival.loc.header.source, back_ns, now)
-            self.intake.count(self.intake.join.add("localized", arrival.loc.header.join_key, arrival, now))
+        for sub in (self.loc_sub, *self.laser_subs):
+            while (got := sub.try_recv()) is not None:
+                arrival, back_ns = self.intake.localized(got.msg)
+                if arrival is None:
+                    continue
+                if back_ns:
+                    published += self._restart_clock(arrival.loc.header.source, back_ns, now)
+                self.intake.count(self.intake.join.add("localized", arrival.loc.header.join_key, arrival, now))
         while (got_emb := self.emb_sub.try_recv()) is not None:
             emb, dropped = self.intake.embeddings(got_emb.msg, now)
             if emb is not None and any(d.reason == "late" for d in dropped):

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from services.tracker.core import is_person
 from services.tracker.core import recovery as rec
 from services.tracker.core import recovery_evidence as rev
 from services.tracker.core.cues.base import Cue, Pairing
@@ -135,8 +136,10 @@ def births(free: list[int], matched: set[int], positions: np.ndarray, p_det: np.
     return sorted(out)
 
 
-def birth(state: RobustTrackerState, pairing: Pairing, dets: list[int], cues: list[Cue], p0: np.ndarray) -> None:
-    """A tentative track at rest (not turning) per detection of ``dets``; each cue starts its own
+def birth(state: RobustTrackerState, pairing: Pairing, dets: list[int], cues: list[Cue], p0: np.ndarray,
+          cap: float = 1.0) -> None:
+    """A tentative track at rest (not turning) per detection of ``dets``, its IsPerson the detection's
+    P(true person) up to its detector's ``cap`` (core/is_person.py); each cue starts its own
     state of it from the detection (a gallery, a stature)."""
     if not dets:
         return
@@ -144,7 +147,8 @@ def birth(state: RobustTrackerState, pairing: Pairing, dets: list[int], cues: li
     d = np.asarray(dets)
     mean = np.concatenate([pairing.positions[d], np.zeros((len(d), t.mean.shape[1] - 3))], axis=1)
     first = len(t)
-    t.append(mean, p0, pairing.stamp, [bayes(0.5, q) for q in pairing.p_det[d].tolist()], pairing.frame.camera)
+    t.append(mean, p0, pairing.stamp, is_person.first(pairing.p_det[d].tolist(), cap), pairing.frame.camera,
+             pairing.frame.detector)
     for cue in cues:
         cue.born(pairing, state, first, d)
 

@@ -26,7 +26,7 @@ __all__ = ["TrackRow", "track_report", "track_reports", "track_rows"]
 @dataclass(frozen=True)
 class TrackRow:
     """A read-only picture of one track of the table (for inspection and tests): its columns,
-    ``clf`` None while untrained and ``gallery`` None without one."""
+    ``beliefs`` IsPerson's by detector, ``clf`` None while untrained and ``gallery`` None without one."""
 
     id: int
     status: TrackStatus
@@ -37,6 +37,7 @@ class TrackRow:
     confident_hits: int
     total_hits: int
     is_person: float
+    beliefs: dict[str, float]
     ever_confirmed: bool
     clf: np.ndarray | None
     clf_steps: int
@@ -79,6 +80,8 @@ def track_rows(table: TrackTable, bank: GalleryBank) -> list[TrackRow]:
     for j in range(len(table)):
         col = {name: getattr(table, name)[j] for name in FIELDS if name not in ("slot", "fix", "probation")}
         col = {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in col.items()}
+        b = col["beliefs"]
+        col["beliefs"] = {b: col["is_person"]} if isinstance(b, str) else dict(b)  # by detector
         h, n = stature_of(table, j)
         cols = table.extra.get("classifier")
         steps = int(cols.steps[j]) if cols is not None else 0  # type: ignore[attr-defined]

@@ -12,13 +12,12 @@ order. Nothing of a frame stays but the state. Pure numpy and scipy; no I/O.
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import numpy as np
 
 from services.tracker.core.cues import classifier as clf
-from services.tracker.core import cues, kalman, lifecycle
+from services.tracker.core import cues, is_person, kalman, lifecycle
 from services.tracker.core.cues import Cue, Pairing
 from services.tracker.core.cues.classifier import trained
 from services.tracker.core.association import match_log_odds
@@ -50,6 +49,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         self.bad_covariances = 0  #: detections whose covariance was unusable
         self._q_of: dict[float, np.ndarray] = {}  # process noise by step: a stream's steps take a few values
         self._r_n: dict[int, np.ndarray] = {}  # the fixed R broadcast to n detections
+        self._taus: dict[str, float] = {}  # IsPerson's time constant of the detectors that have their own
 
     def _set_cues(self) -> None:
         """The cues of the settings, and which of them use each hook (a hook a cue leaves as
@@ -144,6 +144,8 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
             r, bad = cues.measurement_covariance(frame.measurement_cov, frame.cov_usable, self._r, n)
         self.bad_covariances += bad
         score_model = self.params.scores if frame.score_model is None else frame.score_model
+        if score_model.is_person_tau_s is not None:
+            self._taus[frame.detector] = score_model.is_person_tau_s
         return Pairing(stamp, frame, frame.positions, r, descriptors if appearance else None, has_desc,
                        clf.normalise(descriptors[has_desc]) if any_desc else None,  # type: ignore[index]
                        score_model.probability(scores), score_model.confident(scores))
@@ -157,8 +159,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         if dt <= 0:
             return False
         t.mean, t.cov = kalman.predict(t.mean, t.cov, dt, self._q(dt))
-        fade = math.exp(-dt / self.params.is_person_tau_s)  # IsPerson drifts back to "unknown"
-        t.is_person = [0.5 + (q - 0.5) * fade for q in t.is_person]
+        is_person.fade(t, dt, self.params.is_person_tau_s, self._taus)  # IsPerson drifts back to "unknown"
         for cue in self._predicting:  # posture and orientation drift
             cue.predict(self.state, dt)
         return True
@@ -201,18 +202,18 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         if not pairing.moved:  # a report of the last frame keeps its arrays
             t.mean, t.cov = t.mean.copy(), t.cov.copy()
         t.mean[t_idx], t.cov[t_idx] = new_means, new_covs
-        sure, p_true, stamp, camera = pairing.confident.tolist(), pairing.p_det.tolist(), pairing.stamp, \
-            pairing.frame.camera
-        last, unseen, cams, hits, is_person = t.last_update, t.unseen_s, t.camera, t.total_hits, t.is_person
-        status, confident_hits, bayes = t.status, t.confident_hits, lifecycle.bayes
+        sure, stamp, camera = pairing.confident.tolist(), pairing.stamp, pairing.frame.camera
+        last, unseen, cams, hits = t.last_update, t.unseen_s, t.camera, t.total_hits
+        status, confident_hits = t.status, t.confident_hits
         coasting, confirmed = TrackStatus.COASTING, TrackStatus.CONFIRMED
-        for d, j in zip(*rows.tolist()):
+        pairs = list(zip(*rows.tolist()))
+        for d, j in pairs:
             last[j], unseen[j], cams[j] = stamp, 0.0, camera
             hits[j] += 1
-            is_person[j] = bayes(is_person[j], p_true[d])
             confident_hits[j] += sure[d]
             if status[j] is coasting:
                 status[j] = confirmed
+        is_person.update(t, pairs, pairing.p_det.tolist(), pairing.frame.detector, self._cap(pairing.frame))
 
     def _births(self, pairing: Pairing, matched: set[int], result: FrameResult) -> None:
         """A tentative track for each confident detection nobody explains (Ban et al.'s birth
@@ -224,7 +225,11 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
             on = obstacles.blocked(pairing.positions[free, :2], p.birth_clearance_m).tolist()
             result.births_blocked, free = sum(on), [d for d, b in zip(free, on) if not b]
         born = lifecycle.births(free, matched, pairing.positions, pairing.p_det, p.birth_separation_m)
-        lifecycle.birth(self.state, pairing, born, self._born, self._p0)
+        lifecycle.birth(self.state, pairing, born, self._born, self._p0, self._cap(pairing.frame))
+
+    def _cap(self, frame: FrameInput) -> float:
+        """The most IsPerson belief ``frame``'s detector can give (core/is_person.py)."""
+        return (self.params.scores if frame.score_model is None else frame.score_model).max_is_person
 
     def _age(self, stamp: float, result: FrameResult, view: View | None, previous: float | None) -> None:
         """Coasting and deletion (:func:`lifecycle.age`); a deleted track's appearance is archived."""

@@ -77,7 +77,8 @@ class ArrayColumns:
 class TrackTable:
     """The tracks, one row each, in the order they were born: the filter's state in arrays (one
     product moves every track), ``mean`` (T, S) and ``cov`` (T, S, S); the bookkeeping a frame reads
-    a few entries of in lists: ``id`` (0 while tentative), ``is_person`` (IsPerson), ``in_view``
+    a few entries of in lists: ``id`` (0 while tentative), ``is_person`` (IsPerson) and ``beliefs`` (by
+    detector: core/is_person.py), ``in_view``
     (None: not known), ``slot`` the gallery's in the :class:`GalleryBank` (-1: none yet), ``fix`` (x,
     y, variance per axis at the last detection) and ``probation`` (the recovered ID, its end, the
     next check) for core/recovery.py; ``extra`` each cue's :class:`Columns` by the cue's name."""
@@ -86,6 +87,7 @@ class TrackTable:
     cov: np.ndarray
     id: list[int]
     is_person: list[float]
+    beliefs: list[str | dict[str, float]]
     status: list[TrackStatus]
     first_stamp: list[float]
     last_update: list[float]
@@ -126,13 +128,15 @@ class TrackTable:
         for c in self.extra.values():
             c.keep(idx)
 
-    def append(self, mean: np.ndarray, cov: np.ndarray, stamp: float, is_person: list[float], camera: str) -> None:
-        """New tentative tracks: ``mean`` (K, S) and ``cov`` (S, S), no gallery yet."""
+    def append(self, mean: np.ndarray, cov: np.ndarray, stamp: float, is_person: list[float], camera: str,
+               detector: str = "") -> None:
+        """New tentative tracks: ``mean`` (K, S) and ``cov`` (S, S), no gallery yet, seen by ``detector``."""
         k = len(mean)
         self.mean = np.concatenate([self.mean, mean])
         self.cov = np.concatenate([self.cov, np.broadcast_to(cov, (k, *cov.shape))])
         self.id += [0] * k
         self.is_person += is_person
+        self.beliefs += [detector] * k
         self.status += [TrackStatus.TENTATIVE] * k
         self.first_stamp += [stamp] * k
         self.last_update += [stamp] * k

@@ -261,12 +261,17 @@ class AppearanceModel:
 class ScoreModel:
     """Detector score -> P(true person): ``sigmoid((score - center) / scale)``; ``center`` None: the
     scores are not calibrated, every detection has ``default_p``. ``birth_score``: detections below
-    it may update tracks but never start one (None: every detection may)."""
+    it may update tracks but never start one (None: every detection may). ``max_is_person``: the
+    most this detector's own IsPerson belief of a track may reach (core/is_person.py; below the
+    profile's ``confirm_is_person``: it never confirms a track alone); ``is_person_tau_s`` its
+    belief's drift back to 0.5 (None: the profile's)."""
 
     center: float | None = None
     scale: float = 1.0
     default_p: float = 0.7
     birth_score: float | None = None
+    max_is_person: float = 1.0
+    is_person_tau_s: float | None = None
 
     def probability(self, scores: np.ndarray) -> np.ndarray:
         if self.center is None:
@@ -290,6 +295,7 @@ class FrameInput(NamedTuple):
     ``score_model`` how this detector's scores read (None: the profile's); ``camera`` the frame's;
     ``postures`` (N,) int8 the detector's reports, ``posture.POSTURES`` indices (-1: none; None: no
     reports); ``statures`` (N,) measured statures (m; NaN: not measured; None: none);
+    ``detector`` the detector's name (its own IsPerson belief: core/is_person.py);
     ``obstacles`` the static map as it is now, when one arrives while tracking (ROS 2's ``/map``;
     None: the profile's, if any)."""
 
@@ -306,6 +312,7 @@ class FrameInput(NamedTuple):
     postures: np.ndarray | None = None
     statures: np.ndarray | None = None
     obstacles: ObstacleMap | None = None
+    detector: str = ""
 
     @classmethod
     def of(cls, positions: np.ndarray, descriptors: np.ndarray | None = None,

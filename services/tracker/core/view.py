@@ -5,7 +5,8 @@ walked out of the view, or whom the robot turned away from, cannot be seen by th
 reporting their prediction as a person seen now would be a false positive for every consumer that
 reads the output as "people in view": it is kept (their ID stays theirs) but not reported.
 :class:`FieldOfView` is a pinhole camera's view, :class:`FloorView` a fixed camera's view of the
-floor through its floor homography, :class:`Views` several cameras' together (TU Ilmenau's two
+floor through its floor homography, :class:`ScanView` a 2-D laser's sweep (the scan itself says what it
+could see: a person behind a nearer return is hidden), :class:`Views` several sensors' together (TU Ilmenau's two
 cameras: a person behind the robot, seen by the back camera a moment ago, stays reported while the
 head camera's frames come in). Pure numpy.
 """
@@ -16,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FieldOfView", "FloorView", "View", "Views"]
+__all__ = ["FieldOfView", "FloorView", "ScanView", "View", "Views"]
 
 
 @dataclass(frozen=True)
@@ -110,10 +111,59 @@ class FloorView:
 
 
 @dataclass(frozen=True)
-class Views:
-    """The union of several cameras' views: a point is in view when any of them contains it."""
+class ScanView:
+    """What a 2-D laser saw in one sweep: ``scanner_to_frame`` (4, 4) maps the scanner's frame into the
+    tracking frame; beam ``i`` points at ``angle_min + i * angle_increment`` about the scanner's z and
+    returned at ``ranges[i]`` m (no return: ``max_range_m`` or more, free as far as the detector looks).
+    A point is in view when it is within ``max_range_m`` of the scanner, inside the sweep, and some
+    beam across ``body_radius_m`` either side of it reaches it (within ``body_radius_m`` twice: the
+    legs are in front of the body's centre): a person behind a nearer return is hidden, and missing
+    them there is no miss."""
 
-    views: tuple[FieldOfView | FloorView, ...]
+    scanner_to_frame: np.ndarray
+    angle_min: float
+    angle_increment: float
+    ranges: np.ndarray
+    max_range_m: float
+    body_radius_m: float = 0.2
+
+    def __post_init__(self) -> None:
+        m = np.asarray(self.scanner_to_frame, np.float64).reshape(4, 4)
+        r = np.asarray(self.ranges, np.float64).reshape(-1)
+        if not (np.all(np.isfinite(m)) and np.isfinite(self.angle_min) and self.angle_increment > 0
+                and self.max_range_m > 0 and len(r)):
+            raise ValueError("scanner_to_frame and angle_min must be finite, angle_increment and max_range_m "
+                             "positive, and there must be beams")
+        object.__setattr__(self, "scanner_to_frame", m)
+        object.__setattr__(self, "ranges", np.where(np.isfinite(r) & (r > 0), np.minimum(r, self.max_range_m),
+                                                    self.max_range_m))
+
+    def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Whether each point (N, 3) of the tracking frame is in the laser's view (``margin``, a share
+        of an image, means nothing to a scan)."""
+        p = np.asarray(points, np.float64).reshape(-1, 3)
+        rot, t = self.scanner_to_frame[:3, :3], self.scanner_to_frame[:3, 3]
+        local = (p - t) @ rot
+        dist = np.hypot(local[:, 0], local[:, 1])
+        n, inc = len(self.ranges), self.angle_increment
+        beam = (np.arctan2(local[:, 1], local[:, 0]) - self.angle_min) / inc
+        beam = np.mod(beam + 0.5, 2 * np.pi / inc) - 0.5  # bearings wrap: a 360-degree sweep's start
+        inside = (dist <= self.max_range_m) & (beam >= -0.5) & (beam <= n - 0.5)
+        out = np.zeros(len(p), bool)
+        reach = self.ranges
+        for k in np.flatnonzero(inside).tolist():
+            half = int(np.ceil(np.arctan2(self.body_radius_m, max(dist[k], 1e-3)) / inc))
+            c = int(round(beam[k]))
+            lo, hi = max(0, c - half), min(n, c + half + 1)
+            out[k] = bool(reach[lo:hi].max() >= dist[k] - 2 * self.body_radius_m)
+        return out
+
+
+@dataclass(frozen=True)
+class Views:
+    """The union of several sensors' views: a point is in view when any of them contains it."""
+
+    views: tuple[FieldOfView | FloorView | ScanView, ...]
 
     def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
         p = np.asarray(points, np.float64).reshape(-1, 3)
@@ -124,4 +174,4 @@ class Views:
 
 
 #: any view the tracker takes
-View = FieldOfView | FloorView | Views
+View = FieldOfView | FloorView | ScanView | Views

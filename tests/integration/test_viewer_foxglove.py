@@ -160,3 +160,40 @@ def test_the_robots_map_is_a_foxglove_grid_when_it_changes_and_every_few_seconds
     moved = static_map(10**18 + 12 * 10**9).model_copy(update={"origin": (1.0, -3.0, 0.0)})
     bridge.on_message("static_map", moved)  # a new map: at once
     assert bridge.counts == {"/map": 2 + int(11 // MAP_PERIOD_S)}
+
+
+def test_export_foxglove_writes_each_lasers_scans_as_a_foxglove_laserscan(tmp_path: Path) -> None:
+    """A recording's ``scans/{laser}`` become ``/scans/{laser}`` ``foxglove.LaserScan`` messages (the
+    bridge's conversion; the export command passes every message through it)."""
+    import math
+
+    import numpy as np
+    from mcap.reader import make_reader
+
+    from common.messages.schemas import Header, LaserScan
+    from tools.replay.recorder import McapRecorder
+
+    recording, out = tmp_path / "run.mcap", tmp_path / "foxglove.mcap"
+    ranges = np.array([1.0, np.nan, 2.0, np.inf, 3.0], np.float32)
+    with McapRecorder(recording) as rec:
+        for seq in range(4):
+            stamp = 10**18 + seq * 10**8
+            scan = LaserScan(header=Header(stamp_ns=stamp, frame_id="front_laser", seq=seq, source="front"),
+                             angle_min=-math.pi / 4, angle_max=math.pi / 4, angle_increment=math.pi / 8,
+                             range_min=0.05, range_max=30.0, ranges=ranges)
+            rec.write(KEYS.scans("front"), scan, stamp)
+    res = subprocess.run([sys.executable, "-m", "perception", "export-foxglove", str(recording), str(out)],
+                         capture_output=True, text=True, timeout=120, check=False)
+    assert res.returncode == 0, res.stderr
+    decoded = []
+    with out.open("rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages():
+            assert channel.topic == "/scans/front" and schema is not None and schema.name == "foxglove.LaserScan"
+            decoded.append(_decoder({"schema": base64.b64encode(schema.data).decode(), "schemaName": schema.name})(
+                message.data))
+    assert len(decoded) == 4
+    scan = decoded[0]
+    assert scan.frame_id == "front_laser"
+    assert (scan.start_angle, scan.end_angle) == pytest.approx((-math.pi / 4, math.pi / 4))
+    got = np.array(scan.ranges)
+    assert got[[0, 2, 4]] == pytest.approx([1.0, 2.0, 3.0]) and np.isnan(got[[1, 3]]).all()

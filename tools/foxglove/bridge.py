@@ -8,6 +8,9 @@ One :class:`FoxgloveBridge` owns a Foxglove SDK context and these channels:
 * ``/people`` SceneUpdate in the tracks' frame: per person a body-sized cylinder, the ID
   as text, a velocity arrow and the 2-sigma covariance ellipse on the ground;
 * ``/tf`` FrameTransforms of ``tf`` and ``tf_static``;
+* ``/scans/{laser}`` LaserScan of each 2-D laser's scans (``scans/{laser}``), in the scanner's
+  frame; beams without a return (NaN, inf, outside the scanner's range limits) are NaN, which
+  Foxglove draws nothing for (its LaserScan has no range limits of its own);
 * ``/map`` Grid: the robot's static map (``static_map``), its occupancy in percent (-1 unknown)
   in one ``int8`` field, when it changes and again every :data:`MAP_PERIOD_S` (a live client
   that connects later gets it);
@@ -26,11 +29,12 @@ from typing import Any
 
 import numpy as np
 
-from common.messages.schemas import (Detections, LocalizedDetections, Message, RGBDFrame, ServiceStatus, StaticMap,
-                                     Tracks, TransformBatch)
+from common.messages.schemas import (Detections, LaserScan, LocalizedDetections, Message, RGBDFrame, ServiceStatus,
+                                     StaticMap, Tracks, TransformBatch)
 from tools.drawing.tracks import colour_rgb, label_boxes, project_to_image
 
-__all__ = ["FoxgloveBridge", "FoxgloveMcap", "FoxgloveUnavailable", "TOPICS", "require_sdk", "start_live_server"]
+__all__ = ["SCAN_TOPIC", "FoxgloveBridge", "FoxgloveMcap", "FoxgloveUnavailable", "TOPICS", "require_sdk", "scan_fields",
+           "scan_topic", "start_live_server"]
 
 #: Topic -> Foxglove schema name, as the MCAP file and the live server advertise them.
 TOPICS = {
@@ -40,6 +44,8 @@ TOPICS = {
     "/tf": "foxglove.FrameTransforms",
     "/map": "foxglove.Grid",
 }
+#: Each laser's scans, one channel a laser (``{laser}``: the scan's ``header.source``), ``foxglove.LaserScan``.
+SCAN_TOPIC = "/scans/{laser}"
 _JSON = {Tracks: "/perception/tracks", Detections: "/perception/detections",
          LocalizedDetections: "/perception/localized", ServiceStatus: "/perception/status"}
 _BODY_HEIGHT_M, _BODY_DIAMETER_M = 1.7, 0.45
@@ -80,6 +86,37 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
+def scan_topic(scan: LaserScan) -> str:
+    """The Foxglove topic of a laser's scans: ``/scans/{laser}`` (``/scans/laser`` for a scan naming no source)."""
+    return SCAN_TOPIC.format(laser=scan.header.source or "laser")
+
+
+def scan_fields(scan: LaserScan) -> dict[str, Any]:
+    """The fields of Foxglove's ``foxglove.LaserScan`` for one scan, as plain Python values.
+
+    Foxglove places beam ``i`` of ``n`` at ``start_angle + i * (end_angle - start_angle) / (n - 1)``
+    and has no range limits, so ``end_angle`` is where the last beam points
+    (``angle_min + (n - 1) * angle_increment``, not ``angle_max``, which a scanner may round) and
+    every range that is no return (NaN, inf, at or outside ``range_min`` .. ``range_max``, as the
+    laser node reads them) is NaN, which it does not draw. ``pose`` is the identity: the points
+    are in the scanner's frame (``header.frame_id``), placed by ``/tf``. ``timestamp_ns`` is the
+    first beam's time; ``intensities`` is empty when the scanner sends none.
+    """
+    ranges = np.asarray(scan.ranges, np.float64)
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(ranges) & (ranges > scan.range_min) & (ranges < scan.range_max)
+    intensities = scan.intensities if scan.intensities is not None else np.zeros(0, np.float32)
+    n = len(ranges)
+    return {
+        "timestamp_ns": scan.header.stamp_ns,
+        "frame_id": scan.header.frame_id or "laser",
+        "start_angle": float(scan.angle_min),
+        "end_angle": float(scan.angle_min + (n - 1) * scan.angle_increment),
+        "ranges": np.where(valid, ranges, np.nan).tolist(),
+        "intensities": np.asarray(intensities, np.float64).tolist(),
+    }
+
+
 class FoxgloveBridge:
     """Translates messages to Foxglove's schemas and logs them on its own context's channels."""
 
@@ -87,7 +124,7 @@ class FoxgloveBridge:
         fg = _sdk()
         from foxglove import channels as ch
 
-        self.fg = fg
+        self.fg, self._channels = fg, ch
         self.context = fg.Context()
         self.jpeg_quality = jpeg_quality
         ctx = self.context
@@ -96,6 +133,7 @@ class FoxgloveBridge:
         self.people = ch.SceneUpdateChannel("/people", context=ctx)
         self.tf = ch.FrameTransformsChannel("/tf", context=ctx)
         self.map = ch.GridChannel("/map", context=ctx)
+        self.scans: dict[str, Any] = {}  # Foxglove topic -> its LaserScan channel, made at a laser's first scan
         self._map_seen: tuple[Any, ...] | None = None
         self._map_at = 0
         self.json = {model: fg.Channel(topic, message_encoding="json", context=ctx) for model, topic in _JSON.items()}
@@ -119,7 +157,14 @@ class FoxgloveBridge:
             self.annotations.log(self._annotations(msg), log_time=t)
             self._count("/camera/annotations")
         elif isinstance(msg, LocalizedDetections):
-            self._view = msg
+            if msg.view is not None:  # a camera's, to label its boxes; not a laser's (no image)
+                self._view = msg
+        elif isinstance(msg, LaserScan):
+            topic = scan_topic(msg)
+            if topic not in self.scans:
+                self.scans[topic] = self._channels.LaserScanChannel(topic, context=self.context)
+            self.scans[topic].log(self._laser_scan(msg), log_time=t)
+            self._count(topic)
         elif isinstance(msg, Tracks):
             self._tracks = msg
             self.people.log(self._scene(msg), log_time=t)
@@ -148,6 +193,14 @@ class FoxgloveBridge:
         return m.Grid(timestamp=self._stamp(grid.header.stamp_ns), frame_id=grid.header.frame_id or "map", pose=pose,
                       column_count=grid.width, cell_size=m.Vector2(x=grid.resolution, y=grid.resolution),
                       row_stride=grid.width, cell_stride=1, fields=[field], data=grid.data)
+
+    def _laser_scan(self, scan: LaserScan) -> Any:
+        m, f = self.fg.messages, scan_fields(scan)
+        return m.LaserScan(timestamp=self._stamp(f["timestamp_ns"]), frame_id=f["frame_id"],
+                           pose=m.Pose(position=m.Vector3(x=0.0, y=0.0, z=0.0),
+                                       orientation=m.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)),
+                           start_angle=f["start_angle"], end_angle=f["end_angle"], ranges=f["ranges"],
+                           intensities=f["intensities"])
 
     def _stamp(self, stamp_ns: int) -> Any:
         return self.fg.messages.Timestamp(stamp_ns // 10**9, stamp_ns % 10**9)

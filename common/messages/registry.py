@@ -81,7 +81,7 @@ NODES: tuple[NodeEntry, ...] = (
     NodeEntry("viewer", "tools.viewer", "tools.viewer.node:ViewerNode", "tools.viewer.config:ViewerConfig",
               "the operator's live page",
               subscribes=("frames", "detections", "localized", "embeddings", "tracks", "id_decisions", "tf", "tf_static",
-                          "static_map", "status"),
+                          "static_map", "scans", "status"),
               watches=("alive",)),
 )
 

@@ -3,7 +3,9 @@
 A test publisher sends a known scene (two people, track IDs 7 and 12, a robot, a camera
 with their boxes); the page, in a real browser, must show both tracks in its table, draw
 them on the map, show the camera image with ID-labelled boxes, the stages' rates and the
-publishing node's health. Skipped, saying why, when no Chromium is installed (Debian:
+publishing node's health; a 2-D laser on the robot must have its scan's returns drawn where
+they are in the map (through the robot's transforms) and its person as a ring, with no image
+box. Skipped, saying why, when no Chromium is installed (Debian:
 ``apt-get install chromium``; ``scripts/test.sh`` installs it where it can).
 """
 
@@ -20,7 +22,10 @@ from typing import Callable, Iterator
 import numpy as np
 import pytest
 
-from common.messages.keys import Keys
+from common.geometry.messages import transform_msg
+from common.geometry.transforms import RigidTransform
+from common.messages.keys import RELIABLE, SCANS, Keys
+from common.messages.schemas import Header, LaserScan, LocalizedDetection, LocalizedDetections, TransformBatch
 from common.transport.router_process import RouterProcess, free_port
 from common.transport.zenoh import ZenohTransport
 from tests.fixtures.viewer_scene import IDS, WALL_RGB, ScenePublisher
@@ -29,6 +34,13 @@ from tests.helpers.chromium import Browser, chromium_path
 pytestmark = [pytest.mark.zenoh, pytest.mark.skipif(
     chromium_path() is None, reason="no Chromium installed (apt-get install chromium) for the browser test")]
 KEYS = Keys(robot="viewerbrowser")
+#: the laser 0.3 m ahead of base_link, seeing a straight wall 2.5 m ahead of it from -50 to +50 degrees
+#: (beams 1 degree apart from -60 to +60, those beyond 50 degrees with no return)
+LASER_X, WALL_M, BEAMS, SEEN = 0.3, 2.5, 121, 101
+#: the person the laser sees, in the map (no image box)
+LASER_PERSON = (1.5, 1.5)
+#: how the page draws them (tools/viewer/static/app.js)
+SCAN_RGB, LASER_PERSON_RGB = (0xD8, 0xC2, 0x7A), (0xA0, 0xE8, 0xFF)
 
 
 def _viewer(endpoint: str, port: int, log: Path) -> subprocess.Popen[bytes]:
@@ -56,8 +68,55 @@ def scene(zenoh_client: Callable[[], ZenohTransport]) -> Iterator[ScenePublisher
     thread.join(5)
 
 
+def _laser_messages(stamp: int, seq: int) -> list[tuple[str, object]]:
+    angles = np.radians(np.arange(BEAMS) - 60.0)
+    ranges = np.where(np.abs(angles) <= np.radians(50.5), WALL_M / np.cos(angles), np.nan).astype(np.float32)
+    scan = LaserScan(header=Header(stamp_ns=stamp, frame_id="front_laser", seq=seq, source="front"),
+                     angle_min=float(angles[0]), angle_max=float(angles[-1]), angle_increment=float(np.radians(1.0)),
+                     range_min=0.05, range_max=8.0, ranges=ranges)
+    mount = TransformBatch(header=Header(stamp_ns=stamp, source="tf_static"), transforms=[transform_msg(
+        "base_link", "front_laser", stamp, RigidTransform.from_quat(np.array([LASER_X, 0, 0.2]), np.array([0, 0, 0, 1.0])),
+        static=True)])
+    people = LocalizedDetections(header=Header(stamp_ns=stamp, frame_id="map", seq=seq, source="front"),
+                                 camera_frame="front_laser", detector="laser-legs", detections=[LocalizedDetection(
+                                     index=0, bbox_xyxy=(0.0, 0.0, 0.0, 0.0), score=0.8, depth_m=2.0,
+                                     position=np.array([*LASER_PERSON, 0.9]), cov=np.eye(3) * 0.01)])
+    return [(KEYS.tf_static(), mount), (KEYS.scans("front"), scan), (KEYS.localized("front"), people)]
+
+
+@pytest.fixture
+def laser(zenoh_client: Callable[[], ZenohTransport]) -> Iterator[None]:
+    """A laser on the robot: its mount (tf_static), scans and people, at 10 Hz from a thread."""
+    transport = zenoh_client()
+    pubs = {KEYS.tf_static(): transport.publisher(KEYS.tf_static(), TransformBatch, RELIABLE),
+            KEYS.scans("front"): transport.publisher(KEYS.scans("front"), LaserScan, SCANS),
+            KEYS.localized("front"): transport.publisher(KEYS.localized("front"), LocalizedDetections, RELIABLE)}
+    stop = threading.Event()
+
+    def loop() -> None:
+        seq = 0
+        while not stop.wait(0.1):
+            for key, msg in _laser_messages(time.time_ns(), seq):
+                pubs[key].put(msg)  # type: ignore[arg-type]
+            seq += 1
+
+    thread = threading.Thread(target=loop, daemon=True)
+    thread.start()
+    yield
+    stop.set()
+    thread.join(5)
+
+
+def _painted(rgb: tuple[int, int, int], at_least: int) -> str:
+    """JavaScript: how many of the map canvas's pixels are ``rgb`` (within 3 a channel), or null below ``at_least``."""
+    return ("(() => { const c = document.getElementById('map'); const d = c.getContext('2d')"
+            ".getImageData(0, 0, c.width, c.height).data; let n = 0; for (let i = 0; i < d.length; i += 4)"
+            f" if (Math.abs(d[i]-{rgb[0]}) < 4 && Math.abs(d[i+1]-{rgb[1]}) < 4 && Math.abs(d[i+2]-{rgb[2]}) < 4) n++;"
+            f" return n >= {at_least} ? n : null; }})()")
+
+
 def test_the_page_shows_the_tracks_camera_and_health_in_a_real_browser(
-        router: RouterProcess, scene: ScenePublisher, tmp_path: Path) -> None:
+        router: RouterProcess, scene: ScenePublisher, laser: None, tmp_path: Path) -> None:
     port = free_port()
     proc = _viewer(router.endpoint, port, tmp_path / "viewer.log")
     try:
@@ -96,6 +155,24 @@ def test_the_page_shows_the_tracks_camera_and_health_in_a_real_browser(
                 f" if (Math.abs(d[i]-{WALL_RGB[0]}) < 4 && Math.abs(d[i+1]-{WALL_RGB[1]}) < 4 && Math.abs(d[i+2]-{WALL_RGB[2]}) < 4)"
                 " n++; return n > 200 ? n : null; })()", 30)
             assert walls, "the robot's map is not drawn"
+            # the laser's scan: every return, on the wall 2.8 m ahead of the robot in the map
+            scan = browser.wait_for(
+                "fetch('/api/state').then(r => r.json()).then(s => s.scans && s.scans.length && s.robot"
+                " ? {scan: s.scans[0], robot: s.robot, people: s.laser_people, boxes: s.boxes} : null)", 30)
+            assert scan, (tmp_path / "viewer.log").read_text()
+            assert scan["scan"]["laser"] == "front" and scan["scan"]["frame_id"] == "front_laser"
+            assert "error" not in scan["scan"] and scan["scan"]["beams"] == BEAMS
+            xy = np.array(scan["scan"]["points"]).reshape(-1, 2)
+            assert len(xy) == SEEN
+            robot = scan["robot"]
+            assert np.abs(xy[:, 0] - (robot["x"] + LASER_X + WALL_M)).max() < 0.1  # the robot moves at 0.1 m/s
+            assert xy[:, 1] == pytest.approx(sorted(WALL_M * np.tan(np.radians(np.arange(-50, 51)))), abs=0.05)
+            # the laser's person: on the map only, no box on the image
+            assert scan["people"] == [{"source": "front", "x": LASER_PERSON[0], "y": LASER_PERSON[1], "score": 0.8}]
+            assert sorted(b["id"] for b in scan["boxes"]) == list(IDS)
+            assert browser.wait_for(_painted(SCAN_RGB, 300), 30), "the laser's scan is not drawn on the map"
+            assert browser.wait_for(_painted(LASER_PERSON_RGB, 20), 30), "the laser's person is not drawn on the map"
+            assert "laser front" in browser.evaluate("document.getElementById('map').dataset.legend")
             # the tracker's latest ID decisions, in words
             why = browser.wait_for("document.querySelector('#id-decisions li[data-outcome=\"recovered\"]')?.textContent", 30)
             assert f"ID {IDS[0]} recovered: support 0.85" in why and " s ago: " in why

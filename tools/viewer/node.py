@@ -3,8 +3,10 @@ nodes' health, and keeps the newest page state for any number of browsers.
 
 It publishes nothing on Zenoh. ``poll`` drains what arrived, hands every message to the
 optional sinks (the Foxglove bridge) and, at most ``state_hz`` times a second, writes the
-page state into :class:`~tools.viewer.web.LatestState`. The camera image is JPEG-encoded
-only while a browser asks for it, at most ``image_hz`` times a second.
+page state into :class:`~tools.viewer.web.LatestState`. Each 2-D laser's newest scan
+(``scans/*``) goes on the map through the transforms, and the people of a position-only stream
+(``localized/*`` without a camera view: the laser's) as rings, never as image boxes. The camera
+image is JPEG-encoded only while a browser asks for it, at most ``image_hz`` times a second.
 """
 
 from __future__ import annotations
@@ -17,15 +19,14 @@ from typing import Any, Callable, Protocol
 
 import numpy as np
 
-from common.geometry.transforms import TransformBuffer, TransformError
+from common.geometry.transforms import RigidTransform, TransformBuffer, TransformError
 from common.geometry.messages import OCCUPIED_PERCENT, add_batch, static_map_from_grid
-from common.messages.keys import MAPS, RELIABLE, STATUS, Delivery, Keys
+from common.messages.keys import MAPS, RELIABLE, SCANS, STATUS, Delivery, Keys
 from common.runtime.node import Node
 from common.messages.registry import stages
 from common.runtime.service import Counters, Shutdown
-from common.messages.schemas import (Detections, Embeddings, Header, IdDecisions, IdDecisionState, LocalizedDetections,
-                                     Message,
-                                     RGBDFrame, ServiceStatus, StaticMap, Tracks,
+from common.messages.schemas import (Detections, Embeddings, Header, IdDecisions, IdDecisionState, LaserScan,
+                                     LocalizedDetections, Message, RGBDFrame, ServiceStatus, StaticMap, Tracks,
                                      TransformBatch)
 from common.transport.base import Subscription, Transport
 from tools.drawing.images import jpeg_of
@@ -34,6 +35,7 @@ from tools.viewer.config import ViewerConfig
 from tools.viewer.core.health import NodeSeen, health
 from tools.drawing.meters import StageMeter
 from tools.viewer.core.drawing import Trails, colour_hex, occupied_runs, yaw_of
+from tools.viewer.core.scans import Newest, flat, no_box, scan_points
 from tools.viewer.web import LatestState
 
 __all__ = ["STAGES", "Sink", "ViewerNode"]
@@ -49,6 +51,10 @@ _LOOSE = Delivery(latest=False, queue=64, congestion="drop", wake=False)
 #: Frames: the few that arrive between two polls, so the camera's rate counts each of them
 #: (only the newest is decoded); older ones are dropped uncounted.
 _FEW_FRAMES = Delivery(latest=False, queue=16, congestion="drop", express=True, wake=False)
+#: Scans: every laser's (``scans/*``), each one read, the newest of each drawn.
+_SCANS = replace(SCANS, wake=False)
+#: A laser's scan or people leave the page once none came for this long (s).
+_LASER_STALE_S = 1.0
 #: Transforms and statuses: every one is read.
 _EVERY_TF = replace(RELIABLE, wake=False)
 _EVERY_STATUS = replace(STATUS, wake=False)
@@ -98,7 +104,14 @@ class ViewerNode(Node):
             "status": self.io.subscribe(keys.status(), ServiceStatus, _EVERY_STATUS),
             "id_decisions": self.io.subscribe(keys.id_decisions(), IdDecisions, _EVERY_STATUS),
             "static_map": self.io.subscribe(keys.static_map(), StaticMap, replace(MAPS, wake=False)),
+            "scans": self.io.subscribe(keys.scans("*"), LaserScan, _SCANS),
+            # every localized stream: only those without a camera view (a laser's people) are kept
+            "laser": self.io.subscribe(keys.localized("*"), LocalizedDetections, _LOOSE),
         }
+        self._camera_localized = keys.localized(cam)
+        #: each laser's newest scan, and each position-only stream's newest people, by key name
+        self.scans: Newest[LaserScan] = Newest(_LASER_STALE_S)
+        self.laser_people: Newest[LocalizedDetections] = Newest(_LASER_STALE_S)
         self._map: dict[str, Any] | None = None  # the newest static map's version and extent
         self._file_map: StaticMap | None = None  # a map file, for the sinks too (every few seconds)
         self._file_map_at = -1e9
@@ -146,6 +159,8 @@ class ViewerNode(Node):
                 continue
             while (got := sub.try_recv()) is not None:
                 msg = got.msg
+                if stream == "laser" and (got.key == self._camera_localized or msg.view is not None):
+                    continue  # the camera's own (read as "localizer"), or another camera's
                 self._dirty = True
                 for sink in self.sinks:
                     sink.on_message(stream, msg)
@@ -158,6 +173,10 @@ class ViewerNode(Node):
                     self.decisions.extend((now, d) for d in msg.decisions)
                 elif isinstance(msg, StaticMap):
                     self._take_map(msg)
+                elif isinstance(msg, LaserScan):
+                    self.scans.put(got.key.rsplit("/", 1)[-1], now, msg)
+                elif stream == "laser":
+                    self.laser_people.put(got.key.rsplit("/", 1)[-1], now, msg)
                 elif isinstance(msg, TransformBatch):
                     add_batch(self.buffer, msg, static=stream == "tf_static")
                 elif isinstance(msg, ServiceStatus):
@@ -227,11 +246,58 @@ class ViewerNode(Node):
             return None
         return {"x": float(tf.translation[0]), "y": float(tf.translation[1]), "yaw": yaw_of(tf.rotation_matrix)}
 
+    def _to_map(self, frame: str, stamp_ns: int) -> RigidTransform | None:
+        """``frame`` -> the map frame at ``stamp_ns``, else the newest (a scan a little ahead of the
+        transforms is drawn where the robot was last seen); None without a chain of transforms."""
+        for stamp in (stamp_ns, None):
+            try:
+                return self.buffer.lookup(self.config.map_frame, frame, stamp)
+            except (TransformError, KeyError):
+                continue
+        return None
+
+    def _scans(self, now: float) -> list[dict[str, Any]]:
+        """Each laser's newest scan: its returns' points in the map (flat x, y pairs), or why none."""
+        out = []
+        for laser, (at, scan) in self.scans.fresh(now).items():
+            frame = scan.header.frame_id
+            entry: dict[str, Any] = {"laser": laser, "frame_id": frame, "age_s": round(now - at, 2),
+                                     "beams": len(scan.ranges), "points": []}
+            tf = self._to_map(frame, scan.header.stamp_ns) if frame else None
+            if not frame:
+                entry["error"] = "the scan names no frame"
+            elif tf is None:
+                entry["error"] = f"no transform {self.config.map_frame} <- {frame}"
+            else:
+                entry["points"] = flat(scan_points(scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
+                                                   scan.range_max, tf.rotation_matrix, tf.translation))
+            out.append(entry)
+        return out
+
+    def _laser_people(self, now: float) -> list[dict[str, Any]]:
+        """The people of each position-only stream (the laser's): those with no image box, in the map."""
+        out = []
+        for source, (_, loc) in self.laser_people.fresh(now).items():
+            if not loc.detections:
+                continue
+            frame = loc.header.frame_id or self.config.map_frame
+            tf = self._to_map(frame, loc.header.stamp_ns)
+            if tf is None:
+                continue
+            unboxed = no_box(np.array([d.bbox_xyxy for d in loc.detections], np.float64))
+            for d in (d for d, empty in zip(loc.detections, unboxed) if empty):
+                x, y = (tf.rotation_matrix @ np.asarray(d.position, np.float64) + tf.translation)[:2]
+                out.append({"source": source, "x": round(float(x), 3), "y": round(float(y), 3),
+                            "score": round(float(d.score), 3)})
+        return out
+
     def _boxes(self) -> list[dict[str, Any]]:
         dets: Detections | None = self.latest.get("detector")
         if dets is None:
             return []
         boxes = np.array([d.bbox_xyxy for d in dets.detections], np.float64).reshape(-1, 4)
+        drawn = ~no_box(boxes)  # a zero box (a position-only detection) is no box to draw
+        boxes, kept = boxes[drawn], [d for d, box in zip(dets.detections, drawn) if box]
         tracks: Tracks | None = self.latest.get("tracker")
         loc: LocalizedDetections | None = self.latest.get("localizer")
         labels: list[int | None] = [None] * len(boxes)
@@ -242,7 +308,7 @@ class ViewerNode(Node):
             labels = label_boxes(boxes, pixels, np.array([t.id for t in tracks.tracks]))
         return [{"bbox": [round(float(v), 1) for v in box], "score": round(d.score, 3), "id": label,
                  "colour": colour_hex(label) if label is not None else "#cccccc"}
-                for box, d, label in zip(boxes, dets.detections, labels)]
+                for box, d, label in zip(boxes, kept, labels)]
 
     def snapshot(self, now: float) -> dict[str, Any]:
         """The page state: tracks with trails, the robot, the image's boxes, stages and nodes."""
@@ -270,6 +336,8 @@ class ViewerNode(Node):
             "appearance_available": tracks.appearance_available if tracks else None,
             "image": self._image_info,
             "boxes": self._boxes(),
+            "scans": self._scans(now),
+            "laser_people": self._laser_people(now),
             "stages": self._stages(now),
             "nodes": nodes,
             "id_decisions": [{"id": d.id, "outcome": d.outcome, "text": d.summary, "age_s": round(now - at, 1)}

@@ -9,6 +9,8 @@ let state = null;
 let imageSeq = -1;
 let staticMap = null;  // the robot's map (/api/map): its walls as runs of cells
 let mapLoading = false;
+// how the map draws a laser's returns and the people it sees (people with no image box)
+const SCAN_COLOUR = "#d8c27a", LASER_PERSON_COLOUR = "#a0e8ff";
 
 async function loadMap() {
   mapLoading = true;
@@ -145,9 +147,11 @@ function fitCanvas(cv) {
 function drawMap() {
   const [ctx, W, H] = fitCanvas($("map"));
   ctx.clearRect(0, 0, W, H);
-  // fit every track, trail point and the robot, at least 6 m across
+  // fit every track, trail point, laser person and the robot, at least 6 m across (not the scans' walls)
   const xs = [], ys = [];
+  const scans = state.scans || [], laserPeople = state.laser_people || [];
   for (const t of state.tracks) { xs.push(t.x); ys.push(t.y); for (const [x, y] of t.trail) { xs.push(x); ys.push(y); } }
+  for (const p of laserPeople) { xs.push(p.x); ys.push(p.y); }
   if (state.robot) { xs.push(state.robot.x); ys.push(state.robot.y); }
   if (!xs.length) { xs.push(0); ys.push(0); }
   const cx = (Math.min(...xs) + Math.max(...xs)) / 2, cy = (Math.min(...ys) + Math.max(...ys)) / 2;
@@ -166,14 +170,31 @@ function drawMap() {
     for (const [r, c0, c1] of m.runs) ctx.fillRect(c0 * res, r * res, (c1 - c0) * res + seam, res + seam);
     ctx.restore();
   }
+  // each laser's newest scan: its returns as small squares, in the map through the transforms
+  ctx.fillStyle = SCAN_COLOUR;
+  for (const s of scans) {
+    const p = s.points;
+    for (let i = 0; i + 1 < p.length; i += 2) ctx.fillRect(px(p[i]) - 1.5, py(p[i + 1]) - 1.5, 3, 3);
+  }
+  const legend = ["grid 1 m"];
+  if (m && m.runs) legend.push("grey: the robot's map");
+  if (scans.length) legend.push(`sand: ${scans.map((s) => s.error ? `laser ${s.laser} (${s.error})` : `laser ${s.laser}`).join(", ")}`);
+  if (laserPeople.length) legend.push("rings: people the laser sees");
   ctx.fillStyle = "#667"; ctx.font = "11px sans-serif";
-  ctx.fillText(m && m.runs ? "grid 1 m; grey: the robot's map" : "grid 1 m", 6, H - 6);
+  ctx.fillText(legend.join("; "), 6, H - 6);
+  $("map").dataset.legend = legend.join("; ");
   if (state.robot) {
     const r = state.robot, x = px(r.x), y = py(r.y);
     ctx.save(); ctx.translate(x, y); ctx.rotate(-r.yaw);
     ctx.fillStyle = "#8ab4f8"; ctx.beginPath(); ctx.moveTo(14, 0); ctx.lineTo(-9, 8); ctx.lineTo(-9, -8); ctx.closePath(); ctx.fill();
     ctx.restore();
     ctx.fillStyle = "#8ab4f8"; ctx.fillText("robot", x + 10, y + 16);
+  }
+  // people with no image box (a laser's): a ring on the map, under the tracks
+  ctx.strokeStyle = LASER_PERSON_COLOUR; ctx.fillStyle = LASER_PERSON_COLOUR; ctx.lineWidth = 2;
+  for (const p of laserPeople) {
+    ctx.beginPath(); ctx.arc(px(p.x), py(p.y), 6, 0, 2 * Math.PI); ctx.stroke();
+    ctx.beginPath(); ctx.arc(px(p.x), py(p.y), 2, 0, 2 * Math.PI); ctx.fill();
   }
   for (const t of state.tracks) {
     ctx.strokeStyle = t.colour; ctx.lineWidth = 2; ctx.globalAlpha = 0.6;

@@ -813,6 +813,8 @@ class PersonGroundTruth(_Model):
     outfit: int = Field(default=0, ge=0, description="index of the outfit worn; changes when the person changes clothes")
     facing_rad: float | None = Field(default=None, description="the direction the body faces in the map frame "
                                      "(rad, 0 along +x); None: not known")
+    laser_seen: bool | None = Field(default=None, description="the robot's 2-D laser could see them (its beams "
+                                    "hit their legs); None: no laser")
 
     @model_validator(mode="after")
     def _check(self) -> PersonGroundTruth:
@@ -837,3 +839,8 @@ class PeopleGroundTruth(Message):
     def counted(self) -> list[PersonGroundTruth]:
         """The people that count as ground-truth objects in this frame."""
         return [p for p in self.people if p.counted]
+
+    def around(self) -> list[PersonGroundTruth]:
+        """The people the robot's sensors could see: the camera's counted, and those its laser
+        could see (``laser_seen``), all round the robot."""
+        return [p for p in self.people if p.counted or p.laser_seen]

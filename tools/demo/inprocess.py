@@ -29,6 +29,8 @@ from services.embedder.config import EmbedderConfig
 from services.embedder.service import EmbedderService
 from services.localizer.config import LocalizerConfig
 from services.localizer.service import LocalizerService
+from services.laser.config import LaserConfig
+from services.laser.service import LaserService
 from services.tracker.config import TrackerConfig
 from services.tracker.presets import load_preset
 from services.tracker.service import TrackerService
@@ -77,7 +79,8 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
               seed: int = 0, tracker: TrackerConfig | None = None, detector: str = "depth",
               record: Callable[[Message], None] | None = None, plot: Path | None = None,
               attention: AttentionConfig | None = None, second: SecondDetector | None = None,
-              back_camera: str | None = None, attention_truth: bool = False) -> ChainResult:
+              back_camera: str | None = None, attention_truth: bool = False, laser: bool = False,
+              fuse_laser: bool = True) -> ChainResult:
     """Run ``scenario`` through the four nodes and score the tracks (Table II).
 
     ``record``, if given, is called with every ``PeopleGroundTruth``, ``LocalizedDetections``,
@@ -94,14 +97,20 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     ``attention_truth``: the attention node follows the ground truth's people
     (:class:`TruthTracks`, a perfect tracker) instead of the tracker's tracks: the loop
     without tracking errors (the tracks are still scored).
+    ``laser``: the simulator's base laser (scans/front) and the ground truth of whom it could see;
+    the laser node then finds people in its scans and the tracker fuses them (``fuse_laser``
+    False: the tracker reads the camera alone, the same ground truth, for comparison). The tracks
+    are then judged over everyone the robot's sensors could see (camera or laser), all round it.
     """
     keys = Keys(robot="inprocess")
     bus = MemoryBus()
     sim = SimulatorService(bus.transport(), keys, SimulatorConfig(
         scenario=scenario, seed=seed, fps=fps, width=width, height=height, duration_s=duration_s, start_ns=10**18,
-        head_control=attention is not None, back_camera=back_camera))
+        head_control=attention is not None, back_camera=back_camera, laser="front" if laser else None))
     # once per camera frame, as the demo: Table II scores every frame against its ground truth
     tracker_config = (tracker or TrackerConfig()).model_copy(update={"memory_path": None, "output_rate_hz": 0.0})
+    if laser and not fuse_laser:
+        tracker_config = tracker_config.model_copy(update={"lasers": []})
     camera = tracker_config.camera
     slow: list[tuple[int, Any]] = []  # (frame offset, node): the second detector's nodes
     if second is not None:
@@ -129,6 +138,8 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         nodes[3:3] = [DetectorService(bus.transport(), keys, back_detector),
                       LocalizerService(bus.transport(), keys, LocalizerConfig(camera=back_camera)),
                       EmbedderService(bus.transport(), keys, EmbedderConfig(camera=back_camera))]
+    if laser and fuse_laser:  # before the tracker: one poll round carries a scan to it
+        nodes.insert(len(nodes) - 1, LaserService(bus.transport(), keys, LaserConfig(laser="front")))
     if attention is not None:
         truth = TruthTracks(bus.transport(), keys) if attention_truth else None
         if truth is not None:
@@ -177,8 +188,9 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         tap.close()
     # with several streams, the output of the camera's frame: with a back camera (same stamps,
     # "back" sorts before "head") it is the one after both cameras' frames of the tick
-    report, table = score_tracks(gt, hyp, scenario, plot,
-                                 source=camera if second is not None or back_camera is not None else None)
+    several = second is not None or back_camera is not None or laser
+    report, table = score_tracks(gt, hyp, scenario, plot, source=camera if several else None,
+                                 truth="around" if laser else "camera")
     if looked is not None:
         report["attention"] = looked.report()
     return ChainResult(report, table, sim.seq, report.get("attention"))

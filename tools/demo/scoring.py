@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -72,14 +72,18 @@ def frame_outputs(tracks: list[Tracks], source: str | None = None) -> list[Track
 
 
 def score_tracks(gt: dict[int, PeopleGroundTruth], tracks: list[Tracks], name: str, plot: Path | None = None,
-                 source: str | None = None, width: int | None = None) -> tuple[dict[str, Any], str]:
+                 source: str | None = None, width: int | None = None,
+                 truth: Literal["camera", "around"] = "camera") -> tuple[dict[str, Any], str]:
     """(metrics as a dict, Table II and the pose line as text) of a run's ground truth by frame
     seq and its published ``Tracks``; ``plot``: also draw it there (PNG); ``source``: score the
     outputs of that camera's frames (see :func:`frame_outputs`); ``width``: the tables' most
-    columns (see :func:`~tools.evaluation.evaluate.format_table`)."""
+    columns (see :func:`~tools.evaluation.evaluate.format_table`); ``truth``: who is a ground-truth
+    object, the camera's counted people or everyone the robot's sensors could see (``around``:
+    the laser's too, all round the robot)."""
     seq_of_stamp = {msg.header.stamp_ns: seq for seq, msg in gt.items()}
     tracks = frame_outputs([_as_frame(t, seq_of_stamp) for t in tracks], source)
-    gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items() for p in msg.counted()]
+    gt_rows = [(seq, p.id, p.position) for seq, msg in gt.items()
+               for p in (msg.around() if truth == "around" else msg.counted())]
     hyp_rows = [(t.header.seq, tr.id, tr.position) for t in tracks for tr in t.tracks if t.header.seq in gt]
     report, table = score_rows(gt_rows, hyp_rows, name, plot, width)
     report["pose"] = pose_scores(gt, tracks)

@@ -31,7 +31,8 @@ Simulate the robot's head RGB-D camera and localization in an apartment with peo
 RGB + registered depth (16UC1 mm) frames with camera info, transforms map->odom->base_link
 ->head_link->camera, and the people's true positions (map frame) with a visibility flag.
 --back-camera NAME adds a second RGB-D camera fixed on the base looking backwards
-(frames/NAME, base_link->NAME_link->NAME_optical on tf_static).
+(frames/NAME, base_link->NAME_link->NAME_optical on tf_static); --laser a 2-D laser on the base
+(scans/front, base_link->base_laser on tf_static).
 
   perception simulate --list
   perception simulate --scenario moving-base                 # publish in real time
@@ -39,6 +40,7 @@ RGB + registered depth (16UC1 mm) frames with camera info, transforms map->odom-
   perception simulate --scenario still --output run.mcap --gt-csv gt.csv
   perception simulate --scenario still --snapshot still.png --snapshot-time 6
   perception simulate --scenario handover --back-camera back # two cameras, people walk from one to the other
+  perception simulate --scenario still --laser               # and a 2-D laser on the base (scans/front)
   perception simulate --fault depth-float-mm                 # a setup mistake, for perception doctor"""
 
 
@@ -64,6 +66,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="also publish a camera fixed on the base looking backwards (0.95 m up, yaw 180 deg, the head "
              "camera's size and intrinsics) as frames/NAME, frame id NAME_optical, its mount "
              "base_link->NAME_link->NAME_optical on tf_static",
+    )
+    parser.add_argument(
+        "--laser",
+        nargs="?",
+        const="front",
+        default=None,
+        metavar="NAME",
+        help="also publish a 2-D laser on the base (360 degrees, 0.25-degree steps, 15 Hz, 0.2 m above the floor, "
+             "Hokuyo-like noise and dropouts) as scans/NAME (default front), frame id base_laser on tf_static; "
+             "the ground truth then says whom it could see (laser_seen)",
     )
     speed = parser.add_mutually_exclusive_group()
     speed.add_argument("--rate", type=float, default=None, metavar="X", help="speed relative to real time")
@@ -130,6 +142,7 @@ def _config(args: argparse.Namespace) -> SimulatorConfig:
             "height",
             "camera",
             "back_camera",
+            "laser",
             "rate",
             "max_speed",
             "alike",

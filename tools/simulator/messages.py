@@ -9,6 +9,7 @@ from common.messages.schemas import (
     CameraInfo,
     Header,
     Image,
+    LaserScan,
     PeopleGroundTruth,
     PersonGroundTruth,
     RGBDFrame,
@@ -17,7 +18,7 @@ from common.messages.schemas import (
 )
 from common.geometry.poses import quaternion_from_matrix
 from tools.simulator.core.render import RenderResult
-from tools.simulator.core.simulation import FixedView, FrameData
+from tools.simulator.core.simulation import BaseLaser, FixedView, FrameData, ScanData
 
 __all__ = [
     "CAMERA_FRAME",
@@ -25,6 +26,7 @@ __all__ = [
     "fixed_frame_message",
     "frame_message",
     "groundtruth_message",
+    "scan_message",
     "static_transforms",
     "tf_message",
 ]
@@ -78,15 +80,18 @@ def tf_message(fd: FrameData, stamp_ns: int, camera: str, head_moves: bool) -> T
     return TransformBatch(header=Header(stamp_ns=stamp_ns, frame_id=MAP, seq=fd.seq, source=camera), transforms=items)
 
 
-def static_transforms(fd: FrameData, stamp_ns: int, camera: str, head_moves: bool) -> TransformBatch:
-    """head_link -> camera, base_link -> head_link when the head does not move, and for each
-    fixed camera base_link -> {name}_link -> {name}_optical."""
+def static_transforms(fd: FrameData, stamp_ns: int, camera: str, head_moves: bool,
+                      laser: BaseLaser | None = None) -> TransformBatch:
+    """head_link -> camera, base_link -> head_link when the head does not move, for each
+    fixed camera base_link -> {name}_link -> {name}_optical, and base_link -> the laser's frame."""
     items = [] if head_moves else [transform(BASE, HEAD, fd.base_head, stamp_ns, static=True)]
     items.append(transform(HEAD, CAMERA_FRAME, fd.head_camera, stamp_ns, static=True))
     for view in fd.views.values():
         cam = view.camera
         items.append(transform(BASE, cam.mount_frame, cam.base_mount, stamp_ns, static=True))
         items.append(transform(cam.mount_frame, cam.optical_frame, cam.mount_optical, stamp_ns, static=True))
+    if laser is not None:
+        items.append(transform(BASE, laser.frame, laser.mount, stamp_ns, static=True))
     return TransformBatch(header=Header(stamp_ns=stamp_ns, frame_id=BASE, seq=fd.seq, source=camera), transforms=items)
 
 
@@ -108,6 +113,7 @@ def groundtruth_message(fd: FrameData, stamp_ns: int, camera: str, min_visible: 
             clothing=p.clothing.description,
             outfit=p.outfit,
             facing_rad=p.facing_rad,
+            laser_seen=p.laser_seen,
         )
         for k, p in enumerate(fd.people)
     ]
@@ -116,3 +122,14 @@ def groundtruth_message(fd: FrameData, stamp_ns: int, camera: str, min_visible: 
         people=people,
         min_visible=min_visible,
     )
+
+
+def scan_message(scan: ScanData, seq: int, stamp_ns: int) -> LaserScan:
+    """The base laser's sweep as its driver publishes it: frame id the laser's, 0 for no return
+    (a Hokuyo's), the first beam at ``stamp_ns``."""
+    spec, a = scan.laser.spec, scan.laser.spec.angles()
+    return LaserScan(header=Header(stamp_ns=stamp_ns, frame_id=scan.laser.frame, seq=seq, source=scan.laser.name),
+                     angle_min=float(a[0]), angle_max=float(a[-1]), angle_increment=float(a[1] - a[0]),
+                     time_increment=0.0,  # simulated: every beam at the frame's instant
+                     scan_time=1.0 / spec.rate_hz, range_min=spec.range_min, range_max=spec.range_max,
+                     ranges=scan.ranges)

@@ -6,9 +6,10 @@ import logging
 import time
 from typing import Any
 
-from common.messages.keys import COMMANDS, FRAMES, RELIABLE, Keys
+from common.messages.keys import COMMANDS, FRAMES, RELIABLE, SCANS, Keys
 from common.runtime.service import Counters, Shutdown
-from common.messages.schemas import Detections, HeadCommand, Message, PeopleGroundTruth, RGBDFrame, TransformBatch
+from common.messages.schemas import (Detections, HeadCommand, LaserScan, Message, PeopleGroundTruth, RGBDFrame,
+                                     TransformBatch)
 from common.transport.base import Publisher, Subscription, Transport
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.groundtruth import GroundTruthCsv
@@ -62,6 +63,8 @@ class SimulatorService:
             keys.tf_static(): transport.publisher(keys.tf_static(), TransformBatch, RELIABLE),
             keys.groundtruth(): transport.publisher(keys.groundtruth(), PeopleGroundTruth, RELIABLE),
         }
+        if config.laser is not None:
+            self.publishers[keys.scans(config.laser)] = transport.publisher(keys.scans(config.laser), LaserScan, SCANS)
         if self.ros is not None:
             # the head camera and the transforms go out as ROS 2 topics instead
             for key in (keys.frames(config.camera), keys.tf(), keys.tf_static()):

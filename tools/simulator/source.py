@@ -12,12 +12,13 @@ from tools.simulator.core.cameras import back_camera
 from tools.simulator.core.head_servo import CommandedHead
 from tools.simulator.core.render import default_camera
 from tools.simulator.core.scenarios import SCENARIOS, build_world
-from tools.simulator.core.simulation import FrameData, Simulation
+from tools.simulator.core.simulation import BaseLaser, FrameData, Simulation
 from tools.simulator.faults import OLD_STAMPS_S, apply_faults
 from tools.simulator.messages import (
     fixed_frame_message,
     frame_message,
     groundtruth_message,
+    scan_message,
     static_transforms,
     tf_message,
 )
@@ -43,8 +44,9 @@ class SimulatedStream:
             self.world.head_moves = True
         self.camera = default_camera(config.width, config.height)
         fixed = [back_camera(config.back_camera)] if config.back_camera is not None else []
+        self.laser = BaseLaser(name=config.laser) if config.laser is not None else None
         self.simulation = Simulation(
-            self.world, self.camera, config.fps, config.seed, config.min_visible, config.depth_noise, fixed
+            self.world, self.camera, config.fps, config.seed, config.min_visible, config.depth_noise, fixed, self.laser
         )
         #: The names of the cameras published, the head camera first; each has a frames key.
         self.cameras: tuple[str, ...] = (config.camera, *(c.name for c in fixed))
@@ -76,12 +78,14 @@ class SimulatedStream:
         stamp = self.stamp_ns(seq)
         out: list[tuple[str, Message]] = []
         if seq % self._static_every == 0:
-            out.append((keys.tf_static(), static_transforms(fd, stamp, cfg.camera, self.world.head_moves)))
+            out.append((keys.tf_static(), static_transforms(fd, stamp, cfg.camera, self.world.head_moves, self.laser)))
         out.append((keys.tf(), tf_message(fd, stamp, cfg.camera, self.world.head_moves)))
         out.append((keys.groundtruth(), groundtruth_message(fd, stamp, cfg.camera, cfg.min_visible)))
         out.append((keys.frames(cfg.camera), frame_message(fd, self.camera, stamp, cfg.camera)))
         for name, view in fd.views.items():
             out.append((keys.frames(name), fixed_frame_message(view, fd.seq, self.camera, stamp)))
+        if fd.scan is not None:
+            out.append((keys.scans(fd.scan.laser.name), scan_message(fd.scan, fd.seq, stamp)))
         return fd, apply_faults(out, self.faults, keys, seq)
 
     @staticmethod

@@ -11,7 +11,7 @@ import numpy as np
 
 from tools.simulator.core.apartment import Apartment
 
-__all__ = ["LaserSpec", "cast", "legs_of", "rectangles_at", "sense"]
+__all__ = ["LaserSpec", "cast", "cast_hits", "legs_of", "rectangles_at", "sense"]
 
 #: A leg's radius at shin height (m) and half the distance between the feet across the body.
 LEG_RADIUS_M = 0.06
@@ -77,6 +77,13 @@ def cast(origin: np.ndarray, yaw: float, angles: np.ndarray, rectangles: np.ndar
     """The exact range of every beam (``angles`` about the scanner's x axis, the scanner at
     ``origin`` (2,) facing ``yaw``) to the nearest rectangle side or circle; inf where nothing is
     within ``max_range``."""
+    return cast_hits(origin, yaw, angles, rectangles, circles, max_range)[0]
+
+
+def cast_hits(origin: np.ndarray, yaw: float, angles: np.ndarray, rectangles: np.ndarray, circles: np.ndarray,
+              max_range: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cast`'s ranges, and per beam the index of the circle it hit (-1: a rectangle or
+    nothing): which leg, hence whose, each beam saw."""
     theta = yaw + np.asarray(angles, np.float64)
     dx, dy = np.cos(theta)[:, None], np.sin(theta)[:, None]
     ox, oy = float(origin[0]), float(origin[1])
@@ -98,8 +105,15 @@ def cast(origin: np.ndarray, yaw: float, angles: np.ndarray, rectangles: np.ndar
         b = cx * dx + cy * dy
         disc = b * b - (cx * cx + cy * cy - r * r)
         t = b - np.sqrt(np.maximum(disc, 0.0))
-        best = np.minimum(best, np.where((disc >= 0) & (t > 0), t, np.inf).min(axis=1))
-    return np.where(best <= max_range, best, np.inf)
+        t = np.where((disc >= 0) & (t > 0), t, np.inf)
+        nearest = t.argmin(axis=1)
+        t_circle = t[np.arange(len(t)), nearest]
+        owner = np.where(t_circle < best, nearest, -1)
+        best = np.minimum(best, t_circle)
+    else:
+        owner = np.full(len(theta), -1)
+    owner = np.where(best <= max_range, owner, -1)
+    return np.where(best <= max_range, best, np.inf), owner
 
 
 def sense(exact: np.ndarray, spec: LaserSpec, rng: np.random.Generator) -> np.ndarray:

@@ -18,12 +18,46 @@ import numpy as np
 from common.geometry.transforms import PinholeCamera
 from tools.simulator.core.body import Clothing, Ellipsoids, body_ellipsoids, torso_centre
 from tools.simulator.core.cameras import FixedCamera
+from tools.simulator.core.laser_map import LASER_HEIGHT_M
+from tools.simulator.core.laser_scan import LaserSpec, cast_hits, legs_of, rectangles_at, sense
 from tools.simulator.core.render import NEAR_M, Renderer, RenderResult
 from tools.simulator.core.scenarios import World
 
-__all__ = ["FixedView", "FrameData", "PersonTruth", "Simulation", "visible_fraction"]
+__all__ = ["BaseLaser", "FixedView", "FrameData", "PersonTruth", "ScanData", "Simulation", "visible_fraction"]
 
 MIN_VISIBLE = 0.25
+#: Beams on a person's legs for the laser to count as seeing them (the leg detector's least segment).
+MIN_LASER_BEAMS = 3
+
+
+@dataclass(frozen=True)
+class BaseLaser:
+    """A 2-D laser on the base: ``spec`` (its sweep, rate, noise), ``name`` (its stream,
+    ``scans/{name}``) and frame ``frame`` at ``mount`` (4, 4) T_base_laser (by default 0.2 m
+    ahead of the base's centre at the map's laser height, facing forward)."""
+
+    spec: LaserSpec = field(default_factory=lambda: LaserSpec(fov_deg=360.0))
+    name: str = "front"
+    frame: str = "base_laser"
+    mount: np.ndarray = field(default_factory=lambda: _mount(0.2, LASER_HEIGHT_M))
+
+
+def _mount(x: float, z: float) -> np.ndarray:
+    m = np.eye(4)
+    m[0, 3], m[2, 3] = x, z
+    return m
+
+
+@dataclass
+class ScanData:
+    """One sweep of the base laser: ``map_laser`` (4, 4) the scanner's true pose, ``ranges`` as the
+    scanner reports them (float32, 0: no return) and ``beams`` (N,) how many beams hit each person's
+    legs, in :attr:`FrameData.people`'s order."""
+
+    laser: BaseLaser
+    map_laser: np.ndarray
+    ranges: np.ndarray
+    beams: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -41,6 +75,7 @@ class PersonTruth:
     clothing: Clothing
     outfit: int
     facing_rad: float = 0.0  # the direction the body faces in the map (0 along +x)
+    laser_seen: bool | None = None  # the base laser's beams hit their legs (None: no laser)
 
 
 @dataclass
@@ -62,7 +97,8 @@ class FrameData:
     """A rendered frame with its time, poses and ground truth. Poses are (4, 4) T_parent_child.
 
     ``render``, ``map_camera`` and ``people``' visibility are the head camera's; ``views``
-    holds the cameras fixed on the base, by name (empty without them)."""
+    holds the cameras fixed on the base, by name (empty without them); ``scan`` the base laser's
+    sweep at this frame's time (None: no laser, or not one of its frames)."""
 
     seq: int
     t: float
@@ -75,6 +111,7 @@ class FrameData:
     map_camera: np.ndarray
     people: list[PersonTruth]
     views: dict[str, FixedView] = field(default_factory=dict)
+    scan: ScanData | None = None
 
 
 def visible_fraction(
@@ -111,6 +148,7 @@ class Simulation:
         min_visible: float = MIN_VISIBLE,
         depth_noise: bool = True,
         fixed_cameras: Sequence[FixedCamera] = (),
+        laser: BaseLaser | None = None,
     ) -> None:
         self.world = world
         self.camera = camera
@@ -122,6 +160,12 @@ class Simulation:
             Renderer(world.apartment, camera, seed=(seed, k + 1), depth_noise=depth_noise)
             for k in range(len(self.fixed_cameras))
         ]
+        self.laser = laser
+        self._seed = seed
+        if laser is not None:
+            self._solids_at_laser = rectangles_at(world.apartment, float(laser.mount[2, 3]))
+            #: a sweep every this many frames: the scanner's own rate, at most the camera's
+            self.laser_every = max(1, round(fps / laser.spec.rate_hz))
 
     def people_solids(
         self, t: float
@@ -159,12 +203,15 @@ class Simulation:
         solids, info = self.people_solids(t)
         result = self.renderer.render(map_cam, solids)
         people = []
+        scan = self._scan(seq, t, map_base, info) if self.laser is not None else None
         for k, (pid, centre, vel, posture, height, clothing, outfit, yaw) in enumerate(info):
             vis, in_view = visible_fraction(solids.sample_points(k), k, map_cam, self.camera, result.owner)
             people.append(
                 PersonTruth(pid, centre, vel, vis, in_view, vis >= self.min_visible, posture, height, clothing, outfit,
-                            yaw)
+                            yaw, None if scan is None else bool(scan.beams[k] >= MIN_LASER_BEAMS))
             )
+        if scan is not None and seq % self.laser_every:
+            scan = None  # seen (the ground truth), not sent: not one of the scanner's frames
         return FrameData(
             seq,
             t,
@@ -178,7 +225,26 @@ class Simulation:
             people,
             {cam.name: self._fixed_view(cam, renderer, map_base, solids)
              for cam, renderer in zip(self.fixed_cameras, self._fixed_renderers)},
+            scan,
         )
+
+    def _scan(self, seq: int, t: float, map_base: np.ndarray,
+              info: list[tuple[int, np.ndarray, np.ndarray, str, float, Clothing, int, float]]) -> ScanData:
+        """The base laser's sweep at ``t``: the apartment's solids at its height and everyone's legs."""
+        laser = self.laser
+        assert laser is not None
+        map_laser = map_base @ laser.mount
+        xy = np.array([c[:2] for _, c, *_ in info]).reshape(-1, 2)
+        heading = np.array([yaw for *_, yaw in info])
+        speed = np.array([float(np.hypot(v[0], v[1])) for _, _, v, *_ in info])
+        seated = np.array([posture == "sitting" for _, _, _, posture, *_ in info], bool)
+        legs = legs_of(xy, heading, speed, t, seated)
+        yaw = float(np.arctan2(map_laser[1, 0], map_laser[0, 0]))
+        exact, owner = cast_hits(map_laser[:2, 3], yaw, laser.spec.angles(), self._solids_at_laser, legs,
+                                 laser.spec.range_max)
+        ranges = sense(exact, laser.spec, np.random.default_rng((self._seed, 7, seq)))
+        hit = owner[(owner >= 0) & (ranges > 0)] // 2
+        return ScanData(laser, map_laser, ranges, np.bincount(hit, minlength=len(info)))
 
     def _fixed_view(self, cam: FixedCamera, renderer: Renderer, map_base: np.ndarray, solids: Ellipsoids) -> FixedView:
         map_cam = map_base @ cam.base_optical

@@ -77,7 +77,7 @@ NODES: tuple[NodeEntry, ...] = (
               subscribes=("detections",), publishes=("frames",)),
     NodeEntry("ros2", "services.ros2", "services.ros2.service:Ros2Service", "services.ros2.config:Ros2Config",
               "a ROS 2 robot's camera and transforms in, the people out as ROS 2 topics (rmw_zenoh)",
-              subscribes=("tracks",), publishes=("frames", "tf", "tf_static", "static_map"), ros2=True),
+              subscribes=("tracks",), publishes=("frames", "tf", "tf_static", "static_map", "scans"), ros2=True),
     NodeEntry("viewer", "tools.viewer", "tools.viewer.node:ViewerNode", "tools.viewer.config:ViewerConfig",
               "the operator's live page",
               subscribes=("frames", "detections", "localized", "embeddings", "tracks", "id_decisions", "tf", "tf_static",

@@ -4,10 +4,11 @@ driver's (``realsense2_camera``, namespace and name ``camera``); any other drive
 from __future__ import annotations
 
 import os
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import ConfigDict, field_validator, model_validator
 
+from common.messages.keys import validate_chunk
 from common.runtime.settings import AdvancedBlock, setting
 
 from services.ros2.core.types import DISTROS
@@ -32,6 +33,48 @@ def _topic(v: str) -> str:
     if any(t[:1].isdigit() for t in v.strip("/").split("/")):
         raise ValueError(f"{v!r}: a ROS 2 name token cannot start with a digit")
     return v
+
+
+#: The laser a bare scan topic feeds: the one ``perception laser`` reads by default.
+DEFAULT_LASER = "front"
+
+
+def _scans(v: Any) -> list[str]:
+    """``scans`` as ``TOPIC:NAME`` items: from a list of ``TOPIC[:NAME]`` (a bare topic is laser
+    front), a mapping ``{TOPIC: NAME}`` or one comma-separated text; every topic and name once."""
+    if isinstance(v, dict):
+        items = [f"{k}:{n}" for k, n in v.items()]
+    elif isinstance(v, str):
+        items = [t.strip() for t in v.split(",") if t.strip()]
+    elif isinstance(v, (list, tuple)):
+        items = [str(t).strip() for t in v]
+    else:
+        raise ValueError(f"{v!r}: give a list of TOPIC[:NAME] (e.g. [/scan:front, /rear/scan:rear]) or a mapping "
+                         "{TOPIC: NAME}")
+    out: list[str] = []
+    topics: dict[str, str] = {}
+    names: dict[str, str] = {}
+    for item in items:
+        topic, _, name = item.partition(":")
+        name = name.strip() or DEFAULT_LASER
+        topic = topic.strip()
+        if not topic:
+            raise ValueError(f"{item!r}: no topic (write TOPIC[:NAME], e.g. /scan:front)")
+        _topic(topic)
+        try:
+            if ":" in name:
+                raise ValueError(f"laser name {name!r} has a ':'")
+            validate_chunk(name, "laser name")
+        except ValueError as exc:
+            raise ValueError(f"{item!r}: {exc}") from None
+        if topic in topics:
+            raise ValueError(f"{topic} is listed twice ({topics[topic]}, {item}): read each topic once")
+        if name in names:
+            raise ValueError(f"{names[name]} and {item} both feed scans/{name}: name each laser "
+                             f"(e.g. {topic}:rear); a bare topic is laser {DEFAULT_LASER}")
+        topics[topic], names[name] = item, item
+        out.append(f"{topic}:{name}")
+    return out
 
 
 class Ros2Config(AdvancedBlock):
@@ -76,6 +119,12 @@ class Ros2Config(AdvancedBlock):
     map_period_s: float = setting(5.0, "the map received is re-sent on static_map this often, for late joiners",
                                   unit="s", gt=0.0, le=600.0, advanced=True)
 
+    # --- in: 2-D laser scans become scans/{laser}
+    scans: list[str] = setting(
+        default_factory=lambda: [f"/scan:{DEFAULT_LASER}"],
+        description="2-D laser scans, sensor_msgs/LaserScan: each TOPIC:NAME -> scans/NAME, for perception laser "
+                    "(a bare TOPIC is laser front; a mapping {TOPIC: NAME} is read too); [] for none")
+
     # --- out: the people as ROS 2 topics
     people_out: bool = setting(True, "publish the tracker's people as ROS4HRI topics, /tf frames and RViz markers")
     humans_namespace: str = setting("/humans", "ROS4HRI's root (REP 155)")
@@ -98,6 +147,15 @@ class Ros2Config(AdvancedBlock):
     def _topics(cls, v: str) -> str:
         return _topic(v)
 
+    @field_validator("scans", mode="before")
+    @classmethod
+    def _scan_topics(cls, v: Any) -> list[str]:
+        return _scans(v)
+
+    def scan_topics(self) -> list[tuple[str, str]]:
+        """(ROS topic, laser name) of each scan topic read."""
+        return [(topic, name) for topic, _, name in (item.partition(":") for item in self.scans)]
+
     @field_validator("namespace")
     @classmethod
     def _namespace(cls, v: str) -> str:
@@ -112,8 +170,8 @@ class Ros2Config(AdvancedBlock):
 
     @model_validator(mode="after")
     def _something_to_do(self) -> Ros2Config:
-        if not (self.camera_in or self.tf_in or self.people_out):
-            raise ValueError("nothing to do: camera_in, tf_in and people_out are all off")
+        if not (self.camera_in or self.tf_in or self.people_out or self.scans):
+            raise ValueError("nothing to do: camera_in, tf_in and people_out are all off and scans is empty")
         if self.camera_in and not (self.colour_topic and self.camera_info_topic):
             raise ValueError("camera_in needs colour_topic and camera_info_topic (or turn camera_in off)")
         if self.camera_in and self.require_depth and not self.depth_topic:

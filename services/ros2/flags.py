@@ -34,6 +34,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--map-topic", dest="map_topic", default=None, metavar="TOPIC",
                    help="the robot's map, nav_msgs/OccupancyGrid, passed to the tracker (default /map, Nav2's "
                         "map_server's and slam_toolbox's); '' for none")
+    g.add_argument("--scan", dest="scans", action="append", default=None, metavar="TOPIC[:NAME]",
+                   help="read sensor_msgs/LaserScan on TOPIC and publish it on scans/NAME (a bare TOPIC is laser "
+                        "front); repeat for several lasers; replaces the default /scan:front")
+    g.add_argument("--no-scan", dest="scans", action="store_const", const=[], default=None,
+                   help="do not read a laser scan topic")
     g.add_argument("--no-people", dest="people_out", action="store_const", const=False, default=None,
                    help="do not publish the people as ROS 2 topics")
     add_node_arguments(parser, "ros2", Ros2Config)
@@ -41,7 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def overrides(args: argparse.Namespace) -> dict[str, Any]:
     names = ("domain_id", "distro", "node_name", "camera", "colour_topic", "colour_compressed", "depth_topic",
-             "camera_info_topic", "map_topic", "camera_in", "tf_in", "people_out")
+             "camera_info_topic", "map_topic", "scans", "camera_in", "tf_in", "people_out")
     out = {n: getattr(args, n) for n in names}
     if args.depth_topic == "":
         out["require_depth"] = False

@@ -6,7 +6,8 @@ the ROS 2 graph (``ros2 node list``, ``ros2 topic list``) through rmw_zenoh's li
 
 In (each switchable): colour + depth + camera info -> ``frames/{camera}`` (approximate-time
 pairing); ``/tf`` and ``/tf_static`` -> ``tf`` and ``tf_static``; ``/map`` -> ``static_map``
-(:class:`~services.ros2.maps.MapRelay`). Out: the tracker's ``tracks``
+(:class:`~services.ros2.maps.MapRelay`); each laser's ``sensor_msgs/LaserScan`` (``/scan``) ->
+``scans/{laser}``. Out: the tracker's ``tracks``
 -> ``/humans/bodies/...``, ``body_<id>`` frames on ``/tf`` and ``/humans/markers``.
 
 Each ROS topic is read on ``<domain>/<topic>/*/*``, every type and hash: a sample of another
@@ -19,19 +20,22 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Callable
 
 from common.geometry.messages import transform_from_ros
-from common.messages.keys import FRAMES, MAPS, RELIABLE, Delivery, Keys
+from common.messages.keys import FRAMES, MAPS, RELIABLE, SCANS, Delivery, Keys
 from common.runtime.node import Node
 from common.runtime.pairing import StampPairer
 from common.runtime.ratelog import RateLimitedLog
 from common.runtime.service import Counters
-from common.messages.schemas import CameraInfo, Header, Image, RGBDFrame, StaticMap, TrackState, TransformBatch, Tracks
-from common.transport.base import RawSample, RawSubscription, Transport
+from common.messages.schemas import (CameraInfo, Header, Image, LaserScan, RGBDFrame, StaticMap, TrackState,
+                                     TransformBatch, Tracks)
+from common.transport.base import Publisher, RawSample, RawSubscription, Transport
 from services.ros2.config import Ros2Config
 from services.ros2.core.images import ImageError, Intrinsics, Pixels, compressed_pixels, intrinsics, raw_pixels
 from services.ros2.core.people import PeopleWriter, Person
+from services.ros2.core.scans import ScanError, checked_scan
 from services.ros2.core.types import CdrError, known_hashes, types_of
 from services.ros2.core.wire import Qos, dds_to_ros, parse_attachment
 from services.ros2.maps import MapRelay
@@ -96,6 +100,12 @@ class Ros2Service(Node):
         if config.map_topic:  # the robot's map, transient local as map_server publishes it
             self.maps = MapRelay(self.io.publisher(keys.static_map(), StaticMap, MAPS).put, config.map_period_s)
             self._read(config.map_topic, "nav_msgs/msg/OccupancyGrid", self._on_map, QOS_TF_STATIC, history=1)
+        # each laser's scans, as its driver publishes them (sensor data: best effort)
+        self._scan_seq: dict[str, int] = {}
+        for topic, laser in config.scan_topics():
+            pub = self.io.publisher(keys.scans(laser), LaserScan, SCANS)
+            self._scan_seq[laser] = 0
+            self._read(topic, "sensor_msgs/msg/LaserScan", partial(self._on_scan, laser, pub), QOS_SENSOR)
         if config.people_out:
             self.tracks_sub = self.io.subscribe(keys.tracks(), Tracks, Delivery(latest=False, queue=config.queue,
                                                                                  congestion="block"))
@@ -147,7 +157,7 @@ class Ros2Service(Node):
             return
         try:
             t.handle(msg)
-        except ImageError as exc:
+        except (ImageError, ScanError) as exc:
             self._bad(exc.reason, f"{t.topic}: {exc}")
         except (ValueError, TypeError, AttributeError) as exc:
             self._bad("message", f"{t.topic}: {type(exc).__name__}: {exc}")
@@ -189,6 +199,17 @@ class Ros2Service(Node):
     def _on_map(self, msg: Any) -> None:
         self.maps.take(msg, self._now)  # type: ignore[union-attr]
         self.counters.count("maps")
+
+    def _on_scan(self, laser: str, pub: Publisher[LaserScan], msg: Any) -> None:
+        checked = checked_scan(msg)
+        seq = self._scan_seq[laser] + 1
+        try:
+            scan = LaserScan.from_ros(checked, laser, seq)
+        except ValueError as exc:  # pydantic's: a field LaserScan refuses, named
+            raise ScanError("scan", " ".join(str(exc).split())[:300]) from exc
+        self._scan_seq[laser] = seq
+        pub.put(scan)
+        self.counters.count("scans")
 
     def _frames(self, now: float) -> list[RGBDFrame]:
         out = []
@@ -301,6 +322,8 @@ class Ros2Service(Node):
             parts.append(f"{self.config.tf_topic}, {self.config.tf_static_topic} -> tf, tf_static")
         if self.config.map_topic:
             parts.append(f"{self.config.map_topic} -> static_map")
+        for topic, laser in self.config.scan_topics():
+            parts.append(f"{topic} -> {self.keys.scans(laser)}")
         if self.config.people_out:
             parts.append(f"tracks -> {self.config.humans_namespace}/bodies/..., /tf, {self.config.markers_topic}")
         return f"ROS 2 domain {self.config.domain_id} ({self.config.distro}), node {self.config.node_name}: " + "; ".join(parts)

@@ -9,6 +9,7 @@ it also sees what the nodes refuse: an invalid frame is read field by field
 
 from __future__ import annotations
 
+import dataclasses
 from collections import defaultdict
 from collections.abc import Callable
 from typing import Any
@@ -20,6 +21,7 @@ from common.messages.schemas import (
     Detections,
     Embeddings,
     Image,
+    LaserScan,
     LocalizedDetections,
     Message,
     RGBDFrame,
@@ -33,6 +35,7 @@ from tools.doctor.core.facts import (
     FrameFacts,
     NodeFacts,
     Observation,
+    ScanFacts,
     StreamFacts,
 )
 
@@ -120,6 +123,7 @@ class Observer:
     def __init__(self) -> None:
         self.streams: dict[str, StreamFacts] = {}
         self.frames: dict[str, list[FrameFacts]] = defaultdict(list)
+        self.scans: dict[str, ScanFacts] = {}
         self.offsets: dict[str, list[int]] = defaultdict(list)
         self.edges: dict[tuple[str, str], EdgeFacts] = {}
         self.stages: dict[str, dict[str, dict[tuple[int, str, int], int]]] = defaultdict(lambda: defaultdict(dict))
@@ -175,6 +179,9 @@ class Observer:
                 e.count += 1
                 e.last_stamp_ns = max(e.last_stamp_ns, t.stamp_ns)
             return
+        if isinstance(msg, LaserScan):
+            self._scan(camera or msg.header.source, msg, recv_ns)
+            return
         source = msg.header.source or camera
         if stream == "tracks" and isinstance(msg, Tracks) and msg.input_stamp_ns:
             # at a fixed output rate the stamp is the publish time: key the newest input frame
@@ -207,6 +214,21 @@ class Observer:
             self.position_only += 0 if msg.appearance_available else 1
             self.track_models.add(msg.embedding_model)
             self.track_frames.add(msg.header.frame_id)
+
+    def _scan(self, laser: str, scan: LaserScan, recv_ns: int) -> None:
+        s = self.scans.setdefault(laser, ScanFacts(laser, first_stamp_ns=scan.header.stamp_ns, first_recv_ns=recv_ns))
+        if s.count and scan.header.stamp_ns <= s.last_stamp_ns:
+            s.backwards += 1
+        s.count += 1
+        s.last_stamp_ns = max(s.last_stamp_ns, scan.header.stamp_ns)
+        s.last_recv_ns = recv_ns
+        if scan.header.frame_id not in s.frame_ids:
+            s.frame_ids.append(scan.header.frame_id)
+        r = np.asarray(scan.ranges, np.float32)
+        with np.errstate(invalid="ignore"):
+            missing = float(np.count_nonzero(~((r > scan.range_min) & (r < scan.range_max)))) / max(1, len(r))
+        s.no_return += (missing - s.no_return) / s.count
+        s.beams, s.scan_time_s = len(r), float(scan.scan_time)
 
     def _keep_frame(self, camera: str, recv_ns: int, make: Callable[[], FrameFacts]) -> None:
         """Keep a frame's facts, at most one per ``FRAME_EVERY_S`` and the last ``FRAMES_KEPT``."""
@@ -271,6 +293,7 @@ class Observer:
         return Observation(
             duration_s=duration_s, source=source, end_ns=self.last_ns if end_ns is None else end_ns,
             streams=dict(self.streams), nodes=nodes, frames={k: list(v) for k, v in self.frames.items()},
+            scans={k: dataclasses.replace(v, frame_ids=list(v.frame_ids)) for k, v in self.scans.items()},
             offsets_ns={k: list(v) for k, v in self.offsets.items()}, edges=list(self.edges.values()),
             stages={cam: {s: dict(keys) for s, keys in st.items()} for cam, st in self.stages.items()},
             cards=sorted(self.cards), track_models=sorted(self.track_models), track_frames=sorted(self.track_frames),

@@ -34,6 +34,7 @@ def watch(transport: Transport, keys: Keys, duration_s: float, observer: Observe
     """
     subs: list[Subscription[Any]] = [
         transport.subscribe(keys.frames("*"), None, FRAMES_FIFO),
+        transport.subscribe(keys.scans("*"), None, FRAMES_FIFO),
         *(transport.subscribe(key, None, RELIABLE) for key in (
             keys.detections("*"), keys.localized("*"), keys.embeddings("*"), keys.tracks(), keys.tf(),
             keys.tf_static(), keys.status())),

@@ -14,19 +14,21 @@ from tools.doctor.core.chain import chain_checks, clock_checks
 from tools.doctor.core.config import config_checks
 from tools.doctor.core.facts import SYMBOLS, Check, Observation
 from tools.doctor.core.geometry import geometry_checks
+from tools.doctor.core.laser import laser_checks
 from tools.doctor.core.ros2 import ros2_checks
 from tools.doctor.core.streams import node_checks, stream_checks
 from tools.doctor.core.transforms import transform_checks
 
 __all__ = ["SECTIONS", "exit_code", "render", "run_checks", "to_dicts"]
 
-SECTIONS = ("Streams", "ROS 2", "Camera", "Transforms", "Clocks", "Chain", "Config")
+SECTIONS = ("Streams", "ROS 2", "Camera", "Laser", "Transforms", "Clocks", "Chain", "Config")
 _CODES = {"ok": 0, "warn": 1, "fail": 2}
 
 
 def run_checks(obs: Observation) -> list[Check]:
     """The checklist for ``obs``, section by section."""
-    return [*stream_checks(obs), *node_checks(obs), *ros2_checks(obs), *camera_checks(obs), *transform_checks(obs),
+    return [*stream_checks(obs), *node_checks(obs), *ros2_checks(obs), *camera_checks(obs), *laser_checks(obs),
+            *transform_checks(obs),
             *geometry_checks(obs),
             *clock_checks(obs), *chain_checks(obs), *config_checks(obs)]
 

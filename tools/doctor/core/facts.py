@@ -18,8 +18,8 @@ import numpy as np
 from services.ros2.core.wire import GraphEntity
 from common.messages.registry import stages
 
-__all__ = ["CHAIN", "NODES", "SYMBOLS", "Check", "EdgeFacts", "FrameFacts", "NodeFacts", "Observation", "Status",
-           "StreamFacts"]
+__all__ = ["CHAIN", "NODES", "SYMBOLS", "Check", "EdgeFacts", "FrameFacts", "NodeFacts", "Observation", "ScanFacts",
+           "Status", "StreamFacts"]
 
 Status = Literal["ok", "warn", "fail"]
 #: How each status is printed.
@@ -118,6 +118,33 @@ class FrameFacts:
 
 
 @dataclass
+class ScanFacts:
+    """A laser's scans as received on ``scans/{laser}``: how many, their frames, stamps and sweep.
+
+    ``backwards`` counts scans whose stamp was not after the one before (two drivers on one
+    topic, a replay that loops); ``no_return`` is the share of beams without a return (NaN, inf
+    or outside the scan's range limits), averaged over the scans; ``scan_time_s`` the last
+    scan's own period (0: the driver does not say)."""
+
+    laser: str
+    count: int = 0
+    frame_ids: list[str] = field(default_factory=list)
+    first_stamp_ns: int = 0
+    last_stamp_ns: int = 0
+    first_recv_ns: int = 0
+    last_recv_ns: int = 0
+    backwards: int = 0
+    beams: int = 0
+    scan_time_s: float = 0.0
+    no_return: float = 0.0
+
+    def stamp_rate_hz(self) -> float:
+        """The scans' rate by their stamps (0 with fewer than two, or stamps that do not advance)."""
+        span = (self.last_stamp_ns - self.first_stamp_ns) / 1e9
+        return (self.count - 1) / span if self.count > 1 and span > 0 else 0.0
+
+
+@dataclass
 class EdgeFacts:
     """A transform edge ``parent -> child`` as received on ``tf`` or ``tf_static``."""
 
@@ -148,6 +175,8 @@ class Observation:
     streams: dict[str, StreamFacts] = field(default_factory=dict)
     nodes: list[NodeFacts] = field(default_factory=list)
     frames: dict[str, list[FrameFacts]] = field(default_factory=dict)
+    #: each laser's scans (``scans/{laser}``), by laser name
+    scans: dict[str, ScanFacts] = field(default_factory=dict)
     offsets_ns: dict[str, list[int]] = field(default_factory=dict)
     edges: list[EdgeFacts] = field(default_factory=list)
     stages: dict[str, dict[str, dict[tuple[int, str, int], int]]] = field(default_factory=dict)

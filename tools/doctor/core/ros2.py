@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from services.ros2.core.types import known_hashes
 from services.ros2.core.wire import GraphEntity
 from tools.doctor.core.facts import Check, NodeFacts, Observation
+from tools.doctor.core.laser import ros2_scan_topics
 
 __all__ = ["SECTION", "input_topics", "ros2_checks"]
 
@@ -38,6 +39,16 @@ _INPUT_FIXES = {
     "invalid_type_hash": "the robot's ROS 2 distribution is not the node's: set distro (jazzy, kilted, rolling); Humble "
                          "is not supported",
     "invalid_wrong_type": "a topic carries another type than the node reads there: see the topic lines",
+    "invalid_scan_length": "the laser's ranges do not fit its angle_min, angle_max and angle_increment: check the "
+                           "driver's angle settings (a cropped scan must crop both)",
+    "invalid_scan_increment": "the laser's scans have angle_increment 0: the driver does not fill in its geometry",
+    "invalid_scan_not_finite": "the laser's scans carry NaN or inf in their angles, increments or range limits (NaN "
+                               "and inf ranges are fine): check the driver",
+    "invalid_scan_range_limits": "the laser's range_min is not below its range_max: check the driver's range settings",
+    "invalid_scan_intensities": "the laser sends intensities but not one per range: turn its intensities off or fix "
+                                "the driver",
+    "invalid_scan_empty": "the laser's scans have no ranges: the scanner is not measuring (see its driver's log)",
+    "invalid_scan": "the laser's scans are refused (see the ros2 node's log, which names the field)",
 }
 
 
@@ -51,8 +62,9 @@ class _Input:
     optional: str = ""
 
 
-def input_topics(node: NodeFacts) -> list[_Input]:
-    """The ROS topics a ``ros2`` node reads, from its status's settings."""
+def input_topics(node: NodeFacts, lasers_read: frozenset[str] = frozenset()) -> list[_Input]:
+    """The ROS topics a ``ros2`` node reads, from its status's settings; ``lasers_read``: the
+    lasers a laser node reads (their topic without a publisher warns)."""
     s = node.settings
     out = []
     if s.get("camera_in", "true") == "true":
@@ -69,6 +81,10 @@ def input_topics(node: NodeFacts) -> list[_Input]:
     out.append(_Input("map_topic", s.get("map_topic", "/map"), "nav_msgs/msg/OccupancyGrid", required=False,
                       optional="no map: the tracker runs without one unless given a file (a door jamb seen as a "
                                "person may start a track); Nav2's map_server or slam_toolbox publish it"))
+    for laser, topic in ros2_scan_topics(node).items():
+        out.append(_Input(f"scans (TOPIC:NAME, here {topic}:{laser})", topic, "sensor_msgs/msg/LaserScan",
+                          required=False, optional="" if laser in
+                          lasers_read else f"no laser: scans/{laser} stays empty (no perception laser reads it)"))
     return [i for i in out if i.topic]
 
 
@@ -137,7 +153,8 @@ def ros2_checks(obs: Observation) -> list[Check]:
         out.append(Check(SECTION, "graph", "ok", f"domain {domain}: {len(ros_nodes)} nodes ({shown}), {len(topics)} topics"))
     for node in nodes:
         distro = node.settings.get("distro", "jazzy")
-        for inp in input_topics(node):
+        lasers = frozenset(n.settings.get("laser", "front") for n in obs.running("laser"))
+        for inp in input_topics(node, lasers):
             out.append(_topic_check(inp, graph, mine, distro))
         for counter, fix in _INPUT_FIXES.items():
             n = node.counters.get(counter, 0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from tools.doctor.core.facts import Check, EdgeFacts, Observation
 
-__all__ = ["transform_checks"]
+__all__ = ["chain_check", "transform_checks"]
 
 SECTION = "Transforms"
 #: A dynamic edge whose newest stamp is this much older than the frames is stale (s).
@@ -43,9 +43,12 @@ def _camera_frames(obs: Observation) -> dict[str, int]:
     return out
 
 
-def _chain(obs: Observation, parents: dict[str, EdgeFacts], camera: str, stamp_ns: int, target: str) -> Check:
-    name = f"chain {target} ← {camera}"
-    path, node = [camera], camera
+def chain_check(parents: dict[str, EdgeFacts], frame: str, stamp_ns: int, target: str, *, section: str = SECTION,
+                what: str = "frames") -> tuple[Check, bool]:
+    """(the line ``chain {target} ← {frame}``, whether the chain reaches ``target``): complete and
+    fresh at ``stamp_ns`` (the newest of the ``what``), or where it stops and the edge to publish."""
+    name = f"chain {target} ← {frame}"
+    path, node = [frame], frame
     while node != target and node in parents and parents[node].parent not in path:
         node = parents[node].parent
         path.append(node)
@@ -56,10 +59,10 @@ def _chain(obs: Observation, parents: dict[str, EdgeFacts], camera: str, stamp_n
         stale = [(e, lag) for e, lag in stale if lag > STALE_S]
         if stale:
             e, lag = max(stale, key=lambda item: item[1])
-            return Check(SECTION, name, "fail", f"{shown}, but {e.parent} → {e.child} is {lag:.1f} s older than the "
-                         "frames", f"the publisher of {e.parent} → {e.child} lags or stopped: it must keep up with the "
-                         "camera's stamps")
-        return Check(SECTION, name, "ok", f"{shown} at the frames' stamps")
+            return Check(section, name, "fail", f"{shown}, but {e.parent} → {e.child} is {lag:.1f} s older than the "
+                         f"{what}", f"the publisher of {e.parent} → {e.child} lags or stopped: it must keep up with the "
+                         f"{'camera' if what == 'frames' else what}'s stamps"), True
+        return Check(section, name, "ok", f"{shown} at the {what}' stamps"), True
     children: dict[str, list[str]] = {}
     for e in parents.values():
         children.setdefault(e.parent, []).append(e.child)
@@ -70,11 +73,11 @@ def _chain(obs: Observation, parents: dict[str, EdgeFacts], camera: str, stamp_n
         todo += [c for c in children.get(f, []) if c not in below]
     leaves = [f for f in below if not children.get(f)]
     if not parents:
-        figure, fix = "no transform received", (f"publish {target} ← odom ← base_link ← … ← {camera} on tf (and the "
+        figure, fix = "no transform received", (f"publish {target} ← odom ← base_link ← … ← {frame} on tf (and the "
                                                 "fixed ones on tf_static, about once a second)")
     else:
-        start = f"no transform has {camera} as its child" if node == camera else f"{shown} stops at {node}"
-        between = " → … → " if node == camera else " → "
+        start = f"no transform has {frame} as its child" if node == frame else f"{shown} stops at {node}"
+        between = " → … → " if node == frame else " → "
         if not children.get(target):
             reach, gap = f"nothing hangs from {target}", f"{target}{between}{node}"
         elif len(leaves) == 1:
@@ -82,11 +85,16 @@ def _chain(obs: Observation, parents: dict[str, EdgeFacts], camera: str, stamp_n
         else:
             reach, gap = f"the {target} side ends at {', '.join(sorted(leaves))}", f"one of those{between}{node}"
         figure = f"{start}; {reach}: missing {gap}"
-        fix = f"publish {gap}: on tf stamped like the frames, or, if it is fixed, on tf_static about once a second"
-    if _localizes(obs):
-        return Check(SECTION, name, "warn", figure + " (the localizer still has it, from earlier or its config)",
-                     fix + "; a restarted localizer would miss it")
-    return Check(SECTION, name, "fail", figure, fix)
+        fix = f"publish {gap}: on tf stamped like the {what}, or, if it is fixed, on tf_static about once a second"
+    return Check(section, name, "fail", figure, fix), False
+
+
+def _chain(obs: Observation, parents: dict[str, EdgeFacts], camera: str, stamp_ns: int, target: str) -> Check:
+    check, complete = chain_check(parents, camera, stamp_ns, target)
+    if not complete and _localizes(obs):
+        return Check(SECTION, check.name, "warn", check.figure + " (the localizer still has it, from earlier or its "
+                     "config)", check.fix + "; a restarted localizer would miss it")
+    return check
 
 
 def _static(obs: Observation, complete: bool) -> Check:

@@ -86,6 +86,23 @@ def test_demo_fuses_two_detectors_and_two_cameras_through_processes(tmp_path: Pa
     assert _wait_gone(f"--robot demo{proc.pid}") == []
 
 
+@pytest.mark.slow
+def test_demo_with_the_base_laser_runs_the_laser_node_and_judges_everyone_around(tmp_path: Path) -> None:
+    """--laser: the simulator's 2-D laser, the laser node as a process, the tracker fusing its people;
+    the ground truth is everyone the camera or the laser could see."""
+    proc = subprocess.Popen([PY, "-m", "perception", "demo", "--laser", "--duration", "12", "--json", "--no-view",
+                             "--log-dir", str(tmp_path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err[-3000:]
+    result = json.loads(out[out.index("\n{") + 1 :])
+    assert result["cpu_percent"].get("laser") is not None, result["cpu_percent"]
+    # the camera alone counts about 0.6 of these 12 s (the laser sees people out of its view)
+    assert result["overall"]["objects"] > 300, result["overall"]
+    assert result["overall"]["mota"] >= 0.6, result["overall"]
+    assert _wait_gone(f"--robot demo{proc.pid}") == []
+
+
 def _write(path: Path, text: str) -> Path:
     path.write_text(text)
     return path

@@ -78,6 +78,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--back-camera", default=None, metavar="NAME",
                         help="also simulate a camera on the base looking backwards (e.g. back) with its own detector, "
                              "localizer and embedder; the tracker fuses both cameras (try --scenario handover)")
+    parser.add_argument("--laser", action="store_true",
+                        help="also simulate a 2-D laser on the base (360 degrees, scans/front) and run the laser node "
+                             "(perception laser: people from their legs); the tracker fuses them, and the tracks are "
+                             "judged over everyone the camera or the laser could see (try --scenario guided-tour)")
     parser.add_argument("--no-view", action="store_true", help="no live view in the terminal, only the final table")
     parser.add_argument("--view", action="store_true",
                         help="also serve the live page (perception view) and open it in a browser when there is a display")
@@ -141,6 +145,9 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
                                  "PERCEPTION_DETECTOR__DEPTH__TILT_DEG": "0"}}
     if args.back_camera:  # the tracker bridges the blind stretches between the two views
         own_env["tracker"] = preset_environment("several-cameras")
+    if getattr(args, "laser", False):
+        extra["laser"] = ("--laser", "front")
+        names.append("laser")
     if args.no_static_map:  # nor from the ROS 2 robot's /map
         own_env.setdefault("tracker", {})["PERCEPTION_TRACKER__ROBUST__STATIC_MAP__TOPIC"] = "false"
     for name in names:
@@ -224,7 +231,8 @@ def main(args: argparse.Namespace) -> int:
         try:
             monitor = Monitor(transport, keys)
             gt = GroundTruthLog(transport, keys)
-            wanted = (*SERVICES, *(("attention",) if args.attention else ()), *(("ros2",) if args.ros2 else ()))
+            wanted = (*SERVICES, *(("attention",) if args.attention else ()), *(("ros2",) if args.ros2 else ()),
+                      *(("laser",) if args.laser else ()))
             echo = TrackedEcho(transport) if args.ros2 else None
             looked = AttentionLog(transport, keys, default_camera(args.width, args.height)) if args.attention else None
             alive = _wait_alive(transport, keys, sup_thread, shutdown, 60.0, wanted)
@@ -237,6 +245,7 @@ def main(args: argparse.Namespace) -> int:
                             "--width", str(args.width), "--height", str(args.height), "--fps", str(args.fps),
                             "--connect", endpoint, "--robot", robot, *(("--head-control",) if args.attention else ()),
                             *(("--back-camera", args.back_camera) if args.back_camera else ()),
+                            *(("--laser", "front") if args.laser else ()),
                             *(("--ros2",) if args.ros2 else ())),
                 stdout=log_file, stderr=subprocess.STDOUT, start_new_session=True,
                 env={**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "error")},
@@ -292,8 +301,9 @@ def main(args: argparse.Namespace) -> int:
             sup_thread.join(60)
             log_file.close()
     plot = args.plot or log_dir / "tracks.png"
-    report, table = score(gt, monitor, args.scenario, plot=plot, source="head" if args.second_detector or args.back_camera else None,
-                          width=WIDTH)
+    several = args.second_detector or args.back_camera or args.laser
+    report, table = score(gt, monitor, args.scenario, plot=plot, source="head" if several else None, width=WIDTH,
+                          truth="around" if args.laser else "camera")
     if looked is not None:
         report["attention"] = looked.report()
     if echo is not None:

@@ -99,9 +99,10 @@ def _as_frame(t: Tracks, seq_of_stamp: dict[int, int]) -> Tracks:
 
 
 def score(gt: GroundTruthLog, monitor: Monitor, name: str, plot: Path | None = None,
-          source: str | None = None, width: int | None = None) -> tuple[dict[str, Any], str]:
+          source: str | None = None, width: int | None = None,
+          truth: Literal["camera", "around"] = "camera") -> tuple[dict[str, Any], str]:
     """:func:`score_tracks` of a live run's logs."""
-    return score_tracks(gt.frames, monitor.all_tracks, name, plot, source, width)
+    return score_tracks(gt.frames, monitor.all_tracks, name, plot, source, width, truth)
 
 
 def pose_scores(gt: dict[int, PeopleGroundTruth], tracks: list[Tracks], gate_m: float = 1.0) -> dict[str, Any]:

@@ -6,6 +6,8 @@ from pathlib import Path
 
 from pydantic import ConfigDict, field_validator
 
+from common.geometry.map_file import load_obstacles
+from common.geometry.occupancy import ObstacleMap
 from common.messages.keys import validate_chunk
 from common.runtime.settings import AdvancedBlock, setting
 from services.laser.core.legs import LegParams
@@ -30,6 +32,9 @@ class LaserConfig(AdvancedBlock):
                                      "published", ge=0.0, lt=1.0)
     max_range_m: float = setting(_D.max_range_m, "legs farther than this from the scanner are left out", unit="m",
                                  gt=0.0, le=100.0)
+    static_map: Path | None = setting(None, "the robot's static map, a ROS map_server / Nav2 map_saver YAML file in "
+                                      "target_frame (--static-map); None: the static_map stream's (perception ros2 "
+                                      "passes /map on)")
     map_clearance_m: float = setting(0.1, "people this close to an obstacle of the static map (a wall, furniture "
                                      "drawn on the map) are left out; 0: keep them", unit="m", ge=0.0, le=2.0)
     person_z_m: float = setting(0.9, "the height the people are published at, above floor_z_m: a 2-D scan does "
@@ -64,6 +69,10 @@ class LaserConfig(AdvancedBlock):
     @classmethod
     def _chunk(cls, v: str) -> str:
         return validate_chunk(v, "laser")
+
+    def obstacles(self) -> ObstacleMap | None:
+        """The static map's obstacles from ``static_map`` (None: none given; MapFileError names the fix)."""
+        return None if self.static_map is None else load_obstacles(self.static_map)
 
     def params(self) -> LegParams:
         return LegParams(join_m=self.join_m, min_points=self.min_points, max_width_m=self.max_width_m,

@@ -21,6 +21,9 @@ _FLAGS: dict[str, tuple[str, type, str | None, str]] = {
     "--min-probability": ("min_probability", float, "P", "a person's least probability to be published"),
     "--max-range": ("max_range_m", float, "M", "farthest leg kept"),
     "--map-clearance": ("map_clearance_m", float, "M", "leave out people this close to the static map's obstacles"),
+    "--static-map": ("static_map", Path, "MAP.yaml", "the robot's static map (a ROS map_server / Nav2 map_saver YAML "
+                     "file, in the target frame): legs on its walls and furniture (chair and table legs) are not "
+                     "people; default: the static_map stream's (perception ros2's /map)"),
 }
 
 
@@ -36,5 +39,6 @@ def overrides(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def prepare(config: LaserConfig) -> dict[str, Any]:
-    """Read the leg classifier before the transport opens, so a bad file stops the node at once."""
-    return {"model": load_model(config.model)[0]}
+    """Read the leg classifier and the static map before the transport opens, so a bad file stops
+    the node at once."""
+    return {"model": load_model(config.model)[0], "obstacles": config.obstacles()}

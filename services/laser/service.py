@@ -78,7 +78,7 @@ class LaserService(Node):
     name = "laser"
 
     def __init__(self, transport: Transport, keys: Keys, config: LaserConfig, counters: Counters | None = None,
-                 model: Boosted | None = None) -> None:
+                 model: Boosted | None = None, obstacles: ObstacleMap | None = None) -> None:
         super().__init__(transport, keys, counters)
         if model is None:
             from services.laser.model_file import load_model
@@ -88,12 +88,13 @@ class LaserService(Node):
         self.model = model
         self.params = config.params()
         self.buffer = TransformBuffer(history_s=config.tf_history_s, tolerance_s=config.tf_tolerance_s)
-        self.obstacles: ObstacleMap | None = None
+        #: the static map's obstacles: the file's (``static_map``), else the static_map stream's newest
+        self.obstacles: ObstacleMap | None = obstacles if obstacles is not None else config.obstacles()
         self.waiting: deque[_Waiting] = deque()
         self._log = RateLimitedLog(log)
         self.sub_tf_static = self.io.subscribe(keys.tf_static(), TransformBatch, RELIABLE)
         self.sub_tf = self.io.subscribe(keys.tf(), TransformBatch, RELIABLE)
-        self.sub_map = self.io.subscribe(keys.static_map(), StaticMap, MAPS)
+        self.sub_map = self.io.subscribe(keys.static_map(), StaticMap, MAPS) if config.static_map is None else None
         self.sub_scans = self.io.subscribe(keys.scans(config.laser), LaserScan, SCANS)
         self.pub = self.io.publisher(keys.localized(config.laser), LocalizedDetections, RELIABLE)
 
@@ -107,7 +108,7 @@ class LaserService(Node):
 
     def poll(self, now: float) -> list[LocalizedDetections]:
         take_transforms(self.buffer, ((self.sub_tf_static, True), (self.sub_tf, False)), self.counters, self._log)
-        while (got := self.sub_map.try_recv()) is not None:
+        while self.sub_map is not None and (got := self.sub_map.try_recv()) is not None:
             if got.msg.header.frame_id in ("", self.config.target_frame):
                 self.obstacles = obstacles_from_map(got.msg)
             else:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -99,6 +101,25 @@ def test_people_on_the_map_s_obstacles_are_left_out(memory_bus: MemoryBus) -> No
     rig.scans.put(scan(3, [(2.0, -0.125), (2.0, 0.125)]))
     [msg] = rig.service.poll(0.0)
     assert msg.detections == [] and msg.rejected["on_map"] == 1
+
+
+def test_a_map_file_s_furniture_is_left_out_and_a_bad_file_is_named(memory_bus: MemoryBus, tmp_path: Path) -> None:
+    from common.geometry.map_file import MapFileError, OccupancyGrid, write_map
+
+    occupied = np.zeros((100, 100), bool)
+    x, y = to_map(1.95, 0.0)  # a chair's legs where the legs are, drawn on the robot's map
+    occupied[int(y / 0.05) - 2:int(y / 0.05) + 3, int(x / 0.05) - 2:int(x / 0.05) + 3] = True
+    path = tmp_path / "map.yaml"
+    write_map(path, OccupancyGrid(occupied, np.zeros_like(occupied), 0.05, (0.0, 0.0, 0.0)))
+    rig = Rig(memory_bus, static_map=path)
+    rig.mount()
+    rig.scans.put(scan(3, [(2.0, -0.125), (2.0, 0.125)]))
+    [msg] = rig.service.poll(0.0)
+    assert msg.detections == [] and msg.rejected["on_map"] == 1
+    assert rig.service.sub_map is None  # the file's map, not the stream's
+    (tmp_path / "bad.yaml").write_text("image: nowhere.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    with pytest.raises(MapFileError, match="nowhere.pgm"):
+        LaserConfig(static_map=tmp_path / "bad.yaml").obstacles()
 
 
 def test_bad_scans_are_counted_and_the_node_keeps_going(memory_bus: MemoryBus) -> None:

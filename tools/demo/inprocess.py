@@ -13,7 +13,8 @@ on the same inputs (``benchmarks/quality_sim.py``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import tempfile
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -40,6 +41,7 @@ from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.cameras import BACK_CAMERA_OFFSET
 from tools.simulator.core.render import default_camera
 from tools.simulator.service import SimulatorService
+from tools.simulator.static_map import write_apartment_map
 
 __all__ = ["ChainResult", "SecondDetector", "run_chain"]
 
@@ -69,10 +71,15 @@ class SecondDetector:
 
 @dataclass
 class ChainResult:
+    """A run's scores (``report``, Table II's ``table``), its frames, the attention figures, and
+    what was judged: the ground truth by frame seq and every published ``Tracks``."""
+
     report: dict[str, Any]
     table: str
     frames: int
     attention: dict[str, Any] | None = None
+    truth: dict[int, PeopleGroundTruth] = field(default_factory=dict)
+    tracks: list[Tracks] = field(default_factory=list)
 
 
 def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, width: int = 320, height: int = 240,
@@ -98,7 +105,8 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
     (:class:`TruthTracks`, a perfect tracker) instead of the tracker's tracks: the loop
     without tracking errors (the tracks are still scored).
     ``laser``: the simulator's base laser (scans/front) and the ground truth of whom it could see;
-    the laser node then finds people in its scans and the tracker fuses them (``fuse_laser``
+    the laser node then finds people in its scans, none on the apartment's map (the robot's laser
+    map: walls, chair and table legs), and the tracker fuses them (``fuse_laser``
     False: the tracker reads the camera alone, the same ground truth, for comparison). The tracks
     are then judged over everyone the robot's sensors could see (camera or laser), all round it.
     """
@@ -138,8 +146,11 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
         nodes[3:3] = [DetectorService(bus.transport(), keys, back_detector),
                       LocalizerService(bus.transport(), keys, LocalizerConfig(camera=back_camera)),
                       EmbedderService(bus.transport(), keys, EmbedderConfig(camera=back_camera))]
-    if laser and fuse_laser:  # before the tracker: one poll round carries a scan to it
-        nodes.insert(len(nodes) - 1, LaserService(bus.transport(), keys, LaserConfig(laser="front")))
+    if laser and fuse_laser:  # before the tracker: one poll round carries a scan to it; with the robot's map
+        with tempfile.TemporaryDirectory() as tmp:  # (its laser's: chair and table legs are on it)
+            write_apartment_map(Path(tmp) / "map.yaml")
+            nodes.insert(len(nodes) - 1, LaserService(bus.transport(), keys, LaserConfig(
+                laser="front", static_map=Path(tmp) / "map.yaml")))
     if attention is not None:
         truth = TruthTracks(bus.transport(), keys) if attention_truth else None
         if truth is not None:
@@ -193,4 +204,4 @@ def run_chain(scenario: str, *, duration_s: float = 30.0, fps: float = 10.0, wid
                                  truth="around" if laser else "camera")
     if looked is not None:
         report["attention"] = looked.report()
-    return ChainResult(report, table, sim.seq, report.get("attention"))
+    return ChainResult(report, table, sim.seq, report.get("attention"), gt, hyp)

@@ -146,7 +146,7 @@ def _specs(endpoint: str, port: int, robot: str, args: argparse.Namespace, memor
     if args.back_camera:  # the tracker bridges the blind stretches between the two views
         own_env["tracker"] = preset_environment("several-cameras")
     if getattr(args, "laser", False):
-        extra["laser"] = ("--laser", "front")
+        extra["laser"] = ("--laser", "front", *(("--static-map", str(static_map)) if static_map is not None else ()))
         names.append("laser")
     if args.no_static_map:  # nor from the ROS 2 robot's /map
         own_env.setdefault("tracker", {})["PERCEPTION_TRACKER__ROBUST__STATIC_MAP__TOPIC"] = "false"

@@ -4,19 +4,24 @@ A :class:`Walker` turns a plan (a list of :class:`Action`) into time-stamped seg
 with its own random generator, so its state is a pure function of time: the same seed
 gives the same motion whatever the frame rate. When the plan runs out the walker roams
 (random goals in its roaming regions) and the timeline grows on demand.
+
+A :class:`TrackWalker` instead walks a given track (t -> position), e.g. the path a robot
+drove (:func:`follow_route`: a person following the robot at a varying gap), and may hand
+over to a :class:`Walker` when the track ends.
 """
 
 from __future__ import annotations
 
 import bisect
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Callable
 
 import numpy as np
 
 from tools.simulator.core.apartment import Apartment
 from tools.simulator.core.body import Clothing, PersonPose
 
-__all__ = ["Action", "Walker", "WALK_RADIUS"]
+__all__ = ["Action", "TrackWalker", "Walker", "WALK_RADIUS", "follow_route"]
 
 #: Clearance (m) every walker keeps from walls and furniture.
 WALK_RADIUS = 0.3
@@ -236,3 +241,102 @@ class Walker:
             gait=max(gait, 0.4),
         )
         return pose, dress, velocity
+
+
+@dataclass
+class TrackWalker:
+    """A person walking a given ``track`` (t -> (2,) floor position) over [0, ``until``] s,
+    then, with ``then``, that :class:`Walker`'s motion (start it where the track ends, standing
+    until ``until``), else standing where the track ends. The track is sampled every ``dt`` and
+    walked piecewise linearly between samples, so ``state(t)`` is a pure function of time as a
+    Walker's is: the velocity is the derivative of the position, the heading the walking
+    direction (the next one before the first step, the last one when standing), the gait
+    grows with speed and is 0 when still. Same interface as :class:`Walker` for the simulation."""
+
+    track: Callable[[float], np.ndarray]
+    until: float
+    height: float
+    wardrobe: list[Clothing]
+    then: Walker | None = None
+    dt: float = 0.05
+    start_yaw: float = 0.0  # the heading if the track never moves
+
+    def __post_init__(self) -> None:
+        n = max(1, int(np.ceil(self.until / self.dt - 1e-9)))
+        self.until = n * self.dt
+        self._xy = np.array([np.asarray(self.track(k * self.dt), np.float64) for k in range(n + 1)])
+        self._step = np.diff(self._xy, axis=0)  # (n, 2) the displacement in each dt
+        length = np.linalg.norm(self._step, axis=1)
+        self._dist = np.concatenate([[0.0], np.cumsum(length)])
+        yaw = np.full(n, np.nan)
+        moving = length > 1e-6
+        yaw[moving] = np.arctan2(self._step[moving, 1], self._step[moving, 0])
+        if moving.any():
+            first = int(np.argmax(moving))
+            yaw[:first] = yaw[first]
+            for k in range(first + 1, n):  # standing keeps the last heading
+                if not moving[k]:
+                    yaw[k] = yaw[k - 1]
+        else:
+            yaw[:] = self.start_yaw
+        self._yaw = yaw
+
+    def state(self, t: float) -> tuple[PersonPose, int, np.ndarray]:
+        """Pose at time ``t`` (s), the wardrobe index worn, and the velocity (2,) in m/s."""
+        if t >= self.until:
+            if self.then is not None:
+                pose, outfit, velocity = self.then.state(t)  # its gait goes on from the track's
+                return replace(pose, phase=pose.phase + 2 * np.pi * self._dist[-1] / _STRIDE), outfit, velocity
+            end = self._xy[-1]
+            return (PersonPose(float(end[0]), float(end[1]), float(self._yaw[-1]),
+                               phase=2 * np.pi * self._dist[-1] / _STRIDE), 0, np.zeros(2))
+        u = max(t, 0.0) / self.dt
+        k = min(int(u), len(self._step) - 1)
+        f = u - k
+        p = self._xy[k] + f * self._step[k]
+        velocity = self._step[k] / self.dt if t >= 0 else np.zeros(2)
+        speed = float(np.linalg.norm(velocity))
+        dist = self._dist[k] + f * (self._dist[k + 1] - self._dist[k])
+        pose = PersonPose(float(p[0]), float(p[1]), float(self._yaw[k]), "standing",
+                          phase=2 * np.pi * dist / _STRIDE, gait=min(1.0, speed / 0.5))
+        return pose, 0, velocity
+
+
+def follow_route(
+    at: Callable[[float], np.ndarray],
+    lead: Callable[[float], float],
+    leader: Callable[[float], np.ndarray],
+    gap: Callable[[float], float],
+    until: float,
+    dt: float = 0.05,
+    max_speed: float = 1.1,
+    max_accel: float = 0.8,
+    gain: float = 0.8,
+    keep_off: float = 1.35,
+) -> Callable[[float], np.ndarray]:
+    """The track (t -> (2,)) of a person who walks along a path behind whoever leads on it.
+
+    ``at(s)`` is the point of the path at distance s along it, ``lead(t)`` the leader's distance
+    along the same path and ``leader(t)`` their position (2,); the person starts at s = 0 and
+    walks to keep ``gap(t)`` metres of path behind the leader: at the leader's speed plus
+    ``gain`` times the error, never backwards, at most ``max_speed``, changing speed by at most
+    ``max_accel``, and slowing to a stop before coming within ``keep_off`` of the leader in a
+    straight line (where the path turns a corner). Walking only the path the leader took keeps
+    them where the leader could go."""
+    n = int(np.ceil(until / dt)) + 1
+    s = np.zeros(n + 1)
+    v = 0.0
+    for k in range(n):
+        t = k * dt
+        lead_speed = (lead(t + dt) - lead(t)) / dt
+        want = float(np.clip(lead_speed + gain * (lead(t) - gap(t) - s[k]), 0.0, max_speed))
+        v = float(np.clip(want, v - max_accel * dt, v + max_accel * dt))
+        room = float(np.linalg.norm(at(s[k]) - leader(t))) - keep_off
+        v = max(0.0, min(v, 2.0 * room))
+        s[k + 1] = s[k] + v * dt
+    times = np.arange(n + 1) * dt
+
+    def track(t: float) -> np.ndarray:
+        return at(float(np.interp(t, times, s)))
+
+    return track

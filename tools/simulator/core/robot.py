@@ -21,6 +21,7 @@ __all__ = [
     "Odometry",
     "ROBOT_RADIUS",
     "Robot",
+    "Route",
     "follow_trajectory",
     "loop_trajectory",
     "static_trajectory",
@@ -64,6 +65,21 @@ def static_trajectory(x: float, y: float, yaw: float) -> BaseTrajectory:
     return lambda t: (x, y, yaw)
 
 
+def _drive_knots(path: np.ndarray, yaw: float, t: float, speed: float, turn_rate: float) -> list[tuple[float, ...]]:
+    """(t, x, y, yaw) knots of a base driving ``path`` (K, 2) from time ``t`` and heading ``yaw``
+    (unwrapped): at each corner it turns in place at ``turn_rate``, then drives straight at ``speed``."""
+    knots: list[tuple[float, ...]] = []
+    for a, b in zip(path[:-1], path[1:]):
+        heading = float(np.arctan2(b[1] - a[1], b[0] - a[0]))
+        turn = float(np.angle(np.exp(1j * (heading - yaw))))
+        t += abs(turn) / turn_rate
+        yaw += turn
+        knots.append((t, a[0], a[1], yaw))
+        t += float(np.linalg.norm(b - a)) / speed
+        knots.append((t, b[0], b[1], yaw))
+    return knots
+
+
 def loop_trajectory(
     apartment: Apartment, waypoints: list[tuple[float, float]], speed: float = 0.35, turn_rate: float = 0.6
 ) -> BaseTrajectory:
@@ -73,16 +89,7 @@ def loop_trajectory(
         pts += list(apartment.plan(np.asarray(a, float), np.asarray(b, float), ROBOT_RADIUS)[1:])
     path = np.stack(pts)
     yaw = float(np.arctan2(*(path[1] - path[0])[::-1]))
-    t = 0.0
-    knots = [(0.0, path[0][0], path[0][1], yaw)]  # (t, x, y, yaw)
-    for a, b in zip(path[:-1], path[1:]):
-        heading = float(np.arctan2(b[1] - a[1], b[0] - a[0]))
-        turn = float(np.angle(np.exp(1j * (heading - yaw))))
-        t += abs(turn) / turn_rate
-        yaw += turn
-        knots.append((t, a[0], a[1], yaw))
-        t += float(np.linalg.norm(b - a)) / speed
-        knots.append((t, b[0], b[1], yaw))
+    knots = [(0.0, path[0][0], path[0][1], yaw), *_drive_knots(path, yaw, 0.0, speed, turn_rate)]  # (t, x, y, yaw)
     k = np.array(knots)
     period = float(k[-1, 0])
 
@@ -95,6 +102,60 @@ def loop_trajectory(
         return x, y, float(np.angle(np.exp(1j * yaw_t)))
 
     return pose
+
+
+class Route:
+    """A base that drives once along ``waypoints`` (planned around furniture, as
+    :func:`loop_trajectory` does) and stays at the end: it first stands ``wait_s`` facing
+    ``start_yaw``, turns in place towards the path, drives at ``speed`` turning in place at
+    corners (``turn_rate``), and at the end turns in place to ``end_yaw``. Callable as a
+    :data:`BaseTrajectory`; :attr:`path` (K, 2) is the planned path (:attr:`cum` the distance
+    along it at each vertex), :meth:`driven` the distance driven by time t and :meth:`reaches`
+    when it first gets somewhere, for people who walk the same path."""
+
+    def __init__(self, apartment: Apartment, waypoints: list[tuple[float, float]], speed: float = 0.45,
+                 turn_rate: float = 1.0, start_yaw: float | None = None, wait_s: float = 0.0,
+                 end_yaw: float | None = None) -> None:
+        pts = [np.asarray(waypoints[0], float)]
+        for a, b in zip(waypoints[:-1], waypoints[1:]):
+            pts += list(apartment.plan(np.asarray(a, float), np.asarray(b, float), ROBOT_RADIUS)[1:])
+        self.path = np.stack(pts)
+        self.cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(self.path, axis=0), axis=1))])
+        first = self.path[1] - self.path[0]
+        yaw = float(np.arctan2(first[1], first[0])) if start_yaw is None else float(start_yaw)
+        knots = [(0.0, *self.path[0], yaw), (wait_s, *self.path[0], yaw), *_drive_knots(self.path, yaw, wait_s, speed,
+                                                                                      turn_rate)]
+        self.depart_s = float(knots[2][0]) if len(knots) > 2 else float(wait_s)  # when it starts driving
+        self.arrival_s = float(knots[-1][0])  # when it stops at the end of the path
+        if end_yaw is not None:
+            last = knots[-1][3]
+            turn = float(np.angle(np.exp(1j * (end_yaw - last))))
+            knots.append((self.arrival_s + abs(turn) / turn_rate, *self.path[-1], last + turn))
+        self.knots = np.array(knots, float)  # (t, x, y, unwrapped yaw)
+        self.end_s = float(self.knots[-1, 0])  # when it stands still for good
+        # the distance driven at each knot: nothing while standing and turning, each segment's end after it
+        along = [0.0, 0.0, *(d for i in range(len(self.path) - 1) for d in (self.cum[i], self.cum[i + 1]))]
+        self._driven = np.array(along + [self.cum[-1]] * (len(self.knots) - len(along)))
+
+    def __call__(self, t: float) -> tuple[float, float, float]:
+        k = self.knots
+        yaw = float(np.interp(t, k[:, 0], k[:, 3]))
+        return float(np.interp(t, k[:, 0], k[:, 1])), float(np.interp(t, k[:, 0], k[:, 2])), float(
+            np.angle(np.exp(1j * yaw)))
+
+    def driven(self, t: float) -> float:
+        """The distance (m) driven along :attr:`path` by time ``t``."""
+        return float(np.interp(t, self.knots[:, 0], self._driven))
+
+    def reaches(self, s: float) -> float:
+        """When the base first reaches distance ``s`` along :attr:`path` (inf: never)."""
+        d, t = self._driven, self.knots[:, 0]
+        i = int(np.searchsorted(d, s, side="left"))  # the first knot at or past s
+        if i == 0:
+            return float(t[0])
+        if i >= len(d):
+            return float("inf")
+        return float(t[i - 1] + (s - d[i - 1]) / (d[i] - d[i - 1]) * (t[i] - t[i - 1]))
 
 
 #: Half a person's width: a base stops only when it sees both shoulders, not the target's middle

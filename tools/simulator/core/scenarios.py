@@ -1,5 +1,6 @@
 """The seven scenarios of the dataset of Pinto's thesis (§IV-B), plus ``handover`` for a
-second camera on the base (as in the TU Ilmenau framework); each deterministic per seed."""
+second camera on the base and ``guided-tour`` (a person following the robot, out of the head
+camera's view) from the TU Ilmenau framework; each deterministic per seed."""
 
 from __future__ import annotations
 
@@ -9,11 +10,12 @@ from typing import Callable
 import numpy as np
 
 from tools.simulator.core.apartment import Apartment, default_apartment
-from tools.simulator.core.motion import Action, Walker
+from tools.simulator.core.motion import WALK_RADIUS, Action, TrackWalker, Walker, follow_route
 from tools.simulator.core.robot import (
     HeadMotion,
     Odometry,
     Robot,
+    Route,
     follow_trajectory,
     loop_trajectory,
     static_trajectory,
@@ -24,6 +26,7 @@ __all__ = ["SCENARIOS", "Scenario", "World", "build_world"]
 
 LIVING = (0.4, 1.9, 5.8, 6.6)  # where people roam in front of the robot
 BEDROOM = (6.5, 0.4, 8.7, 4.6)  # behind the partition: out of view
+LIVING_WEST = (0.4, 1.9, 4.6, 6.6)  # the living room west of guided-tour's leg north to the door (x = 5.6)
 
 
 @dataclass
@@ -31,7 +34,7 @@ class World:
     """Everything that moves: people (``ids[i]`` is ``walkers[i]``'s ground-truth id) and the robot."""
 
     apartment: Apartment
-    walkers: list[Walker]
+    walkers: list[Walker | TrackWalker]
     ids: list[int]
     robot: Robot
     head_moves: bool
@@ -252,6 +255,75 @@ def _handover(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
     return World(apt, walkers, [1, 2], robot, False, 42.0)
 
 
+# the tour: south between the west wall and the sofa, east across the living room, north to the
+# door, through it and south into the kitchen; the long legs straight, their corners right angles
+_TOUR = [(0.6, 3.1), (0.6, 2.6), (0.95, 2.0), (5.6, 2.0), (5.6, 4.2), (7.45, 4.2), (7.45, 1.2)]
+_TOUR_GUEST = (0.6, 5.5)  # person 1 at the start, by the window: 2.4 m in front of the robot, which faces them
+_TOUR_GAP = 2.4  # at the start and the end: 2.3 m from the camera, a 1.95 m tall person wholly in its view
+_TOUR_GAPS = (2.25, 0.75)  # while driving the gap swings 2.25 +- 0.75 m along the path
+_SIDE_START = (0.8, 0.8)  # where person 2 waits, by the bookshelf (in view as the robot turns round)
+_SIDE_JOIN, _SIDE_LEAVE = 1.9, 5.3  # person 2 walks beside the robot while it drives east from x = 1.9 to 5.3
+_SIDE_OFFSET = -1.0  # on its right (south), out of the head camera's view
+_SIDE_AFTER = (2.6, 0.7)  # then back along the south wall, behind person 1, before roaming the room's west
+_TOUR_S = 48.4  # the robot stands still for good after 44.2 s: 4.2 s more facing person 1
+
+
+def _polyline(points: np.ndarray) -> Callable[[float], np.ndarray]:
+    """s -> (2,): the point at distance s along ``points`` (K, 2), clipped to its ends."""
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    return lambda s: np.array([np.interp(s, cum, points[:, 0]), np.interp(s, cum, points[:, 1])])
+
+
+def _guided_tour(rng: np.random.Generator, apt: Apartment, alike: bool) -> World:
+    route = Route(apt, _TOUR, speed=0.45, turn_rate=1.0, start_yaw=np.pi / 2, wait_s=3.0, end_yaw=np.pi / 2)
+    duration = _TOUR_S
+    wardrobes = draw_outfits(rng, 2, 1, alike)
+    guest_rng, side_rng = (np.random.default_rng(rng.integers(2**63)) for _ in range(2))
+
+    # person 1 walks the robot's own path behind it, the gap swinging smoothly between about 1.5
+    # and 3 m (period and sense per seed), back to the start's for the end
+    period, sense = float(guest_rng.uniform(13.0, 19.0)), float(guest_rng.choice([-1.0, 1.0]))
+    go, stop = route.depart_s, route.arrival_s
+
+    def gap(t: float) -> float:
+        swing = _TOUR_GAPS[0] + _TOUR_GAPS[1] * sense * np.sin(2 * np.pi * max(t - go, 0.0) / period)
+        # from the start's gap once the robot drives off, back to it 1.5 s before the robot stops
+        fade = float(np.clip(min((t - go) / 3.0, (stop - 1.5 - t) / 5.0), 0.0, 1.0)) ** 2
+        return _TOUR_GAP + (swing - _TOUR_GAP) * fade
+
+    trail = np.vstack([_TOUR_GUEST, route.path])
+    lead0 = float(np.linalg.norm(route.path[0] - np.asarray(_TOUR_GUEST)))
+    guest_track = follow_route(_polyline(trail), lambda t: lead0 + route.driven(t),
+                               lambda t: np.asarray(route(t)[:2]), gap, duration)
+    guest = TrackWalker(guest_track, duration, person_height(guest_rng), wardrobes[0])
+
+    # person 2 catches up with the robot on its long leg east and walks beside it, then turns
+    # back along the south wall and roams the living room's west, away from the route
+    east = 2  # the leg from route.path[2] to route.path[3]
+    x0, y0 = route.path[east]
+    t_join, t_leave = (route.reaches(route.cum[east] + x - x0) for x in (_SIDE_JOIN, _SIDE_LEAVE))
+    join = np.array([_SIDE_JOIN, y0 + _SIDE_OFFSET])
+    approach = apt.plan(np.asarray(_SIDE_START), join, WALK_RADIUS)
+    walk = _polyline(approach)
+    length = float(np.sum(np.linalg.norm(np.diff(approach, axis=0), axis=1)))
+    t_set = t_join - length / float(side_rng.uniform(0.6, 0.75))  # 0.6-0.75 m/s, then the robot's 0.45
+
+    def side_track(t: float) -> np.ndarray:
+        if t < t_join:
+            return walk(length * float(np.clip((t - t_set) / (t_join - t_set), 0.0, 1.0)))
+        x, y, _ = route(min(t, t_leave))
+        return np.array([x, y + _SIDE_OFFSET])
+
+    side = TrackWalker(side_track, t_leave, person_height(side_rng), wardrobes[1])
+    leave = side_track(side.until)
+    plan = [Action("wait", seconds=side.until), Action("turn", np.pi), Action("goto", _SIDE_AFTER),
+            Action("wait", seconds=2.0), Action("goto", "centre"), Action("roam")]
+    side.then = Walker(apt, (float(leave[0]), float(leave[1])), 0.0, side.height, side.wardrobe, plan, side_rng,
+                       speed=float(side_rng.uniform(0.8, 1.1)), roam_regions=[LIVING_WEST])
+    robot = _robot(route, HeadMotion(tilt0=0.1), rng)
+    return World(apt, [guest, side], [1, 2], robot, False, duration)
+
+
 SCENARIOS: dict[str, Scenario] = {
     s.name: s
     for s in (
@@ -288,6 +360,13 @@ SCENARIOS: dict[str, Scenario] = {
             "passing beside it: from the head camera's view into the back camera's (--back-camera)",
             42.0,
             _handover,
+        ),
+        Scenario(
+            "guided-tour",
+            "the robot guides person 1, who follows 1.5-3 m behind it out of the head camera's view, through the "
+            "apartment; person 2 walks beside it for a stretch; it faces person 1 at the start and the end",
+            _TOUR_S,
+            _guided_tour,
         ),
     )
 }

@@ -2,7 +2,7 @@
 
 Inputs: ``scans/{laser}`` (:class:`LaserScan`), ``tf`` and ``tf_static`` (the scanner's pose in
 ``target_frame`` at each scan's stamp), ``static_map`` (its obstacles: a person is never inside a
-wall). Output: ``localized/{laser}``, :class:`LocalizedDetections` the tracker fuses like any
+wall: legs on its obstacles are dropped before they are paired into people). Output: ``localized/{laser}``, :class:`LocalizedDetections` the tracker fuses like any
 camera's, position only: one detection per person (a pair of legs, or a lone leg with a wider
 covariance), ``score`` the probability that it is a person's leg, ``depth_m`` its range from the
 scanner, ``valid_pixels`` its beams, no image box (``bbox_xyxy`` all zeros) and ``detector``
@@ -13,6 +13,7 @@ counted; invalid beams (no return) are counted by reason, never an error.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections import deque
 from dataclasses import dataclass
@@ -38,7 +39,7 @@ from common.runtime.service import Counters
 from common.transport.base import Transport
 from services.laser.config import LaserConfig
 from services.laser.core.boost import Boosted
-from services.laser.core.legs import detect, in_frame, pair
+from services.laser.core.legs import Legs, detect, in_frame, pair
 from services.laser.core.scan import ScanGeometry
 
 __all__ = ["DETECTOR", "LaserService", "coverage"]
@@ -48,6 +49,16 @@ log = logging.getLogger(__name__)
 #: ``LocalizedDetections.detector`` of the laser's people.
 DETECTOR = "laser-legs"
 NO_BOX = (0.0, 0.0, 0.0, 0.0)
+
+
+def _only(legs: Legs, keep: np.ndarray) -> Legs:
+    """``legs`` without those ``keep`` is False for."""
+    if keep.all():
+        return legs
+    idx = np.flatnonzero(keep)
+    return dataclasses.replace(legs, xy=legs.xy[idx], probability=legs.probability[idx],
+                               log_odds=legs.log_odds[idx], width=legs.width[idx],
+                               beams=[legs.beams[i] for i in idx.tolist()])
 
 
 def coverage(scan: LaserScan, rotation: np.ndarray, translation: np.ndarray, max_range_m: float) -> ScanCoverage:
@@ -157,14 +168,17 @@ class LaserService(Node):
         for reason, n in legs.invalid.items():
             if n:
                 self.counters.count(f"beams_{reason}", n)
+        rejected = {}
+        if self.obstacles is not None and c.map_clearance_m > 0 and len(legs):
+            # before pairing: two chair or table legs on the map would pair into a "person" between them
+            local = np.column_stack([legs.xy, np.zeros(len(legs))])
+            on_map = self.obstacles.blocked((local @ rotation.T + translation)[:, :2], c.map_clearance_m)
+            rejected["legs_on_map"] = int(on_map.sum())
+            legs = _only(legs, ~on_map)
         people = pair(legs, self.params)
         pos, cov = in_frame(people, rotation, translation, c.floor_z_m + c.person_z_m, c.person_z_sigma_m)
         keep = people.probability >= c.min_probability
-        rejected = {"unlikely": int((~keep).sum())}
-        if self.obstacles is not None and c.map_clearance_m > 0 and keep.any():
-            on_map = keep & self.obstacles.blocked(pos[:, :2], c.map_clearance_m)
-            rejected["on_map"] = int(on_map.sum())
-            keep &= ~on_map
+        rejected["unlikely"] = int((~keep).sum())
         dets = [LocalizedDetection(index=i, bbox_xyxy=NO_BOX, score=float(people.probability[k]), position=pos[k],
                                    cov=cov[k], depth_m=max(float(np.hypot(*people.xy[k])), 1e-3),
                                    valid_pixels=int(sum(len(legs.beams[j]) for j in people.legs[k])))

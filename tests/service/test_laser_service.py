@@ -100,7 +100,7 @@ def test_people_on_the_map_s_obstacles_are_left_out(memory_bus: MemoryBus) -> No
                           origin=(0.0, 0.0, 0.0), data=cells.tobytes()))
     rig.scans.put(scan(3, [(2.0, -0.125), (2.0, 0.125)]))
     [msg] = rig.service.poll(0.0)
-    assert msg.detections == [] and msg.rejected["on_map"] == 1
+    assert msg.detections == [] and msg.rejected["legs_on_map"] == 2
 
 
 def test_a_map_file_s_furniture_is_left_out_and_a_bad_file_is_named(memory_bus: MemoryBus, tmp_path: Path) -> None:
@@ -115,7 +115,7 @@ def test_a_map_file_s_furniture_is_left_out_and_a_bad_file_is_named(memory_bus: 
     rig.mount()
     rig.scans.put(scan(3, [(2.0, -0.125), (2.0, 0.125)]))
     [msg] = rig.service.poll(0.0)
-    assert msg.detections == [] and msg.rejected["on_map"] == 1
+    assert msg.detections == [] and msg.rejected["legs_on_map"] == 2
     assert rig.service.sub_map is None  # the file's map, not the stream's
     (tmp_path / "bad.yaml").write_text("image: nowhere.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
     with pytest.raises(MapFileError, match="nowhere.pgm"):

@@ -49,6 +49,28 @@ def test_the_laser_sees_what_no_nearer_return_hides_within_its_range_and_sweep()
     assert back.contains(np.array([[-3.0, 0.0, 0.9], [3.0, 0.0, 0.9], [0.0, 3.0, 0.9]])).tolist() == [True, False, True]
     with pytest.raises(ValueError):
         ScanView(np.eye(4), 0.0, 0.0, np.ones(4), 8.0)
+    # it sees that nobody is there only where every beam across a body went on past: not at the return
+    assert view.sees_absence(pts).tolist() == [True, False, False, True, True, False]
+    assert view.absence_differs and not Views((head_camera(),)).absence_differs
+
+
+def test_a_person_by_a_wall_the_laser_cannot_tell_apart_is_kept_while_one_in_free_space_is_missed() -> None:
+    """A confirmed track stops being detected: where the laser's beams end at it (a wall or a chair
+    where they stood) the miss says nothing and the track is kept on the limits out of view (the
+    several-cameras preset's wider ones here); where the beams go on through (nobody there) it is a
+    miss: its prediction spreads past max_position_var and it ends."""
+    r = np.full(720, np.inf)
+    r[350:371] = 3.1  # a wall just behind the place of the person at (3, 0)
+    by_wall, free = sweep(r), sweep()
+    kept = {}
+    for name, view in (("by the wall", by_wall), ("free", free)):
+        trk = RobustTracker(RobustParams(max_coast_unseen_s=10.0, max_position_var_unseen=25.0))
+        for k in range(10):
+            trk.step(*camera_frame(k * 0.1, [(3.0, 0.0)]))
+        for k in range(10, 25):  # 1.5 s of laser scans that find nobody
+            trk.step(*laser_frame(k * 0.1, [], view=view))
+        kept[name] = [v.id for v in trk.tracks]
+    assert kept == {"by the wall": [1], "free": []}
 
 
 def laser_frame(t: float, people: list[tuple[float, float]], score: float = 0.95, view: ScanView | None = None

@@ -44,12 +44,16 @@ def age(state: RobustTrackerState, p: RobustParams, stamp: float, previous: floa
     t = state.tracks
     coasting = _coast(t, stamp)
     if view is not None and coasting:
-        seen = view.contains(t.mean[coasting, :3], p.view_margin)
+        points = t.mean[coasting, :3]
+        seen = view.contains(points, p.view_margin).tolist()
+        telling = view.sees_absence(points, p.view_margin).tolist() if view.absence_differs else seen
         before = previous if previous is not None else stamp
-        for j, s in zip(coasting, seen.tolist()):
-            if t.in_view[j] is False:  # out of view since the last frame
+        for j, s, a in zip(coasting, seen, telling):
+            # out of view since the last frame, or in a view that could not tell them from what stood
+            # there (a laser's, by a wall): the time does not count as missed
+            if t.in_view[j] is False or (t.in_view[j] and not t.misses_tell[j]):
                 t.unseen_s[j] += max(0.0, stamp - max(before, t.last_update[j]))
-            t.in_view[j] = s
+            t.in_view[j], t.misses_tell[j] = s, a
     var = (t.cov[:, 0, 0] + t.cov[:, 1, 1]).tolist()
     ended, keep = [], []
     for j, last in enumerate(t.last_update):

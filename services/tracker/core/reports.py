@@ -43,6 +43,7 @@ class TrackRow:
     clf_steps: int
     forgotten: bool
     in_view: bool | None
+    misses_tell: bool
     unseen_s: float
     camera: str
     posture: np.ndarray

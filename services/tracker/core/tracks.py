@@ -79,7 +79,8 @@ class TrackTable:
     product moves every track), ``mean`` (T, S) and ``cov`` (T, S, S); the bookkeeping a frame reads
     a few entries of in lists: ``id`` (0 while tentative), ``is_person`` (IsPerson) and ``beliefs`` (by
     detector: core/is_person.py), ``in_view``
-    (None: not known), ``slot`` the gallery's in the :class:`GalleryBank` (-1: none yet), ``fix`` (x,
+    (None: not known) and ``misses_tell`` (a miss there means they are not there: false in a
+    laser's view by a wall), ``slot`` the gallery's in the :class:`GalleryBank` (-1: none yet), ``fix`` (x,
     y, variance per axis at the last detection) and ``probation`` (the recovered ID, its end, the
     next check) for core/recovery.py; ``extra`` each cue's :class:`Columns` by the cue's name."""
 
@@ -96,6 +97,7 @@ class TrackTable:
     ever_confirmed: list[bool]
     forgotten: list[bool]
     in_view: list[bool | None]
+    misses_tell: list[bool]
     unseen_s: list[float]
     camera: list[str]
     slot: list[int]
@@ -145,6 +147,7 @@ class TrackTable:
         self.ever_confirmed += [False] * k
         self.forgotten += [False] * k
         self.in_view += [None] * k
+        self.misses_tell += [True] * k
         self.unseen_s += [0.0] * k
         self.camera += [camera] * k
         self.slot += [-1] * k

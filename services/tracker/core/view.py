@@ -20,8 +20,19 @@ import numpy as np
 __all__ = ["FieldOfView", "FloorView", "ScanView", "View", "Views"]
 
 
+class _SeesAbsence:
+    """A camera's view: where it could see a person, it would see that they are not there (a
+    miss in view is a miss). A laser's is weaker (:class:`ScanView`)."""
+
+    #: whether :meth:`sees_absence` can differ from ``contains`` (the tracker skips it when not)
+    absence_differs = False
+
+    def sees_absence(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        return self.contains(points, margin)  # type: ignore[attr-defined,no-any-return]
+
+
 @dataclass(frozen=True)
-class FieldOfView:
+class FieldOfView(_SeesAbsence):
     """A pinhole camera's view: ``camera_to_frame`` (4, 4) maps camera points (z forward)
     into the tracking frame; ``K`` (3, 3), ``width`` x ``height`` pixels; points farther
     than ``max_range_m`` along the optical axis are out of view."""
@@ -60,7 +71,7 @@ class FieldOfView:
 
 
 @dataclass(frozen=True)
-class FloorView:
+class FloorView(_SeesAbsence):
     """A fixed camera's view of the floor: ``image_to_floor`` (3, 3) maps a foot pixel ``(u, v, 1)``
     to the floor ``(x, y, w)`` (the localizer's ``FloorHomography.H``), ``width`` x ``height``
     pixels; a point is in view when its foot (``x, y``) projects inside the image. The border is
@@ -118,7 +129,11 @@ class ScanView:
     A point is in view when it is within ``max_range_m`` of the scanner, inside the sweep, and some
     beam across ``body_radius_m`` either side of it reaches it (within ``body_radius_m`` twice: the
     legs are in front of the body's centre): a person behind a nearer return is hidden, and missing
-    them there is no miss."""
+    them there is no miss. Where a person would stand among other returns (legs beside a wall or a
+    chair, which the leg detector cannot always tell apart), the laser sees them but not their
+    absence: a miss there says nothing (:meth:`sees_absence`)."""
+
+    absence_differs = True
 
     scanner_to_frame: np.ndarray
     angle_min: float
@@ -141,6 +156,16 @@ class ScanView:
     def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Whether each point (N, 3) of the tracking frame is in the laser's view (``margin``, a share
         of an image, means nothing to a scan)."""
+        return self._reached(points, -2 * self.body_radius_m, np.max)
+
+    def sees_absence(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Whether the laser saw that nobody stands at each point: every beam across the body's
+        width went on past it, free space."""
+        return self._reached(points, self.body_radius_m, np.min)
+
+    def _reached(self, points: np.ndarray, beyond_m: float, which: object) -> np.ndarray:
+        """Whether ``which`` (max: some, min: every) of the beams across a body's width at each point
+        returned farther than the point's distance plus ``beyond_m``, within range and sweep."""
         p = np.asarray(points, np.float64).reshape(-1, 3)
         rot, t = self.scanner_to_frame[:3, :3], self.scanner_to_frame[:3, 3]
         local = (p - t) @ rot
@@ -155,7 +180,7 @@ class ScanView:
             half = int(np.ceil(np.arctan2(self.body_radius_m, max(dist[k], 1e-3)) / inc))
             c = int(round(beam[k]))
             lo, hi = max(0, c - half), min(n, c + half + 1)
-            out[k] = bool(reach[lo:hi].max() >= dist[k] - 2 * self.body_radius_m)
+            out[k] = bool(which(reach[lo:hi]) >= dist[k] + beyond_m)  # type: ignore[operator]
         return out
 
 
@@ -165,11 +190,22 @@ class Views:
 
     views: tuple[FieldOfView | FloorView | ScanView, ...]
 
+    @property
+    def absence_differs(self) -> bool:
+        return any(v.absence_differs for v in self.views)
+
     def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
         p = np.asarray(points, np.float64).reshape(-1, 3)
         seen = np.zeros(len(p), bool)
         for view in self.views:
             seen |= view.contains(p, margin)
+        return seen
+
+    def sees_absence(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        p = np.asarray(points, np.float64).reshape(-1, 3)
+        seen = np.zeros(len(p), bool)
+        for view in self.views:
+            seen |= view.sees_absence(p, margin)
         return seen
 
 

@@ -126,14 +126,16 @@ def test_each_detectors_belief_drifts_with_its_own_time_constant() -> None:
     assert after["depth"] == pytest.approx(0.5 + (before["depth"] - 0.5) * np.exp(-0.15 / 0.5))
 
 
-def _round_the_robot(with_laser: bool) -> tuple[set[int], int]:
+def _round_the_robot(with_laser: bool) -> tuple[set[int], int, float]:
     """A person seen by the head camera (looking along +x) walks round the robot on a 2.5 m circle
     at 0.5 m/s: 31 s a lap, most of it outside the camera's view; the laser (360 degrees) sees
-    them all the way at 10 Hz. The IDs ever reported and the frames they were reported in."""
+    them all the way at 10 Hz. The IDs ever reported, the frames they were reported in, and the share
+    of the camera's frames behind the robot after which they were reported as confirmed (the
+    camera's frame, which cannot see them, does not make them coast between two scans)."""
     trk = RobustTracker(RobustParams())
     fov = head_camera()
     ids: set[int] = set()
-    reported = 0
+    reported, behind, confirmed_behind = 0, 0, 0
     for k in range(int(40 / 0.1)):
         t = k * 0.1
         a = 0.2 * t  # rad: 0.5 m/s on 2.5 m
@@ -148,13 +150,17 @@ def _round_the_robot(with_laser: bool) -> tuple[set[int], int]:
             r = trk.step(when, frame)
             now = confirmed(trk, r)
             ids |= set(now)
+            if frame.camera == "head" and p[0][0] < -1.0:
+                behind += 1
+                confirmed_behind += any(v.status is TrackStatus.CONFIRMED for v in trk.reported(r))
         reported += bool(now)
-    return ids, reported
+    return ids, reported, confirmed_behind / max(behind, 1)
 
 
 def test_a_person_walking_round_the_robot_keeps_their_id_while_only_the_laser_sees_them() -> None:
-    ids, reported = _round_the_robot(with_laser=True)
+    ids, reported, confirmed_behind = _round_the_robot(with_laser=True)
     assert ids == {1}
     assert reported >= 0.95 * 400  # reported all the way round, behind the robot too
-    ids_alone, reported_alone = _round_the_robot(with_laser=False)
+    assert confirmed_behind == 1.0  # and confirmed there, after the camera's frames too
+    ids_alone, reported_alone, _ = _round_the_robot(with_laser=False)
     assert len(ids_alone) >= 2 and reported_alone < 0.5 * 400  # the camera alone: lost behind, a new ID back

@@ -22,7 +22,7 @@ from services.tracker.core.id_decisions import explain
 from services.tracker.core.robust_params import RobustParams
 from services.tracker.core.tracks import RobustTrackerState, TrackTable
 from services.tracker.core.types import FrameResult, HandOver, IdDecision, IdOutcome, TrackStatus
-from services.tracker.core.view import View
+from services.tracker.core.view import View, Views
 
 _TENTATIVE, _CONFIRMED, _COASTING = TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.COASTING
 
@@ -37,12 +37,13 @@ def bayes(p: float, q: float) -> float:
 
 
 def age(state: RobustTrackerState, p: RobustParams, stamp: float, previous: float | None,
-        view: View | None) -> tuple[list[int], list[bool]]:
+        view: View | None, camera: str = "") -> tuple[list[int], list[bool]]:
     """Coasting, the tracks' view flags and the end of tracks at ``stamp`` (``previous``: the
-    last frame's stamp). Returns the rows to delete (in order) and the rows to keep (neither:
-    tentative tracks that did not go on, clutter)."""
+    last frame's stamp; ``camera`` the frame's sensor, whose own view is ``view``'s first).
+    Returns the rows to delete (in order) and the rows to keep (neither: tentative tracks that did
+    not go on, clutter)."""
     t = state.tracks
-    coasting = _coast(t, stamp)
+    coasting = _coast(t, stamp, _elsewhere(t, stamp, p.report_coast_s, view, camera))
     if view is not None and coasting:
         points = t.mean[coasting, :3]
         seen = view.contains(points, p.view_margin).tolist()
@@ -68,12 +69,27 @@ def age(state: RobustTrackerState, p: RobustParams, stamp: float, previous: floa
     return ended, keep
 
 
-def _coast(t: TrackTable, stamp: float) -> list[int]:
-    """Confirmed tracks not detected at ``stamp`` coast; returns the coasting rows (the others
-    forget whether they were in view)."""
+def _elsewhere(t: TrackTable, stamp: float, within_s: float, view: View | None, camera: str) -> set[int]:
+    """The confirmed tracks another sensor detected within ``within_s`` that this frame's own
+    sensor could not see (outside its view: ``view``'s first, :meth:`Intake.view`'s order): a laser's
+    person behind the robot is not missed by the camera's frame in between two scans."""
+    own = view.views[0] if isinstance(view, Views) else view
+    if own is None or not camera:
+        return set()
+    rows = [j for j, last in enumerate(t.last_update)
+            if t.status[j] is _CONFIRMED and 0 < stamp - last <= within_s and t.camera[j] != camera]
+    if not rows:
+        return set()
+    seen = own.contains(t.mean[rows, :3]).tolist()
+    return {j for j, s in zip(rows, seen) if not s}
+
+
+def _coast(t: TrackTable, stamp: float, elsewhere: set[int] = frozenset()) -> list[int]:  # type: ignore[assignment]
+    """Confirmed tracks not detected at ``stamp`` coast, but those of ``elsewhere``; returns the
+    coasting rows (the others forget whether they were in view)."""
     coasting = []
     for j, last in enumerate(t.last_update):
-        if stamp - last > 0 and t.status[j] is _CONFIRMED:
+        if stamp - last > 0 and t.status[j] is _CONFIRMED and j not in elsewhere:
             t.status[j] = _COASTING
         if t.status[j] is _COASTING:
             coasting.append(j)

@@ -111,7 +111,7 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         for cue in self._learning:  # galleries, classifiers, statures, postures, where each was seen
             cue.learn(pairing, state, rows)
         result = FrameResult(stamp=stamp, appearance_available=pairing.descriptors is not None)
-        self._age(stamp, result, frame.view, previous)
+        self._age(stamp, result, frame.view, previous, frame.camera)
         self._births(pairing, set(rows[0].tolist()), result)
         self._remove(lifecycle.confirm(state, self.params, result))
         lifecycle.probation(state, self.params, stamp, result)  # recent recoveries checked again
@@ -231,9 +231,10 @@ class RobustTracker(TrackerCore[RobustTrackerState]):
         """The most IsPerson belief ``frame``'s detector can give (core/is_person.py)."""
         return (self.params.scores if frame.score_model is None else frame.score_model).max_is_person
 
-    def _age(self, stamp: float, result: FrameResult, view: View | None, previous: float | None) -> None:
+    def _age(self, stamp: float, result: FrameResult, view: View | None, previous: float | None,
+             camera: str = "") -> None:
         """Coasting and deletion (:func:`lifecycle.age`); a deleted track's appearance is archived."""
-        ended, keep = lifecycle.age(self.state, self.params, stamp, previous, view)
+        ended, keep = lifecycle.age(self.state, self.params, stamp, previous, view, camera)
         for j in ended:
             result.deleted.append(track_report(self.state, j, stamp, TrackStatus.DELETED, None))
             lifecycle.archive(self.state, j, view, self.params.recovery.exit_horizon_s)

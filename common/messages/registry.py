@@ -76,7 +76,7 @@ NODES: tuple[NodeEntry, ...] = (
               "a camera, a video file or a folder of images to frames/{camera}",
               subscribes=("detections",), publishes=("frames",)),
     NodeEntry("ros2", "services.ros2", "services.ros2.service:Ros2Service", "services.ros2.config:Ros2Config",
-              "a ROS 2 robot's camera and transforms in, the people out as ROS 2 topics (rmw_zenoh)",
+              "a ROS 2 robot's camera, transforms and laser scans in, the people out as ROS 2 topics (rmw_zenoh)",
               subscribes=("tracks",), publishes=("frames", "tf", "tf_static", "static_map", "scans"), ros2=True),
     NodeEntry("viewer", "tools.viewer", "tools.viewer.node:ViewerNode", "tools.viewer.config:ViewerConfig",
               "the operator's live page",

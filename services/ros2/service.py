@@ -1,4 +1,4 @@
-"""The ROS 2 node: a ROS 2 robot's camera and transforms in, its people out, over rmw_zenoh.
+"""The ROS 2 node: a ROS 2 robot's camera, transforms and laser scans in, its people out, over rmw_zenoh.
 
 ROS 2 topics are Zenoh keys with CDR payloads (``services.ros2.core.wire``), so this node is a
 ROS 2 participant on the robot's own router: no bridge process, no ROS install. It appears in

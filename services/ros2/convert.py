@@ -1,5 +1,5 @@
-"""This project's frames and transforms as ROS 2 messages: what a ROS 2 camera driver and tf
-publish. For a stand-in ROS 2 robot (``perception simulate --ros2``) and for tests."""
+"""This project's frames, laser scans and transforms as ROS 2 messages: what a ROS 2 camera
+driver, a laser driver and tf publish. For a stand-in ROS 2 robot (``perception simulate --ros2``) and for tests."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ from typing import Any
 
 import numpy as np
 
-from common.messages.schemas import Header, RGBDFrame, TransformBatch
+from common.messages.schemas import Header, LaserScan, RGBDFrame, TransformBatch
 from services.ros2.core.types import RosTypes
 
-__all__ = ["camera_info_message", "header_message", "image_message", "tf_message"]
+__all__ = ["camera_info_message", "header_message", "image_message", "scan_message", "tf_message"]
 
 
 def header_message(types: RosTypes, header: Header, frame_id: str | None = None) -> Any:
@@ -63,3 +63,13 @@ def tf_message(types: RosTypes, batch: TransformBatch) -> Any:
         out.append(ts_cls(header=header, child_frame_id=t.child_frame, transform=types.cls("geometry_msgs/msg/Transform")(
             translation=vec(x=x, y=y, z=z), rotation=quat(x=qx, y=qy, z=qz, w=qw))))
     return types.cls("tf2_msgs/msg/TFMessage")(transforms=out)
+
+
+def scan_message(types: RosTypes, scan: LaserScan) -> Any:
+    """The scan as ``sensor_msgs/msg/LaserScan``, as a laser driver publishes it."""
+    intensities = np.zeros(0, np.float32) if scan.intensities is None else np.asarray(scan.intensities, np.float32)
+    return types.cls("sensor_msgs/msg/LaserScan")(
+        header=header_message(types, scan.header), angle_min=float(scan.angle_min), angle_max=float(scan.angle_max),
+        angle_increment=float(scan.angle_increment), time_increment=float(scan.time_increment),
+        scan_time=float(scan.scan_time), range_min=float(scan.range_min), range_max=float(scan.range_max),
+        ranges=np.ascontiguousarray(scan.ranges, np.float32), intensities=intensities)

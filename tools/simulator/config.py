@@ -31,8 +31,9 @@ class SimulatorConfig(AdvancedBlock):
                                       "yaw 180 deg, the head camera's intrinsics), published on frames/{name} with "
                                       "frame id {name}_optical; None = none")
     laser: str | None = setting(None, "name of a 2-D laser on the base (360 degrees in 0.25-degree steps at 15 Hz, "
-                                "at 0.2 m above the floor, 1 cm noise, 1 % dropouts), published on scans/{name} with "
-                                "frame id base_laser, and the ground truth's laser_seen; None = none (--laser)")
+                                "at 0.2 m above the floor, 1 cm noise, 1 % dropouts), published on scans/{name} (with "
+                                "ros2: on /scan, as its driver would) with frame id base_laser, and the ground "
+                                "truth's laser_seen; None = none (--laser)")
     rate: float = setting(1.0, "speed relative to real time", gt=0.0, le=100.0)
     max_speed: bool = setting(False, "as fast as the detector keeps up instead of --rate")
     max_wait_s: float = setting(1.0, "--max: longest wait for the detector per frame", unit="s", gt=0.0, advanced=True)

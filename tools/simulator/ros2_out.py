@@ -1,7 +1,8 @@
 """The simulated robot as a ROS 2 robot (``perception simulate --ros2``): its head camera as
 the RealSense ROS 2 driver publishes it (rgb8 colour, 16UC1 depth aligned to colour, camera
-info, on the driver's default topics), its transforms on ``/tf`` and ``/tf_static`` and its map
-on ``/map`` (as Nav2's map_server: once, transient local),
+info, on the driver's default topics), its transforms on ``/tf`` and ``/tf_static``, its map
+on ``/map`` (as Nav2's map_server: once, transient local) and, with ``--laser``, its base laser on
+``/scan``,
 through rmw_zenoh's wire format. The ``perception ros2`` node reads them back into this
 project's streams, as it would on a real ROS 2 robot."""
 
@@ -9,10 +10,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from common.messages.schemas import RGBDFrame, StaticMap, TransformBatch
+from common.messages.schemas import LaserScan, RGBDFrame, StaticMap, TransformBatch
 from common.transport.base import Transport
 from services.ros2.config import Ros2Config
-from services.ros2.convert import camera_info_message, image_message, tf_message
+from services.ros2.convert import camera_info_message, image_message, scan_message, tf_message
 from services.ros2.core.types import types_of
 from services.ros2.maps import occupancy_grid_message
 from services.ros2.participant import QOS_SENSOR, QOS_TF, QOS_TF_STATIC, RosParticipant
@@ -68,6 +69,15 @@ class RosRobot:
         if frame.depth is not None:
             self.depth.put(image_message(self.types, frame, depth=True), stamp)
         self.colour.put(image_message(self.types, frame), stamp)
+
+    def laser(self, topic: str = "/scan") -> _Out:
+        """The base laser's driver: ``sensor_msgs/msg/LaserScan`` on ``topic``."""
+        pub = self.ros.publisher(topic, "sensor_msgs/msg/LaserScan", QOS_SENSOR)
+
+        def send(scan: LaserScan) -> None:
+            pub.put(scan_message(self.types, scan), scan.header.stamp_ns)
+
+        return _Out(pub.key, send, pub.pub.has_subscribers)
 
     def camera(self) -> _Out:
         return _Out(self.colour.key, self._frame, self.colour.pub.has_subscribers)

@@ -72,6 +72,9 @@ class SimulatorService:
             self.publishers[keys.frames(config.camera)] = self.ros.camera()  # type: ignore[assignment]
             self.publishers[keys.tf()] = self.ros.transforms(static=False)  # type: ignore[assignment]
             self.publishers[keys.tf_static()] = self.ros.transforms(static=True)  # type: ignore[assignment]
+            if config.laser is not None:  # the base laser's driver: /scan
+                self.publishers[keys.scans(config.laser)].close()
+                self.publishers[keys.scans(config.laser)] = self.ros.laser()  # type: ignore[assignment]
         # --max: each camera's detector (the head's, and the back camera's if there is one)
         self._detections: dict[str, Subscription[Detections]] = {
             camera: transport.subscribe(keys.detections(camera), Detections, RELIABLE)

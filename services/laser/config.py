@@ -28,7 +28,7 @@ class LaserConfig(AdvancedBlock):
     laser_frame: str = setting("", "the scanner's frame id when its scans carry none")
     model: Path | None = setting(None, "a leg classifier written by 'perception train-legs'; None: the one shipped "
                                  "in the package (trained on Leigh et al.'s labelled scans)")
-    min_probability: float = setting(0.5, "a person's least probability (that a leg of theirs is a leg) to be "
+    min_probability: float = setting(0.2, "a person's least probability (that a leg of theirs is a leg) to be "
                                      "published", ge=0.0, lt=1.0)
     max_range_m: float = setting(_D.max_range_m, "legs farther than this from the scanner are left out", unit="m",
                                  gt=0.0, le=100.0)

@@ -42,9 +42,11 @@ _R = RobustParams()
 #: scores the classifier's calibrated probability that a leg is a leg; chair and table legs imitate
 #: legs, so its own IsPerson belief stops at 0.7, below ``confirm_is_person`` (0.75): the laser keeps
 #: and supports the people a camera confirmed, and never confirms anyone alone (the TU Ilmenau
-#: framework's IsPerson per detector).
+#: framework's IsPerson per detector). The node publishes people from 0.2 on (many false ones, as the
+#: framework's laser: about one an empty scan on the dev rooms); below 0.5 they keep tracks, never
+#: start one.
 DETECTOR_SCORES: dict[str, ScoreConfig] = {
-    "laser-legs": ScoreConfig(center=0.5, scale=0.2, max_is_person=0.7),
+    "laser-legs": ScoreConfig(center=0.5, scale=0.2, max_is_person=0.7, birth_score=0.5),
 }
 
 

@@ -6,7 +6,7 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Any, Callable, Iterator
 
 import pytest
 
@@ -126,3 +126,19 @@ def zenoh_client(router: RouterProcess) -> Iterator[Callable[[], ZenohTransport]
 @pytest.fixture
 def memory_bus() -> MemoryBus:
     return MemoryBus()
+
+
+@pytest.fixture
+def sdk_session(router: RouterProcess, monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Any, str, int]]:
+    """zenoh-ros2-sdk's shared session, on the test's router, loopback only, no scouting
+    (tests/helpers/ros2_sdk.py has the rest of the far side)."""
+    sdk = pytest.importorskip("zenoh_ros2_sdk", reason="zenoh-ros2-sdk (the test extra) is not installed")
+    monkeypatch.setenv("ZENOH_CONFIG_OVERRIDE", 'scouting/multicast/enabled=false;listen/endpoints=["tcp/127.0.0.1:0"]')
+    host, port = router.endpoint.removeprefix("tcp/").rsplit(":", 1)
+    sdk.ZenohSession._instance = None
+    session = sdk.ZenohSession.get_instance(host, int(port))
+    try:
+        yield session, host, int(port)
+    finally:
+        session.session.close()
+        sdk.ZenohSession._instance = None

@@ -9,7 +9,6 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -19,26 +18,17 @@ from common.messages.keys import RELIABLE, SCANS
 from common.messages.schemas import (Header, LaserScan, LocalizedDetections, ServiceStatus, Transform,
                                      TransformBatch)
 from services.ros2.convert import tf_message
-from tests.integration.test_ros2_zenoh import DOMAIN, KEYS, T, _fields, _node, _pub, _stop, _wait_alive, sdk
+from tests.helpers.ros2_sdk import DOMAIN, KEYS, T, sdk
+from tests.helpers.ros2_sdk import fields as _fields
+from tests.helpers.ros2_sdk import ros2_node as _node
+from tests.helpers.ros2_sdk import ros2_publisher as _pub
+from tests.helpers.ros2_sdk import stop as _stop
+from tests.helpers.ros2_sdk import wait_alive as _wait_alive
 
 pytestmark = [pytest.mark.zenoh, pytest.mark.slow]
 TYPE = "sensor_msgs/msg/LaserScan"
 T0 = 1_700_000_000_000_000_000
 N = 541  # a 270-degree scanner at half a degree
-
-
-@pytest.fixture
-def sdk_session(router: Any, monkeypatch: pytest.MonkeyPatch) -> Iterator[Any]:
-    """zenoh-ros2-sdk's shared session on the test's router (as in test_ros2_zenoh.py)."""
-    monkeypatch.setenv("ZENOH_CONFIG_OVERRIDE", 'scouting/multicast/enabled=false;listen/endpoints=["tcp/127.0.0.1:0"]')
-    host, port = router.endpoint.removeprefix("tcp/").rsplit(":", 1)
-    sdk.ZenohSession._instance = None
-    session = sdk.ZenohSession.get_instance(host, int(port))
-    try:
-        yield session, host, int(port)
-    finally:
-        session.session.close()
-        sdk.ZenohSession._instance = None
 
 
 def _ranges(k: int, legs: bool = False) -> np.ndarray:

@@ -7,85 +7,33 @@ itself uses for /tf_static.
 
 from __future__ import annotations
 
-import os
-import signal
 import subprocess
-import sys
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 import pytest
 
-from common.messages.keys import FRAMES, RELIABLE, Keys
+from common.messages.keys import FRAMES, RELIABLE
 from common.messages.schemas import Header, RGBDFrame, StaticMap, Tracks, TrackState, Transform, TransformBatch
 from services.ros2.convert import camera_info_message, image_message, tf_message
-from services.ros2.core.types import types_of
 from services.ros2.core.wire import attachment
-from tests.helpers.wait import wait_until
-
-os.environ.setdefault("GIT_PYTHON_REFRESH", "quiet")
-sdk = pytest.importorskip("zenoh_ros2_sdk", reason="zenoh-ros2-sdk (the test extra) is not installed")
+from tests.helpers.ros2_sdk import DOMAIN, KEYS, T, sdk
+from tests.helpers.ros2_sdk import fields as _fields
+from tests.helpers.ros2_sdk import ros2_node as _node
+from tests.helpers.ros2_sdk import ros2_publisher as _pub
+from tests.helpers.ros2_sdk import stop as _stop
+from tests.helpers.ros2_sdk import wait_alive as _wait_alive
 
 pytestmark = [pytest.mark.zenoh, pytest.mark.slow]
-KEYS = Keys(robot="rosz")
-T = types_of()
-DOMAIN = 17
 COLOUR, DEPTH, INFO = ("/camera/camera/color/image_raw", "/camera/camera/aligned_depth_to_color/image_raw",
                        "/camera/camera/color/camera_info")
-
-
-@pytest.fixture
-def sdk_session(router: Any, monkeypatch: pytest.MonkeyPatch) -> Iterator[Any]:
-    """zenoh-ros2-sdk's shared session, on the test's router, loopback only, no scouting."""
-    monkeypatch.setenv("ZENOH_CONFIG_OVERRIDE", 'scouting/multicast/enabled=false;listen/endpoints=["tcp/127.0.0.1:0"]')
-    host, port = router.endpoint.removeprefix("tcp/").rsplit(":", 1)
-    sdk.ZenohSession._instance = None
-    session = sdk.ZenohSession.get_instance(host, int(port))
-    try:
-        yield session, host, int(port)
-    finally:
-        session.session.close()
-        sdk.ZenohSession._instance = None
-
-
-def _node(router: Any, *extra: str) -> subprocess.Popen[str]:
-    cmd = [sys.executable, "-m", "perception", "ros2", "--robot", KEYS.robot, "--domain-id", str(DOMAIN), "--mode",
-           "client", "--connect", router.endpoint, "--no-multicast-scouting", *extra]
-    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            env={**os.environ, "RUST_LOG": "error"})
-
-
-def _wait_alive(t: Any, node: subprocess.Popen[str], timeout: float = 30.0) -> None:
-    def up() -> bool:
-        assert node.poll() is None, node.communicate()[0]
-        return bool(t.alive(KEYS.alive("ros2")))
-
-    wait_until(up, timeout, what="perception ros2's liveliness")
-
-
-def _stop(node: subprocess.Popen[str]) -> str:
-    node.send_signal(signal.SIGINT)
-    out, _ = node.communicate(timeout=30)
-    assert node.returncode == 0, out
-    return out
 
 
 def _frame(k: int) -> RGBDFrame:
     from common.messages.samples import rgbd_frame
 
     return rgbd_frame(64, 48, stamp_ns=1_700_000_000_000_000_000 + k * 50_000_000)
-
-
-def _pub(session: tuple[Any, str, int], topic: str, type_name: str) -> Any:
-    _, host, port = session
-    return sdk.ROS2Publisher(topic, type_name, msg_definition=T.definition(type_name), type_hash=T.hash(type_name),
-                             domain_id=DOMAIN, router_ip=host, router_port=port, node_name="camera")
-
-
-def _fields(msg: Any) -> dict[str, Any]:
-    return {f: getattr(msg, f) for f in msg.__dataclass_fields__}
 
 
 def test_a_third_party_ros2_camera_in_and_the_people_out(router: Any, zenoh_client: Any, sdk_session: Any) -> None:

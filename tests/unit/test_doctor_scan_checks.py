@@ -17,7 +17,7 @@ from services.ros2.core.wire import GraphEntity, Qos, ros_to_dds
 from tools.doctor.collect import Observer
 from tools.doctor.core.checks import exit_code, render, run_checks
 from tools.doctor.core.facts import Check, EdgeFacts, NodeFacts, Observation, ScanFacts, StreamFacts
-from tests.unit.test_doctor_checks import S, T0, healthy
+from tests.helpers.doctor_facts import S, T0, healthy
 
 T = types_of()
 END = T0 + 3 * S

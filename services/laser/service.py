@@ -13,7 +13,6 @@ counted; invalid beams (no return) are counted by reason, never an error.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 from collections import deque
 from dataclasses import dataclass
@@ -39,7 +38,7 @@ from common.runtime.service import Counters
 from common.transport.base import Transport
 from services.laser.config import LaserConfig
 from services.laser.core.boost import Boosted
-from services.laser.core.legs import Legs, detect, in_frame, pair
+from services.laser.core.legs import detect, in_frame, pair
 from services.laser.core.scan import ScanGeometry
 
 __all__ = ["DETECTOR", "LaserService", "coverage"]
@@ -49,16 +48,6 @@ log = logging.getLogger(__name__)
 #: ``LocalizedDetections.detector`` of the laser's people.
 DETECTOR = "laser-legs"
 NO_BOX = (0.0, 0.0, 0.0, 0.0)
-
-
-def _only(legs: Legs, keep: np.ndarray) -> Legs:
-    """``legs`` without those ``keep`` is False for."""
-    if keep.all():
-        return legs
-    idx = np.flatnonzero(keep)
-    return dataclasses.replace(legs, xy=legs.xy[idx], probability=legs.probability[idx],
-                               log_odds=legs.log_odds[idx], width=legs.width[idx],
-                               beams=[legs.beams[i] for i in idx.tolist()])
 
 
 def coverage(scan: LaserScan, rotation: np.ndarray, translation: np.ndarray, max_range_m: float) -> ScanCoverage:
@@ -174,7 +163,7 @@ class LaserService(Node):
             local = np.column_stack([legs.xy, np.zeros(len(legs))])
             on_map = self.obstacles.blocked((local @ rotation.T + translation)[:, :2], c.map_clearance_m)
             rejected["legs_on_map"] = int(on_map.sum())
-            legs = _only(legs, ~on_map)
+            legs = legs.only(~on_map)
         people = pair(legs, self.params)
         pos, cov = in_frame(people, rotation, translation, c.floor_z_m + c.person_z_m, c.person_z_sigma_m)
         keep = people.probability >= c.min_probability

@@ -9,6 +9,7 @@ the scanner's frame.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -61,6 +62,15 @@ class Legs:
 
     def __len__(self) -> int:
         return len(self.probability)
+
+    def only(self, keep: np.ndarray) -> Legs:
+        """These legs but those ``keep`` (L,) is False for (the invalid beams' counts stay)."""
+        if keep.all():
+            return self
+        idx = np.flatnonzero(keep)
+        return dataclasses.replace(self, xy=self.xy[idx], probability=self.probability[idx],
+                                   log_odds=self.log_odds[idx], width=self.width[idx],
+                                   beams=[self.beams[i] for i in idx.tolist()])
 
 
 @dataclass(frozen=True)

@@ -9,8 +9,7 @@ the scanner's frame.
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.special import expit
@@ -68,9 +67,9 @@ class Legs:
         if keep.all():
             return self
         idx = np.flatnonzero(keep)
-        return dataclasses.replace(self, xy=self.xy[idx], probability=self.probability[idx],
-                                   log_odds=self.log_odds[idx], width=self.width[idx],
-                                   beams=[self.beams[i] for i in idx.tolist()])
+        return replace(self, xy=self.xy[idx], probability=self.probability[idx],
+                       log_odds=self.log_odds[idx], width=self.width[idx],
+                       beams=[self.beams[i] for i in idx.tolist()])
 
 
 @dataclass(frozen=True)

@@ -47,3 +47,12 @@ def test_scans_come_at_the_scanners_rate_with_its_mount_and_whom_it_saw() -> Non
     # without a laser: no scans and no verdict
     fd, pairs = stream(15.0, None).messages(0)
     assert not [k for k, _ in pairs if "scans" in k] and all(p.laser_seen is None for p in fd.people)
+
+
+def test_the_scanner_is_configured_as_the_robot_s() -> None:
+    s = SimulatedStream(SimulatorConfig(scenario="still", laser="front", fps=30, width=160, height=120,
+                                        start_ns=10**18, laser_fov_deg=270.0, laser_step_deg=0.5,
+                                        laser_rate_hz=10.0), KEYS)
+    scans = [m for seq in range(6) for k, m in s.messages(seq)[1] if k == KEYS.scans("front")]
+    assert len(scans) == 2 and len(scans[0].ranges) == 541  # every third frame; 270 degrees in 0.5
+    assert abs(scans[0].angle_min + np.radians(135)) < 1e-9

@@ -30,10 +30,16 @@ class SimulatorConfig(AdvancedBlock):
     back_camera: str | None = setting(None, "name of a second camera, fixed on the base looking backwards (0.95 m up, "
                                       "yaw 180 deg, the head camera's intrinsics), published on frames/{name} with "
                                       "frame id {name}_optical; None = none")
-    laser: str | None = setting(None, "name of a 2-D laser on the base (360 degrees in 0.25-degree steps at 15 Hz, "
+    laser: str | None = setting(None, "name of a 2-D laser on the base (laser_fov_deg, laser_step_deg, laser_rate_hz; "
                                 "at 0.2 m above the floor, 1 cm noise, 1 % dropouts), published on scans/{name} (with "
                                 "ros2: on /scan, as its driver would) with frame id base_laser, and the ground "
                                 "truth's laser_seen; None = none (--laser)")
+    laser_fov_deg: float = setting(360.0, "the laser's sweep (a Hokuyo UST-10LX or a SICK TiM: 270)", unit="deg",
+                                   gt=0.0, le=360.0, advanced=True)
+    laser_step_deg: float = setting(0.25, "the laser's angle between beams (0.25-0.5 on most)", unit="deg", gt=0.0,
+                                    le=5.0, advanced=True)
+    laser_rate_hz: float = setting(15.0, "the laser's sweeps per second (at most one a camera frame)", unit="Hz",
+                                   gt=0.0, le=100.0, advanced=True)
     rate: float = setting(1.0, "speed relative to real time", gt=0.0, le=100.0)
     max_speed: bool = setting(False, "as fast as the detector keeps up instead of --rate")
     max_wait_s: float = setting(1.0, "--max: longest wait for the detector per frame", unit="s", gt=0.0, advanced=True)

@@ -73,9 +73,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         const="front",
         default=None,
         metavar="NAME",
-        help="also publish a 2-D laser on the base (360 degrees, 0.25-degree steps, 15 Hz, 0.2 m above the floor, "
-             "Hokuyo-like noise and dropouts) as scans/NAME (default front), frame id base_laser on tf_static; "
-             "the ground truth then says whom it could see (laser_seen)",
+        help="also publish a 2-D laser on the base (360 degrees, 0.25-degree steps, 15 Hz by default: the settings "
+             "laser_fov_deg, laser_step_deg, laser_rate_hz; 0.2 m above the floor, Hokuyo-like noise and dropouts) "
+             "as scans/NAME (default front; with --ros2 on /scan), frame id base_laser on tf_static; the ground "
+             "truth then says whom it could see (laser_seen)",
     )
     speed = parser.add_mutually_exclusive_group()
     speed.add_argument("--rate", type=float, default=None, metavar="X", help="speed relative to real time")

@@ -10,6 +10,7 @@ from common.messages.schemas import Message, PeopleGroundTruth, RGBDFrame
 from tools.simulator.config import SimulatorConfig
 from tools.simulator.core.cameras import back_camera
 from tools.simulator.core.head_servo import CommandedHead
+from tools.simulator.core.laser_scan import LaserSpec
 from tools.simulator.core.render import default_camera
 from tools.simulator.core.scenarios import SCENARIOS, build_world
 from tools.simulator.core.simulation import BaseLaser, FrameData, Simulation
@@ -44,7 +45,8 @@ class SimulatedStream:
             self.world.head_moves = True
         self.camera = default_camera(config.width, config.height)
         fixed = [back_camera(config.back_camera)] if config.back_camera is not None else []
-        self.laser = BaseLaser(name=config.laser) if config.laser is not None else None
+        self.laser = None if config.laser is None else BaseLaser(LaserSpec(
+            fov_deg=config.laser_fov_deg, step_deg=config.laser_step_deg, rate_hz=config.laser_rate_hz), config.laser)
         self.simulation = Simulation(
             self.world, self.camera, config.fps, config.seed, config.min_visible, config.depth_noise, fixed, self.laser
         )

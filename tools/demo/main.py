@@ -219,7 +219,7 @@ def main(args: argparse.Namespace) -> int:
     sim: subprocess.Popen[bytes] | None = None
     looked: AttentionLog | None = None
     echo: TrackedEcho | None = None
-    print(wrap(f"starting the router and the four services (log: {log_dir / 'processes.log'}) ..."), flush=True)
+    print(wrap(f"starting the router and the services (log: {log_dir / 'processes.log'}) ..."), flush=True)
     with Shutdown() as shutdown:
         sup_thread.start()
         try:

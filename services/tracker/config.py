@@ -114,8 +114,8 @@ class TrackerConfig(AdvancedBlock):
                           min_length=1)
     lasers: list[str] = setting(
         default_factory=lambda: ["front", "rear"],
-        description="2-D lasers whose people (localized/{laser}, 'perception laser') are fused with the camera's, "
-                    "by position (--laser; none: the camera alone)")
+        description="2-D lasers whose people (localized/{laser}, 'perception laser') the robust profile fuses with "
+                    "the camera's, by position (--laser; none: the camera alone; the thesis profile reads none)")
     frame_id: str = setting("map", "tracking frame; inputs in another frame are dropped and counted", min_length=1)
     output_rate_hz: float = setting(10.0, "Tracks are published at this rate, predicted to the publish time (TU "
                                     "Ilmenau; --output-rate); 0: once per input frame", unit="Hz", ge=0.0, le=1000.0)

@@ -108,3 +108,9 @@ def test_a_chairs_legs_seen_by_the_laser_alone_never_become_a_person(tmp_path: P
         published += chain.step(seq, legs, [])
     assert chain.laser_people > 0  # the laser reports something there (the person, the chair)
     assert not [t for m in published for t in m.tracks if t.status != "tentative"]
+
+
+def test_the_thesis_profile_reads_no_laser(tmp_path: Path, memory_bus: MemoryBus) -> None:
+    thesis = TrackerService(memory_bus.transport(), KEYS, TrackerConfig(memory_path=tmp_path / "m.npz",
+                                                                        profile="thesis"))
+    assert thesis.laser_subs == [] and "laser" not in thesis.describe()

@@ -96,8 +96,7 @@ class TrackerService(Node):
         self._obstacles: ObstacleMap | None = None  # the static_map stream's, once one came
         self.loc_sub = self.io.subscribe(keys.localized(config.camera), LocalizedDetections, RELIABLE)
         self.emb_sub = self.io.subscribe(keys.embeddings(config.camera), Embeddings, RELIABLE)
-        # the lasers' people: the robust profile's (Pinto's thesis tracks one camera; '*' has them already)
-        self.laser_subs = [] if config.camera == "*" or config.profile != "robust" else [
+        self.laser_subs = [] if config.camera == "*" or config.profile != "robust" else [  # the thesis: one camera
             self.io.subscribe(keys.localized(laser), LocalizedDetections, RELIABLE)
             for laser in dict.fromkeys(config.lasers) if laser != config.camera]
         self.publisher = self.io.publisher(keys.tracks(), Tracks, RELIABLE)

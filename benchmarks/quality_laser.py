@@ -20,11 +20,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from common.messages.schemas import PeopleGroundTruth, Tracks  # noqa: E402
+from tools.demo.scoring import frame_outputs, nearest_pairs  # noqa: E402
 
 #: the scenarios' person whose ID matters most: the one the robot guides or follows
 FOLLOWED = {"guided-tour": 1, "people-following": 1}
@@ -37,10 +37,7 @@ def person_switches(truth: dict[int, PeopleGroundTruth], tracks: list[Tracks], p
     count in (camera or laser): each frame they are paired with the nearest reported track within
     ``gate_m`` on the floor that no nearer person took (greedy, nearest pairs first); a switch is
     a matched ID other than their previous matched one."""
-    by_seq: dict[int, Tracks] = {}
-    for t in tracks:
-        if t.header.source == source:
-            by_seq.setdefault(t.header.seq, t)
+    by_seq = {t.header.seq: t for t in frame_outputs(tracks, source)}
     switches = matched = counted = 0
     last: int | None = None
     for seq in sorted(truth):
@@ -49,18 +46,9 @@ def person_switches(truth: dict[int, PeopleGroundTruth], tracks: list[Tracks], p
             continue
         counted += 1
         out = by_seq.get(seq)
-        if out is None or not out.tracks:
-            continue
-        pairs = sorted((float(np.linalg.norm(p.position[:2] - tr.position[:2])), p.id, tr.id)
-                       for p in people for tr in out.tracks)
-        used_p: set[int] = set()
-        used_t: set[int] = set()
-        for d, pid, tid in pairs:
-            if d > gate_m or pid in used_p or tid in used_t:
-                continue
-            used_p.add(pid)
-            used_t.add(tid)
-            if pid == person:
+        for i, j in nearest_pairs(people, out.tracks, gate_m) if out is not None else []:
+            if people[i].id == person:
+                tid = out.tracks[j].id  # type: ignore[union-attr]
                 matched += 1
                 switches += int(last is not None and tid != last)
                 last = tid

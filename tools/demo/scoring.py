@@ -18,7 +18,7 @@ from typing import Any, Literal
 import numpy as np
 
 from common.messages.keys import Delivery, Keys
-from common.messages.schemas import PeopleGroundTruth, Tracks
+from common.messages.schemas import PeopleGroundTruth, PersonGroundTruth, Tracks, TrackState
 from common.transport.base import Transport
 from tools.demo.monitor import Monitor
 from tools.evaluation.evaluate import evaluate_tables, format_table, make_report
@@ -105,6 +105,21 @@ def score(gt: GroundTruthLog, monitor: Monitor, name: str, plot: Path | None = N
     return score_tracks(gt.frames, monitor.all_tracks, name, plot, source, width, truth)
 
 
+def nearest_pairs(people: list[PersonGroundTruth], tracks: list[TrackState], gate_m: float) -> list[tuple[int, int]]:
+    """(person, track) index pairs on the floor within ``gate_m``, greedy, the nearest pairs first."""
+    pairs = sorted((float(np.linalg.norm(p.position[:2] - t.position[:2])), i, j)
+                   for i, p in enumerate(people) for j, t in enumerate(tracks))
+    used_p: set[int] = set()
+    used_t: set[int] = set()
+    out = []
+    for d, i, j in pairs:
+        if d <= gate_m and i not in used_p and j not in used_t:
+            used_p.add(i)
+            used_t.add(j)
+            out.append((i, j))
+    return out
+
+
 def pose_scores(gt: dict[int, PeopleGroundTruth], tracks: list[Tracks], gate_m: float = 1.0) -> dict[str, Any]:
     """Posture accuracy and orientation error of the tracks against the simulator's truth.
 
@@ -121,15 +136,7 @@ def pose_scores(gt: dict[int, PeopleGroundTruth], tracks: list[Tracks], gate_m: 
         if truth is None or not msg.tracks:
             continue
         people = truth.counted()
-        pairs = sorted((float(np.linalg.norm(p.position[:2] - t.position[:2])), i, j)
-                       for i, p in enumerate(people) for j, t in enumerate(msg.tracks))
-        used_p: set[int] = set()
-        used_t: set[int] = set()
-        for d, i, j in pairs:
-            if d > gate_m or i in used_p or j in used_t:
-                continue
-            used_p.add(i)
-            used_t.add(j)
+        for i, j in nearest_pairs(people, msg.tracks, gate_m):
             person, track = people[i], msg.tracks[j]
             posture = np.asarray(track.posture)
             if np.ptp(posture) > 1e-6 and person.posture in _POSTURES:

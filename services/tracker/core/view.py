@@ -195,17 +195,16 @@ class Views:
         return any(v.absence_differs for v in self.views)
 
     def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
-        p = np.asarray(points, np.float64).reshape(-1, 3)
-        seen = np.zeros(len(p), bool)
-        for view in self.views:
-            seen |= view.contains(p, margin)
-        return seen
+        return self._any("contains", points, margin)
 
     def sees_absence(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        return self._any("sees_absence", points, margin)
+
+    def _any(self, test: str, points: np.ndarray, margin: float) -> np.ndarray:
         p = np.asarray(points, np.float64).reshape(-1, 3)
         seen = np.zeros(len(p), bool)
         for view in self.views:
-            seen |= view.sees_absence(p, margin)
+            seen |= getattr(view, test)(p, margin)
         return seen
 
 
